@@ -1,0 +1,1 @@
+"""amb_fault_monitor."""

@@ -1,0 +1,35 @@
+"""ament_python package ``amb_wavelet_control``: the four parts and their tools."""
+
+from glob import glob
+
+from setuptools import find_packages, setup
+
+PACKAGE = "amb_wavelet_control"
+
+# Node executables (``ros2 run amb_wavelet_control <name>``) and command-line tools.
+NODES = {
+    "recorder": "amb_tools.recorder_node:main",
+}
+TOOLS = {}
+
+setup(
+    name=PACKAGE,
+    version="0.1.0",
+    packages=find_packages(include=["amb_*"], exclude=["amb_msgs", "amb_msgs.*"]),
+    data_files=[
+        ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
+        (f"share/{PACKAGE}", ["package.xml"]),
+        (f"share/{PACKAGE}/config", glob("config/*.yaml")),
+        (f"share/{PACKAGE}/config/scenarios", glob("config/scenarios/*.yaml")),
+        (f"share/{PACKAGE}/launch", glob("launch/*.py")),
+    ],
+    install_requires=["setuptools"],
+    zip_safe=True,
+    maintainer="amb_wavelet_control maintainers",
+    maintainer_email="amb-wavelet-control@example.com",
+    description="Wavelet fault detection and transient control of flexible rotors on AMBs",
+    license="Apache-2.0",
+    entry_points={
+        "console_scripts": [f"{name} = {target}" for name, target in {**NODES, **TOOLS}.items()],
+    },
+)
