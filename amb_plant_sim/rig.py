@@ -1,0 +1,456 @@
+"""
+The rig description: ``config/rig.yaml`` loaded into validated dataclasses.
+
+Every number of the thesis rig (Cade 2006, Tables 2.1-2.3 and section 2.1) lives in that file;
+code reads it through :func:`load_rig`. Axial positions ``z`` are measured from the drive end;
+sensor planes, bearings and disks are listed in thesis order (from the non-driven end).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from amb_plant_sim.errors import RigError
+
+DEFAULT_RIG_PATH = Path(__file__).resolve().parent.parent / "config" / "rig.yaml"
+
+
+@dataclass(frozen=True)
+class Material:
+    """Isotropic material: density ``rho`` (kg/m^3), Young's modulus ``E`` (Pa), ``poisson``."""
+
+    rho: float
+    E: float
+    poisson: float
+
+    @property
+    def G(self) -> float:  # noqa: N802 - shear modulus symbol
+        """Shear modulus, Pa."""
+        return self.E / (2.0 * (1.0 + self.poisson))
+
+
+@dataclass(frozen=True)
+class RigidDisk:
+    """
+    A rigid, axially symmetric disk on the shaft (eq. 2.12-2.13).
+
+    Attributes
+    ----------
+    tag : str
+        Name (``D1``..., ``CORE1``..., ``C1``...).
+    z : float
+        Axial position of its centre, m from the drive end.
+    rho : float
+        Density of the geometric body, kg/m^3.
+    width, inner_radius, outer_radius : float
+        Geometry, m.
+    mass : float
+        Mass used by the model, kg. Inertias are the geometric ones scaled by
+        ``mass / geometric_mass`` (a lighter body of the same shape).
+    """
+
+    tag: str
+    z: float
+    rho: float
+    width: float
+    inner_radius: float
+    outer_radius: float
+    mass: float
+
+    @property
+    def geometric_mass(self) -> float:
+        """Mass of the annulus from its geometry and density, kg."""
+        return self.rho * math.pi * (self.outer_radius**2 - self.inner_radius**2) * self.width
+
+    @property
+    def polar_inertia(self) -> float:
+        """Polar moment of inertia I_p about the spin axis, kg m^2."""
+        return 0.5 * self.mass * (self.outer_radius**2 + self.inner_radius**2)
+
+    @property
+    def diametral_inertia(self) -> float:
+        """Diametral moment of inertia I_d about a diameter through the centre, kg m^2."""
+        r2 = self.outer_radius**2 + self.inner_radius**2
+        return self.mass * (3.0 * r2 + self.width**2) / 12.0
+
+
+@dataclass(frozen=True)
+class SensorPlane:
+    """A pair of orthogonal probes (x, y) at axial position ``z`` (m); role inner/outer."""
+
+    tag: str
+    z: float
+    role: str
+
+
+@dataclass(frozen=True)
+class Bearing:
+    """An AMB at axial position ``z`` (m) fed back from sensor plane ``sensor_plane`` (1-based)."""
+
+    tag: str
+    z: float
+    sensor_plane: int
+
+
+@dataclass(frozen=True)
+class ClearanceBearing:
+    """Auxiliary or retainer bearing at ``z`` (m) with radial clearance (m)."""
+
+    tag: str
+    z: float
+    kind: str
+    radial_clearance: float
+
+
+@dataclass(frozen=True)
+class ShaftData:
+    """Uniform shaft: length, radii (m), material, element count and element options."""
+
+    length: float
+    outer_radius: float
+    inner_radius: float
+    material: Material
+    elements: int
+    shear: bool = True
+    rotary_inertia: bool = True
+    internal_damping_viscous: float = 0.0
+    internal_damping_hysteretic: float = 0.0
+
+
+@dataclass(frozen=True)
+class AmbData:
+    """AMB data of section 2.3 and Table 2.2 (SI)."""
+
+    Kz: float
+    Ki: float
+    law: str
+    force_limit: float
+    pole_area: float
+    turns: int
+    nominal_air_gap: float
+    coil_resistance: float
+    coil_inductance: float
+    peak_current: float
+    amplifier: str
+    amplifier_bandwidth: float
+
+    @property
+    def bias_current(self) -> float:
+        """
+        Bias current I_b, A, of the opposing-pair law consistent with ``Ki``.
+
+        From eq. (2.40) with the levitation current I_s = 0 (gravity is not part of the
+        lateral model about the static equilibrium): K_i = 4 mu0 N^2 A I_b / c_g^2.
+        With Table 2.2 this gives I_b = 4.70 A and K_z = 4 mu0 N^2 A I_b^2 / c_g^3 = 2.24e6
+        N/m, i.e. the thesis's pair (572 N/A, 2240 N/mm) corresponds to I_s = 0.
+        """
+        mu0 = 4e-7 * math.pi
+        return self.Ki * self.nominal_air_gap**2 / (4.0 * mu0 * self.turns**2 * self.pole_area)
+
+
+@dataclass(frozen=True)
+class PidGains:
+    """Decentralised PID of Table 2.3 as force per displacement (N/m, N/(m s), N s/m, rad/s)."""
+
+    Kp: float
+    KI: float
+    Kd: float
+    derivative_cutoff: float
+
+
+@dataclass(frozen=True)
+class ContactData:
+    """Contact model parameters for eq. (5.5)."""
+
+    model: str
+    hertz_stiffness: float
+    penalty_stiffness: float
+    damping: float
+    friction: float
+    slip_velocity_scale: float
+    rotor_radius: float
+    substeps: int
+
+
+@dataclass(frozen=True)
+class SimulationData:
+    """Time integration settings: minimum internal rate (Hz), speed quantum (Hz), cache size."""
+
+    internal_rate_min: float = 5000.0
+    speed_quantum: float = 0.01
+    cache_size: int = 32
+
+
+@dataclass(frozen=True)
+class Rig:
+    """The whole rig, as loaded from ``config/rig.yaml``."""
+
+    shaft: ShaftData
+    disks: tuple[RigidDisk, ...]
+    amb_cores: tuple[RigidDisk, ...]
+    collars: tuple[RigidDisk, ...]
+    sensor_planes: tuple[SensorPlane, ...]
+    bearings: tuple[Bearing, ...]
+    clearance_bearings: tuple[ClearanceBearing, ...]
+    amb: AmbData
+    pid: PidGains
+    contact: ContactData
+    simulation: SimulationData
+    calibration: dict[str, Any] = field(default_factory=dict)
+    source: str = ""
+
+    @property
+    def rigid_bodies(self) -> tuple[RigidDisk, ...]:
+        """All rigid bodies on the shaft: disks, AMB cores, collars."""
+        return self.disks + self.amb_cores + self.collars
+
+    def stations(self) -> list[float]:
+        """Axial positions (m) that must be FE nodes: ends, bodies, sensors, bearings."""
+        zs = [0.0, self.shaft.length]
+        zs += [b.z for b in self.rigid_bodies]
+        zs += [s.z for s in self.sensor_planes]
+        zs += [b.z for b in self.bearings]
+        zs += [c.z for c in self.clearance_bearings]
+        return sorted(set(round(z, 9) for z in zs))
+
+    def with_elements(self, elements: int) -> Rig:
+        """Copy with another shaft element count."""
+        return replace(self, shaft=replace(self.shaft, elements=int(elements)))
+
+
+def _req(d: dict[str, Any], key: str, where: str) -> Any:
+    if not isinstance(d, dict) or key not in d:
+        raise RigError(f"rig file: missing key '{key}' in {where}; add it (see config/rig.yaml)")
+    return d[key]
+
+
+def _pos(value: Any, name: str, allow_zero: bool = False) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError) as exc:
+        raise RigError(f"rig file: {name} must be a number, got {value!r}") from exc
+    if not math.isfinite(v) or v < 0.0 or (v == 0.0 and not allow_zero):
+        kind = "non-negative" if allow_zero else "positive"
+        raise RigError(f"rig file: {name} must be finite and {kind}, got {v}")
+    return v
+
+
+def _body(
+    d: dict[str, Any], materials: dict[str, Material], where: str, length: float
+) -> RigidDisk:
+    tag = str(_req(d, "tag", where))
+    mat_name = _req(d, "material", where)
+    if mat_name not in materials:
+        raise RigError(
+            f"rig file: {where} {tag}: unknown material {mat_name!r}; "
+            f"expected one of {sorted(materials)}"
+        )
+    rho = materials[mat_name].rho
+    z = _pos(_req(d, "z", where), f"{where} {tag}.z", allow_zero=True)
+    if z > length:
+        raise RigError(f"rig file: {where} {tag}.z = {z} m lies beyond the shaft (0..{length} m)")
+    width = _pos(_req(d, "width", where), f"{where} {tag}.width")
+    ri = _pos(_req(d, "inner_radius", where), f"{where} {tag}.inner_radius", allow_zero=True)
+    ro = _pos(_req(d, "outer_radius", where), f"{where} {tag}.outer_radius")
+    if ro <= ri:
+        raise RigError(f"rig file: {where} {tag}: outer_radius {ro} must exceed inner_radius {ri}")
+    geo = RigidDisk(tag, z, rho, width, ri, ro, 0.0).geometric_mass
+    mass = _pos(d.get("mass", geo), f"{where} {tag}.mass")
+    return RigidDisk(tag, z, rho, width, ri, ro, mass)
+
+
+def rig_from_dict(data: dict[str, Any], source: str = "") -> Rig:
+    """
+    Build and validate a :class:`Rig` from the parsed YAML mapping.
+
+    Parameters
+    ----------
+    data : dict
+        Parsed content of a rig file.
+    source : str
+        Where it came from (for messages).
+
+    Returns
+    -------
+    Rig
+
+    Raises
+    ------
+    RigError
+        Missing keys, non-physical values, inconsistent references.
+    """
+    if not isinstance(data, dict):
+        raise RigError(f"rig file {source}: expected a mapping at top level, got {type(data)}")
+    mats_raw = _req(data, "materials", "top level")
+    materials = {
+        name: Material(
+            _pos(_req(m, "rho", name), f"{name}.rho"),
+            _pos(_req(m, "E", name), f"{name}.E"),
+            float(_req(m, "poisson", name)),
+        )
+        for name, m in mats_raw.items()
+    }
+    s = _req(data, "shaft", "top level")
+    mat = _req(s, "material", "shaft")
+    if mat not in materials:
+        raise RigError(
+            f"rig file: shaft material {mat!r} unknown; expected one of {sorted(materials)}"
+        )
+    elements = int(_req(s, "elements", "shaft"))
+    length = _pos(_req(s, "length", "shaft"), "shaft.length")
+    shaft = ShaftData(
+        length=length,
+        outer_radius=_pos(_req(s, "outer_radius", "shaft"), "shaft.outer_radius"),
+        inner_radius=_pos(s.get("inner_radius", 0.0), "shaft.inner_radius", allow_zero=True),
+        material=materials[mat],
+        elements=elements,
+        shear=bool(s.get("shear", True)),
+        rotary_inertia=bool(s.get("rotary_inertia", True)),
+        internal_damping_viscous=_pos(
+            s.get("internal_damping_viscous", 0.0), "shaft.internal_damping_viscous", True
+        ),
+        internal_damping_hysteretic=_pos(
+            s.get("internal_damping_hysteretic", 0.0), "shaft.internal_damping_hysteretic", True
+        ),
+    )
+    disks = tuple(_body(d, materials, "disks", length) for d in data.get("disks", []))
+    cores = tuple(_body(d, materials, "amb_cores", length) for d in data.get("amb_cores", []))
+    collars = tuple(_body(d, materials, "collars", length) for d in data.get("collars", []))
+    planes = tuple(
+        SensorPlane(
+            str(_req(p, "tag", "sensor_planes")),
+            _pos(_req(p, "z", "sensor_planes"), "sensor_planes.z", True),
+            str(p.get("role", "outer")),
+        )
+        for p in _req(data, "sensor_planes", "top level")
+    )
+    if len(planes) != 4:
+        raise RigError(f"rig file: expected 4 sensor planes (8 channels x1..y4), got {len(planes)}")
+    bearings = tuple(
+        Bearing(
+            str(_req(b, "tag", "bearings")),
+            _pos(_req(b, "z", "bearings"), "bearings.z", True),
+            int(_req(b, "sensor_plane", "bearings")),
+        )
+        for b in _req(data, "bearings", "top level")
+    )
+    if len(bearings) != 2:
+        raise RigError(f"rig file: expected 2 bearings (4 control axes), got {len(bearings)}")
+    for b in bearings:
+        if not 1 <= b.sensor_plane <= 4:
+            raise RigError(
+                f"rig file: bearing {b.tag}.sensor_plane must be 1..4, got {b.sensor_plane}"
+            )
+    clearance = tuple(
+        ClearanceBearing(
+            str(_req(c, "tag", "clearance_bearings")),
+            _pos(_req(c, "z", "clearance_bearings"), "clearance_bearings.z", True),
+            str(c.get("kind", "auxiliary")),
+            _pos(_req(c, "radial_clearance", "clearance_bearings"), "radial_clearance"),
+        )
+        for c in data.get("clearance_bearings", [])
+    )
+    for z in [p.z for p in planes] + [b.z for b in bearings] + [c.z for c in clearance]:
+        if z > length:
+            raise RigError(f"rig file: position z = {z} m lies beyond the shaft (0..{length} m)")
+    a = _req(data, "amb", "top level")
+    law = str(a.get("law", "linear"))
+    if law not in ("linear", "nonlinear"):
+        raise RigError(f"rig file: amb.law must be 'linear' or 'nonlinear', got {law!r}")
+    amplifier = str(a.get("amplifier", "ideal"))
+    if amplifier not in ("ideal", "coil"):
+        raise RigError(f"rig file: amb.amplifier must be 'ideal' or 'coil', got {amplifier!r}")
+    amb = AmbData(
+        Kz=_pos(_req(a, "Kz", "amb"), "amb.Kz", True),
+        Ki=_pos(_req(a, "Ki", "amb"), "amb.Ki"),
+        law=law,
+        force_limit=_pos(a.get("force_limit", 1000.0), "amb.force_limit"),
+        pole_area=_pos(a.get("pole_area", 1398.0e-6), "amb.pole_area"),
+        turns=int(a.get("turns", 158)),
+        nominal_air_gap=_pos(a.get("nominal_air_gap", 1.2e-3), "amb.nominal_air_gap"),
+        coil_resistance=_pos(a.get("coil_resistance", 0.365), "amb.coil_resistance"),
+        coil_inductance=_pos(a.get("coil_inductance", 0.0732), "amb.coil_inductance"),
+        peak_current=_pos(a.get("peak_current", 10.0), "amb.peak_current"),
+        amplifier=amplifier,
+        amplifier_bandwidth=_pos(a.get("amplifier_bandwidth", 6283.0), "amb.amplifier_bandwidth"),
+    )
+    p = _req(data, "pid", "top level")
+    pid = PidGains(
+        Kp=_pos(_req(p, "Kp", "pid"), "pid.Kp", True),
+        KI=_pos(_req(p, "KI", "pid"), "pid.KI", True),
+        Kd=_pos(_req(p, "Kd", "pid"), "pid.Kd", True),
+        derivative_cutoff=_pos(_req(p, "derivative_cutoff", "pid"), "pid.derivative_cutoff"),
+    )
+    c = data.get("contact", {})
+    model = str(c.get("model", "hertz"))
+    if model not in ("hertz", "penalty"):
+        raise RigError(f"rig file: contact.model must be 'hertz' or 'penalty', got {model!r}")
+    contact = ContactData(
+        model=model,
+        hertz_stiffness=_pos(c.get("hertz_stiffness", 5.0e9), "contact.hertz_stiffness"),
+        penalty_stiffness=_pos(c.get("penalty_stiffness", 5.0e7), "contact.penalty_stiffness"),
+        damping=_pos(c.get("damping", 2.0e3), "contact.damping", True),
+        friction=_pos(c.get("friction", 0.1), "contact.friction", True),
+        slip_velocity_scale=_pos(c.get("slip_velocity_scale", 1e-3), "contact.slip_velocity_scale"),
+        rotor_radius=_pos(c.get("rotor_radius", shaft.outer_radius), "contact.rotor_radius"),
+        substeps=max(1, int(c.get("substeps", 16))),
+    )
+    sm = data.get("simulation", {})
+    simulation = SimulationData(
+        internal_rate_min=_pos(sm.get("internal_rate_min", 5000.0), "simulation.internal_rate_min"),
+        speed_quantum=_pos(sm.get("speed_quantum", 0.01), "simulation.speed_quantum"),
+        cache_size=max(1, int(sm.get("cache_size", 32))),
+    )
+    rig = Rig(
+        shaft=shaft,
+        disks=disks,
+        amb_cores=cores,
+        collars=collars,
+        sensor_planes=planes,
+        bearings=bearings,
+        clearance_bearings=clearance,
+        amb=amb,
+        pid=pid,
+        contact=contact,
+        simulation=simulation,
+        calibration=dict(data.get("calibration", {}) or {}),
+        source=source,
+    )
+    n_min = len(rig.stations()) - 1
+    if elements < n_min:
+        raise RigError(
+            f"rig file: shaft.elements = {elements} is fewer than the {n_min} elements needed to "
+            "put a node at every disk, core, collar, sensor plane and bearing; raise it"
+        )
+    return rig
+
+
+def load_rig(path: str | Path | None = None) -> Rig:
+    """
+    Load and validate the rig description.
+
+    Parameters
+    ----------
+    path : str or Path, optional
+        YAML file; default ``config/rig.yaml`` of this repository.
+
+    Returns
+    -------
+    Rig
+
+    Raises
+    ------
+    RigError
+        If the file is missing or invalid (the message names the key and the fix).
+    """
+    p = Path(path) if path is not None else DEFAULT_RIG_PATH
+    if not p.is_file():
+        raise RigError(f"rig file not found: {p}; pass the path of config/rig.yaml")
+    with p.open(encoding="utf-8") as fh:
+        data = yaml.safe_load(fh)
+    return rig_from_dict(data, source=str(p))
