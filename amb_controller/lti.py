@@ -321,3 +321,33 @@ def feedback(plant: DiscreteStateSpace, controller: DiscreteStateSpace) -> Discr
     c = np.hstack([plant.c, np.zeros((plant.n_outputs, controller.n_states))]) + plant.d @ u_x
     d = plant.d @ u_r
     return DiscreteStateSpace(a, b, c, d)
+
+
+def block_diagonal(systems: list[DiscreteStateSpace]) -> DiscreteStateSpace:
+    """
+    Return the parallel, uncoupled stack of ``systems`` (block-diagonal matrices).
+
+    Parameters
+    ----------
+    systems : list of DiscreteStateSpace
+        Systems to stack; inputs and outputs are concatenated in order.
+
+    Returns
+    -------
+    DiscreteStateSpace
+
+    """
+    return DiscreteStateSpace(
+        linalg.block_diag(*[s.a for s in systems]),
+        linalg.block_diag(*[s.b for s in systems]),
+        linalg.block_diag(*[s.c for s in systems]),
+        linalg.block_diag(*[s.d for s in systems]),
+    )
+
+
+def static_gain(gain: np.ndarray) -> DiscreteStateSpace:
+    """Return the memoryless system ``y = gain u``."""
+    gain = np.atleast_2d(np.asarray(gain, dtype=float))
+    return DiscreteStateSpace(
+        np.zeros((0, 0)), np.zeros((0, gain.shape[1])), np.zeros((gain.shape[0], 0)), gain
+    )
