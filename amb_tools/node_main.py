@@ -1,0 +1,79 @@
+"""One ``main()`` for every node executable: init, spin, clean stop on SIGINT and SIGTERM.
+
+rclpy's own signal handling covers SIGINT but a node may miss SIGTERM (``ros2 launch`` sends
+SIGINT first, a process manager SIGTERM). :func:`run_node` installs handlers for both that only
+set a flag, spins with a timeout so the flag is seen within ``spin_timeout`` seconds, then calls
+the node's ``on_shutdown()`` (if it has one) before destroying it, so that files are closed.
+A node whose constructor raises :class:`ConfigurationError` (invalid parameter or file) makes the
+process exit with status 2 and the reason on stderr.
+"""
+
+from __future__ import annotations
+
+import signal
+import sys
+from collections.abc import Callable, Sequence
+from types import FrameType
+
+import rclpy
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.signals import SignalHandlerOptions
+
+EXIT_CONFIGURATION_ERROR = 2
+
+
+class ConfigurationError(ValueError):
+    """A node cannot start: a parameter or a file it names is invalid (the message says which)."""
+
+
+def run_node(
+    factory: Callable[[], Node], args: Sequence[str] | None = None, spin_timeout: float = 0.1
+) -> int:
+    """Create a node with ``factory`` and spin it until SIGINT, SIGTERM or shutdown.
+
+    Parameters
+    ----------
+    factory : callable
+        Builds the node (called after ``rclpy.init``).
+    args : sequence of str, optional
+        Command-line arguments (``--ros-args ...``); ``sys.argv`` if omitted.
+    spin_timeout : float
+        s, longest wait in one spin before the stop flag is checked.
+
+    Returns
+    -------
+    int
+        Process exit status: 0 on a clean stop, 2 on a configuration error.
+    """
+    stop = False
+
+    def _request_stop(signum: int, frame: FrameType | None) -> None:
+        nonlocal stop
+        stop = True
+
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    previous = {s: signal.signal(s, _request_stop) for s in (signal.SIGINT, signal.SIGTERM)}
+    node = None
+    try:
+        try:
+            node = factory()
+        except ConfigurationError as exc:
+            print(f"[ERROR] configuration: {exc}", file=sys.stderr, flush=True)
+            return EXIT_CONFIGURATION_ERROR
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        while not stop and rclpy.ok():
+            executor.spin_once(timeout_sec=spin_timeout)
+        return 0
+    except (KeyboardInterrupt, ExternalShutdownException):
+        return 0
+    finally:
+        if node is not None:
+            on_shutdown = getattr(node, "on_shutdown", None)
+            if on_shutdown is not None:
+                on_shutdown()
+            node.destroy_node()
+        rclpy.try_shutdown()
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)

@@ -1,0 +1,231 @@
+"""``recorder``: write topics of this project to a rosbag2 without a ROS install.
+
+Subscribes raw (CDR bytes, no deserialisation) to every topic whose name matches one of the
+``topics`` patterns, as it appears in the graph, and writes each message to a rosbag2 with the
+``rosbags`` library (MCAP by default, custom types registered from the ``amb_msgs`` ``.msg``
+files). The subscription QoS follows the publishers: reliable unless one of them is best effort.
+On SIGINT or SIGTERM the bag is closed cleanly. Counts per topic are published once per
+``status_period`` on ``/diagnostics`` and logged at the end.
+
+Parameters (ROS)
+----------------
+output : str
+    Bag folder to create (must not exist).
+topics : str[]
+    Shell-style patterns of topic names (``*`` also matches ``/``); default ``/amb/*`` and
+    ``/diagnostics``.
+storage : str
+    ``mcap`` or ``sqlite3``.
+stamp_source : str
+    ``receive`` (node clock at reception, as ``ros2 bag record``) or ``header`` (the message's
+    ``header.stamp``, for types whose first field is a header; receive time otherwise, and for
+    a negative stamp, which a bag cannot store).
+discovery_period : float
+    s, how often the graph is scanned for new matching topics.
+status_period : float
+    s, how often counts are published on ``/diagnostics`` (0 = never).
+queue_depth : int
+    Subscription history depth; large enough that a reliable stream is never dropped.
+"""
+
+from __future__ import annotations
+
+import fnmatch
+import importlib
+from pathlib import Path
+from typing import Any
+
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+from rclpy.node import Node
+from rclpy.qos import (
+    DurabilityPolicy,
+    HistoryPolicy,
+    QoSProfile,
+    ReliabilityPolicy,
+)
+from std_msgs.msg import Header
+
+from amb_tools.bag_writer import STORAGE_PLUGINS, BagWriter, header_stamp_ns
+from amb_tools.node_main import ConfigurationError, run_node
+
+STAMP_SOURCES = ("receive", "header")
+
+
+def import_message_class(msgtype: str) -> type:
+    """Return the rclpy message class of ``pkg/msg/Name``.
+
+    Raises
+    ------
+    ImportError
+        If the package is not built or not on ``PYTHONPATH``.
+    """
+    pkg, _, name = msgtype.split("/")
+    return getattr(importlib.import_module(f"{pkg}.msg"), name)
+
+
+def _has_header(msg_class: type) -> bool:
+    fields = msg_class.get_fields_and_field_types()
+    return bool(fields) and next(iter(fields.values())) == "std_msgs/Header"
+
+
+class Recorder(Node):
+    """Record matching topics to a rosbag2 (see the module docstring)."""
+
+    def __init__(self) -> None:
+        super().__init__("recorder")
+        self.declare_parameter(
+            "output", "", ParameterDescriptor(description="bag folder to create", read_only=True)
+        )
+        self.declare_parameter(
+            "topics",
+            ["/amb/*", "/diagnostics"],
+            ParameterDescriptor(description="topic name patterns to record", read_only=True),
+        )
+        self.declare_parameter(
+            "storage", "mcap", ParameterDescriptor(description="mcap | sqlite3", read_only=True)
+        )
+        self.declare_parameter(
+            "stamp_source",
+            "receive",
+            ParameterDescriptor(description="receive | header", read_only=True),
+        )
+        self.declare_parameter(
+            "discovery_period",
+            0.2,
+            ParameterDescriptor(
+                description="graph scan period, s",
+                floating_point_range=[FloatingPointRange(from_value=0.01, to_value=10.0)],
+            ),
+        )
+        self.declare_parameter(
+            "status_period",
+            1.0,
+            ParameterDescriptor(
+                description="period of the counts on /diagnostics, s (0 = off)",
+                floating_point_range=[FloatingPointRange(from_value=0.0, to_value=60.0)],
+            ),
+        )
+        self.declare_parameter(
+            "queue_depth",
+            10000,
+            ParameterDescriptor(
+                description="subscription history depth, messages",
+                integer_range=[IntegerRange(from_value=1, to_value=1_000_000)],
+            ),
+        )
+        output = self.get_parameter("output").value
+        storage = self.get_parameter("storage").value
+        self._stamp_source = self.get_parameter("stamp_source").value
+        self._patterns = list(self.get_parameter("topics").value)
+        self._depth = self.get_parameter("queue_depth").value
+        if not output:
+            raise ConfigurationError("parameter 'output' (bag folder) is empty; set it")
+        if Path(output).exists():
+            raise ConfigurationError(f"parameter 'output' = {output!r}: the folder exists")
+        if storage not in STORAGE_PLUGINS:
+            raise ConfigurationError(
+                f"parameter 'storage' = {storage!r}: allowed {sorted(STORAGE_PLUGINS)}"
+            )
+        if self._stamp_source not in STAMP_SOURCES:
+            raise ConfigurationError(
+                f"parameter 'stamp_source' = {self._stamp_source!r}: allowed {STAMP_SOURCES}"
+            )
+        if not self._patterns or not all(self._patterns):
+            raise ConfigurationError(f"parameter 'topics' = {self._patterns!r}: empty pattern")
+        self._bag = BagWriter(output, storage=storage)
+        self._recorded: dict[str, Any] = {}
+        self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        self.create_timer(self.get_parameter("discovery_period").value, self._discover)
+        status_period = self.get_parameter("status_period").value
+        if status_period > 0:
+            self.create_timer(status_period, self._publish_status)
+        self._discover()
+        self.get_logger().info(f"recording {self._patterns} to {output} ({storage})")
+
+    def _discover(self) -> None:
+        for topic, types in self.get_topic_names_and_types():
+            if topic in self._recorded:
+                continue
+            if not any(fnmatch.fnmatchcase(topic, p) for p in self._patterns):
+                continue
+            if len(types) != 1:
+                self.get_logger().warning(
+                    f"{topic} has {len(types)} types {types}: not recorded",
+                    throttle_duration_sec=10.0,
+                )
+                continue
+            self._subscribe(topic, types[0])
+
+    def _qos_for(self, topic: str) -> QoSProfile:
+        publishers = self.get_publishers_info_by_topic(topic)
+        best_effort = any(
+            p.qos_profile.reliability == ReliabilityPolicy.BEST_EFFORT for p in publishers
+        )
+        latched = publishers and all(
+            p.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL for p in publishers
+        )
+        reliable = ReliabilityPolicy.BEST_EFFORT if best_effort else ReliabilityPolicy.RELIABLE
+        return QoSProfile(
+            history=HistoryPolicy.KEEP_LAST,
+            depth=self._depth,
+            reliability=reliable,
+            durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE,
+        )
+
+    def _subscribe(self, topic: str, msgtype: str) -> None:
+        try:
+            msg_class = import_message_class(msgtype)
+            self._bag.add_topic(topic, msgtype)
+        except (ImportError, AttributeError, KeyError, ValueError) as exc:
+            self.get_logger().error(f"cannot record {topic} ({msgtype}): {exc}")
+            self._recorded[topic] = None
+            return
+        use_header = self._stamp_source == "header" and _has_header(msg_class)
+
+        def on_message(raw: bytes, topic: str = topic) -> None:
+            t_ns = header_stamp_ns(raw) if use_header else -1
+            if t_ns < 0:  # receive time; also for a header stamp before 1970 (not storable)
+                t_ns = self.get_clock().now().nanoseconds
+            self._bag.write_raw(topic, t_ns, raw)
+
+        self._recorded[topic] = self.create_subscription(
+            msg_class, topic, on_message, self._qos_for(topic), raw=True
+        )
+        self.get_logger().info(f"recording {topic} [{msgtype}]")
+
+    def _publish_status(self) -> None:
+        status = DiagnosticStatus(
+            level=DiagnosticStatus.OK,
+            name="recorder",
+            message=f"{sum(self._bag.counts.values())} messages written to {self._bag.path}",
+            hardware_id=str(self._bag.path),
+            values=[KeyValue(key=t, value=str(n)) for t, n in sorted(self._bag.counts.items())],
+        )
+        self._diag_pub.publish(
+            DiagnosticArray(header=_stamp(self.get_clock().now()), status=[status])
+        )
+
+    @property
+    def counts(self) -> dict[str, int]:
+        """Messages written so far, per topic."""
+        return dict(self._bag.counts)
+
+    def on_shutdown(self) -> None:
+        """Close the bag and log what was written."""
+        self._bag.close()
+        summary = ", ".join(f"{t}: {n}" for t, n in sorted(self._bag.counts.items())) or "nothing"
+        self.get_logger().info(f"bag {self._bag.path} closed; messages written: {summary}")
+
+
+def _stamp(now: Any) -> Any:
+    return Header(stamp=now.to_msg())
+
+
+def main(args: list[str] | None = None) -> int:
+    """Entry point of the ``recorder`` executable."""
+    return run_node(Recorder, args)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,48 @@
+"""A separate process for transport tests: re-publishes every amb_msgs type unchanged.
+
+For each message type ``T`` of ``amb_msgs`` it subscribes (raw CDR) to ``/amb_test/in/T`` and
+publishes the same bytes on ``/amb_test/out/T``, so a test in another process can check that a
+message crossed DDS twice intact. Reliable, keep-all QoS. Stops on SIGINT or SIGTERM.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import amb_msgs.msg
+from rclpy.node import Node
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+from amb_tools.node_main import run_node  # noqa: E402
+
+QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_ALL, depth=1000, reliability=ReliabilityPolicy.RELIABLE
+)
+
+
+def message_classes() -> list[type]:
+    """All message classes of amb_msgs."""
+    return [
+        getattr(amb_msgs.msg, name)
+        for name in dir(amb_msgs.msg)
+        if not name.startswith("_") and hasattr(getattr(amb_msgs.msg, name), "SLOT_TYPES")
+    ]
+
+
+class Relay(Node):
+    def __init__(self) -> None:
+        super().__init__("amb_test_relay")
+        self.relays = []
+        for cls in message_classes():
+            pub = self.create_publisher(cls, f"/amb_test/out/{cls.__name__}", QOS)
+            self.relays.append(
+                self.create_subscription(
+                    cls, f"/amb_test/in/{cls.__name__}", pub.publish, QOS, raw=True
+                )
+            )
+
+
+if __name__ == "__main__":
+    raise SystemExit(run_node(Relay))

@@ -1,0 +1,198 @@
+"""Harness for tests that run real ROS 2 nodes over DDS (no mocks of rclpy).
+
+- :func:`claim_domain_id` gives each pytest process its own ``ROS_DOMAIN_ID`` (held by a lock
+  file in the temp folder), so parallel test runs on one machine never see each other; DDS
+  discovery is kept on this machine (``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``).
+- :class:`RosTestContext` is one rclpy ``Context`` with its own executor, for in-process nodes.
+- :class:`NodeProcess` starts a node executable as a separate process, as ``ros2 run`` would,
+  with ``--ros-args --params-file``, and stops it with SIGINT or SIGTERM.
+- :func:`spin_until` spins an executor until a condition holds or a timeout passes.
+"""
+
+from __future__ import annotations
+
+import fcntl
+import os
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+INSTALL_LIB = ROOT / "install" / "amb_wavelet_control" / "lib" / "amb_wavelet_control"
+_domain_lock = None
+
+
+def claim_domain_id(first: int = 40, last: int = 100) -> int:
+    """Claim a ROS domain id no other test process on this machine holds; set it in the env.
+
+    Returns
+    -------
+    int
+        The domain id, also written to ``os.environ['ROS_DOMAIN_ID']``.
+
+    Raises
+    ------
+    RuntimeError
+        If every id in ``[first, last)`` is held.
+    """
+    global _domain_lock
+    if _domain_lock is not None:
+        return int(os.environ["ROS_DOMAIN_ID"])
+    for domain in range(first, last):
+        fh = open(Path(tempfile.gettempdir()) / f"amb-ros-domain-{domain}.lock", "w")  # noqa: SIM115
+        try:
+            fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            fh.close()
+            continue
+        _domain_lock = fh
+        os.environ["ROS_DOMAIN_ID"] = str(domain)
+        os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+        return domain
+    raise RuntimeError(f"all ROS domain ids {first}..{last - 1} are held by other test runs")
+
+
+class RosTestContext:
+    """An isolated rclpy context with a single-threaded executor and its nodes."""
+
+    def __init__(self) -> None:
+        import rclpy
+        from rclpy.executors import SingleThreadedExecutor
+
+        self.context = rclpy.Context()
+        rclpy.init(context=self.context)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.nodes: list = []
+
+    def node(self, name: str, **kwargs: object):
+        """Create a node in this context and add it to the executor."""
+        import rclpy
+
+        node = rclpy.create_node(name, context=self.context, **kwargs)
+        self.executor.add_node(node)
+        self.nodes.append(node)
+        return node
+
+    def spin_until(self, predicate: Callable[[], bool], timeout: float, step: float = 0.02) -> bool:
+        """Spin until ``predicate()`` is true; return whether it became true in time."""
+        return spin_until(self.executor, predicate, timeout, step)
+
+    def spin_for(self, seconds: float) -> None:
+        """Spin for a fixed time."""
+        deadline = time.monotonic() + seconds
+        while time.monotonic() < deadline:
+            self.executor.spin_once(timeout_sec=0.01)
+
+    def close(self) -> None:
+        """Destroy the nodes and shut the context down."""
+        for node in self.nodes:
+            self.executor.remove_node(node)
+            node.destroy_node()
+        self.executor.shutdown()
+        self.context.try_shutdown()
+
+
+def spin_until(executor, predicate: Callable[[], bool], timeout: float, step: float = 0.02) -> bool:
+    """Spin ``executor`` until ``predicate()`` holds or ``timeout`` (s) passes."""
+    deadline = time.monotonic() + timeout
+    while not predicate():
+        if time.monotonic() > deadline:
+            return False
+        executor.spin_once(timeout_sec=step)
+    return True
+
+
+class NodeProcess:
+    """A node executable running as its own process.
+
+    Parameters
+    ----------
+    executable : str
+        Name of an installed node executable (``install/amb_wavelet_control/lib/...``), a
+        Python module path prefixed with ``-m `` (e.g. ``-m amb_tools.recorder_node``), or the
+        path of a Python script ending in ``.py``.
+    log_dir : pathlib.Path
+        Folder for the process's stdout/stderr log.
+    params_file : pathlib.Path, optional
+        Passed as ``--ros-args --params-file``.
+    params : dict, optional
+        Passed as ``-p name:=value``.
+    extra_args : sequence of str
+        More ``--ros-args`` arguments (remappings ``-r``).
+    """
+
+    def __init__(
+        self,
+        executable: str,
+        log_dir: Path,
+        params_file: Path | None = None,
+        params: dict | None = None,
+        extra_args: Sequence[str] = (),
+    ) -> None:
+        if executable.startswith("-m "):
+            cmd = [sys.executable, "-m", executable[3:]]
+            name = executable[3:].rsplit(".", 1)[-1]
+        elif executable.endswith(".py"):
+            cmd = [sys.executable, executable]
+            name = Path(executable).stem
+        else:
+            path = INSTALL_LIB / executable
+            if not path.exists():
+                raise FileNotFoundError(f"{path} not built: run tools/bootstrap.sh")
+            cmd = [str(path)]
+            name = executable
+        ros_args: list[str] = []
+        if params_file is not None:
+            ros_args += ["--params-file", str(params_file)]
+        for key, value in (params or {}).items():
+            ros_args += ["-p", f"{key}:={_param_text(value)}"]
+        ros_args += list(extra_args)
+        if ros_args:
+            cmd += ["--ros-args", *ros_args]
+        self.cmd = cmd
+        self.log_path = Path(log_dir) / f"{name}-{os.getpid()}-{time.monotonic_ns()}.log"
+        self._log = open(self.log_path, "w")  # noqa: SIM115
+        env = dict(os.environ)
+        env["PYTHONUNBUFFERED"] = "1"
+        self.proc = subprocess.Popen(cmd, stdout=self._log, stderr=subprocess.STDOUT, env=env)
+
+    @property
+    def returncode(self) -> int | None:
+        """Exit status, or None while running."""
+        return self.proc.poll()
+
+    def log(self) -> str:
+        """Everything the process printed so far."""
+        if not self._log.closed:
+            self._log.flush()
+        return self.log_path.read_text()
+
+    def stop(self, sig: int = signal.SIGINT, timeout: float = 10.0) -> int:
+        """Send ``sig``, wait up to ``timeout`` s, then SIGKILL; return the exit status."""
+        if self.proc.poll() is None:
+            self.proc.send_signal(sig)
+            try:
+                self.proc.wait(timeout)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait(5)
+        self._log.close()
+        return self.proc.returncode
+
+    def wait(self, timeout: float) -> int:
+        """Wait for the process to exit by itself; return its status."""
+        code = self.proc.wait(timeout)
+        self._log.close()
+        return code
+
+
+def _param_text(value: object) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, (list, tuple)):
+        return "[" + ",".join(_param_text(v) for v in value) + "]"
+    return str(value)
