@@ -54,9 +54,8 @@ def test_scalar_loop_step_response_matches_hand_transfer_function(delay, w, v):
     assert abs(q[-1, 0]) < 1e-3 * g  # integral action removes the steady state
 
 
-def test_zero_delay_limit_gives_prescribed_response():
-    # With i -> 0 (analysis only) the response is exactly alpha G B_u: Q[k] = g c_(k+1).
-    # Checked through the state-space loop because step() requires i >= 1.
+def test_state_space_loop_matches_hand_transfer_function():
+    # The same loop as above through the realisation: closed_loop(plant, controller).
     g, w, v = 2.0, 0.6, 0.5
     alpha = PrescribedResponse.exponential(w, v)
     ctrl = TransientController(np.full((1, 1, 1), 1 / g), alpha, 1)
