@@ -9,7 +9,7 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parent / "support"))
 
-from ros_harness import NodeProcess, RosTestContext, claim_domain_id  # noqa: E402
+from ros_harness import NodeProcess, RosTestContext, claim_domain_id
 
 
 @pytest.fixture(scope="session")

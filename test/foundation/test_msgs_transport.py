@@ -48,8 +48,10 @@ def test_every_type_round_trips_through_another_process(ros, node_process) -> No
         pubs[name] = node.create_publisher(cls, f"/amb_test/in/{name}", QOS)
         node.create_subscription(cls, f"/amb_test/out/{name}", received[name].append, QOS)
     discovered = ros.spin_until(
-        lambda: all(p.get_subscription_count() > 0 for p in pubs.values())
-        and all(node.count_publishers(f"/amb_test/out/{n}") > 0 for n in pubs),
+        lambda: (
+            all(p.get_subscription_count() > 0 for p in pubs.values())
+            and all(node.count_publishers(f"/amb_test/out/{n}") > 0 for n in pubs)
+        ),
         timeout=30.0,
     )
     assert discovered, f"relay process not discovered; its log:\n{relay.log()}"

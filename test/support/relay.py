@@ -10,16 +10,15 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-import amb_msgs.msg
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
-from amb_tools.node_main import run_node  # noqa: E402
+import amb_msgs.msg
 
-QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_ALL, depth=1000, reliability=ReliabilityPolicy.RELIABLE
-)
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+from amb_tools.node_main import run_node
+
+QOS = QoSProfile(history=HistoryPolicy.KEEP_ALL, depth=1000, reliability=ReliabilityPolicy.RELIABLE)
 
 
 def message_classes() -> list[type]:

@@ -43,7 +43,7 @@ def claim_domain_id(first: int = 40, last: int = 100) -> int:
     if _domain_lock is not None:
         return int(os.environ["ROS_DOMAIN_ID"])
     for domain in range(first, last):
-        fh = open(Path(tempfile.gettempdir()) / f"amb-ros-domain-{domain}.lock", "w")  # noqa: SIM115
+        fh = open(Path(tempfile.gettempdir()) / f"amb-ros-domain-{domain}.lock", "w")
         try:
             fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError:
@@ -155,7 +155,7 @@ class NodeProcess:
             cmd += ["--ros-args", *ros_args]
         self.cmd = cmd
         self.log_path = Path(log_dir) / f"{name}-{os.getpid()}-{time.monotonic_ns()}.log"
-        self._log = open(self.log_path, "w")  # noqa: SIM115
+        self._log = open(self.log_path, "w")
         env = dict(os.environ)
         env["PYTHONUNBUFFERED"] = "1"
         self.proc = subprocess.Popen(cmd, stdout=self._log, stderr=subprocess.STDOUT, env=env)
