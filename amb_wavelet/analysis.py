@@ -19,11 +19,12 @@ for ``pywt.dwt(x, wavelet, mode="zero")``. That is, the signal is taken as zero 
 its first sample (``mode="zero"``); the recursion is
 ``a_j[m] = sum_k dec_lo[k] a_{j-1}[2m + 1 - k]`` with ``a_0 = x``, which is PyWavelets'
 own alignment. The causal filterbank returns exactly the leading ``N // 2**j``
-coefficients of each level, those whose support ends by sample ``N - 1``; PyWavelets'
-trailing ``(L - 2) / 2``-ish extra coefficients per level depend on the zero padding
-after the end and have no causal counterpart. Other PyWavelets modes
-(``symmetric``, ``periodization``...) differ from this only in the coefficients whose
-support reaches past either end.
+coefficients of each level, those whose support ends by sample ``N - 1``. PyWavelets
+returns more (``(N_{j-1} + L - 1) // 2`` at level ``j``, with ``N_0 = N``); the extra
+trailing ones depend on the zero padding after the last sample and have no causal
+counterpart. For Haar (``L = 2``) the two agree except for an odd final sample. Other
+PyWavelets modes (``symmetric``, ``periodization``...) differ from this only in the
+coefficients whose support reaches past either end.
 
 Timing of each level is in :mod:`amb_wavelet.levels`: coefficient ``m`` of level ``j``
 is completed and emitted by sample ``2**j (m + 1) - 1``; its support is

@@ -112,3 +112,22 @@ def test_sampler_reset_mid_period_flags_partial_period(rng: np.random.Generator)
     assert [int(o.period_index[0]) for o in done] == [0, 1, 2]
     assert [bool(o.settled[0]) for o in done] == [False, True, True]
     assert done[1].average[0, 0] == pytest.approx(1.0)
+
+
+def test_level_validation_and_timing_helpers() -> None:
+    from amb_wavelet.levels import (
+        check_level,
+        completion_sample_index,
+        support_first_sample_index,
+        support_length,
+    )
+
+    assert check_level(6, samples_per_rev=32, extra_octaves=1) == 6
+    with pytest.raises(LevelError, match=r"level <= log2\(samples_per_rev\) \+ extra_octaves"):
+        check_level(7, samples_per_rev=32, extra_octaves=1)
+    with pytest.raises(LevelError, match="power of two"):
+        check_level(3, samples_per_rev=48)
+    # db2 (L = 4), level 3: support 7 * 3 + 1 = 22 samples ending at 8 (m + 1) - 1
+    assert support_length(3, 4) == 22
+    assert completion_sample_index(3, 5) == 47
+    assert support_first_sample_index(3, 5, 4) == 26
