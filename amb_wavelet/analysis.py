@@ -45,7 +45,14 @@ from amb_wavelet.errors import SampleIndexError
 from amb_wavelet.filters import FilterSet, get_filters
 from amb_wavelet.levels import check_level, support_length
 
-__all__ = ["AnalysisFilterbank", "Coefficient", "Decomposition", "analyze_block"]
+__all__ = [
+    "APPROXIMATION",
+    "DETAIL",
+    "AnalysisFilterbank",
+    "Coefficient",
+    "Decomposition",
+    "analyze_block",
+]
 
 DETAIL = "detail"
 APPROXIMATION = "approximation"
