@@ -9,8 +9,11 @@ PACKAGE = "amb_wavelet_control"
 # Node executables (``ros2 run amb_wavelet_control <name>``) and command-line tools.
 NODES = {
     "recorder": "amb_tools.recorder_node:main",
+    "wavelet_filterbank": "amb_wavelet.node:main",
 }
-TOOLS = {}
+TOOLS = {
+    "amb-wavelet-info": "amb_wavelet.info_cli:main",
+}
 
 setup(
     name=PACKAGE,

@@ -1,0 +1,121 @@
+"""wavelet_filterbank over real DDS: coefficients equal PyWavelets, gaps reset the state."""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import numpy as np
+import pytest
+import pywt
+from diagnostic_msgs.msg import DiagnosticArray
+
+from amb_msgs.msg import CoefficientSet, Measurement, WaveletCoefficients
+from amb_wavelet.node import stream_qos
+
+pytestmark = pytest.mark.ros
+
+SPR = 16
+LEVELS = 5
+
+
+def _signal(n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    t = np.arange(n)
+    angle = (2 * np.pi * t / SPR) % (2 * np.pi)
+    xy = 1e-4 * np.stack([np.cos(angle + 0.3 * c) for c in range(8)], axis=1)
+    return xy + 1e-6 * rng.standard_normal((n, 8)), angle
+
+
+def _measurement(index: int, xy: np.ndarray, angle: float) -> Measurement:
+    m = Measurement(sample_index=index, samples_per_rev=SPR, rotor_angle=float(angle))
+    m.rotor_speed = 2 * math.pi * 11.0
+    m.displacement = xy
+    return m
+
+
+def _collect(ros, node_process, wavelet: str, samples: list[Measurement], n_expected: int):
+    fb = node_process(
+        "wavelet_filterbank",
+        params={"wavelet": wavelet, "samples_per_rev": SPR, "levels": LEVELS, "status_period": 0.1},
+    )
+    node = ros.node("amb_test_fb_driver")
+    qos = stream_qos(SPR)
+    pub = node.create_publisher(Measurement, "/amb/measurement", qos)
+    got: list[WaveletCoefficients] = []
+    diag: dict[str, str] = {}
+    node.create_subscription(WaveletCoefficients, "/amb/wavelet/coefficients", got.append, qos)
+
+    def on_diag(msg: DiagnosticArray) -> None:
+        for s in msg.status:
+            if s.name == "wavelet_filterbank":
+                diag.update({kv.key: kv.value for kv in s.values})
+
+    node.create_subscription(DiagnosticArray, "/diagnostics", on_diag, 10)
+    assert ros.spin_until(
+        lambda: (
+            pub.get_subscription_count() > 0
+            and node.count_publishers("/amb/wavelet/coefficients") > 0
+        ),
+        timeout=30.0,
+    ), fb.log()
+    for m in samples:
+        pub.publish(m)
+    assert ros.spin_until(lambda: diag.get("samples") == str(n_expected), 30.0), (diag, fb.log())
+    ros.spin_for(0.2)
+    return got, diag
+
+
+def _details(got, frame, quad, level, channel):
+    out = {}
+    for msg in got:
+        for s in msg.sets:
+            if (s.frame, s.quadrature, s.level, s.kind) == (
+                frame,
+                quad,
+                level,
+                CoefficientSet.KIND_DETAIL,
+            ):
+                out[s.translation_index] = s.values[channel]
+    return out
+
+
+@pytest.mark.parametrize("wavelet", ["haar", "db4"])
+def test_fixed_even_coefficients_equal_pywavelets(ros, node_process, wavelet) -> None:
+    rng = np.random.default_rng(3)
+    n = 8 * SPR
+    xy, angle = _signal(n, rng)
+    got, diag = _collect(
+        ros, node_process, wavelet, [_measurement(i, xy[i], angle[i]) for i in range(n)], n
+    )
+    assert diag["gaps_reset"] == "0" and diag["rejected"] == "0"
+    for channel in (0, 5):
+        with warnings.catch_warnings():  # pywt warns that db4 at 5 levels sees the ends
+            warnings.simplefilter("ignore", UserWarning)
+            ref = pywt.wavedec(xy[:, channel], wavelet, mode="zero", level=LEVELS)
+        for level in range(1, LEVELS + 1):
+            d = _details(
+                got, CoefficientSet.FRAME_FIXED, CoefficientSet.QUADRATURE_EVEN, level, channel
+            )
+            m = n // 2**level
+            assert sorted(d) == list(range(m))
+            np.testing.assert_allclose(
+                [d[k] for k in range(m)], ref[LEVELS - level + 1][:m], rtol=0, atol=1e-15
+            )
+
+
+def test_a_gap_resets_the_filterbank_at_the_new_index(ros, node_process) -> None:
+    rng = np.random.default_rng(4)
+    n = 8 * SPR
+    xy, angle = _signal(n, rng)
+    gap_at = 3 * SPR + 5  # samples gap_at .. gap_at + 2 are lost
+    resume = gap_at + 3
+    samples = [_measurement(i, xy[i], angle[i]) for i in range(n) if not gap_at <= i < resume]
+    samples.insert(10, samples[9])  # a repeated sample is dropped, not a gap
+    got, diag = _collect(ros, node_process, "haar", samples, len(samples) - 1)
+    assert diag["gaps_reset"] == "1" and diag["repeats_dropped"] == "1"
+    # level 1 after the gap: the signal restarts (zeros before) at sample `resume`
+    d = _details(got, CoefficientSet.FRAME_FIXED, CoefficientSet.QUADRATURE_EVEN, 1, 2)
+    segment = np.concatenate([np.zeros(resume % 2), xy[resume:, 2]])
+    ref = pywt.dwt(segment, "haar", mode="zero")[1][: len(segment) // 2]
+    first = resume // 2
+    np.testing.assert_allclose([d[first + k] for k in range(len(ref))], ref, atol=1e-15)
