@@ -38,6 +38,7 @@ def pseudo_inverse_series(
     *,
     lead: int = 0,
     regularisation: float = 0.0,
+    dc_weight: float = 0.0,
 ) -> np.ndarray:
     """
     Return ``B^(0) .. B^(order)`` of the truncated least-squares inverse (eq. 6.35).
@@ -53,6 +54,10 @@ def pseudo_inverse_series(
         Target delay of the product ``B * A`` (0 = identity at k = 0).
     regularisation : float
         Tikhonov weight ``rho`` >= 0 (same units as ``A``), 0 for plain least squares.
+    dc_weight : float
+        Weight >= 0 of the extra equations ``B(1) G(1) = I`` (steady-state gain of the
+        product, with ``G(1) = sum_k A^(k)``). Truncation leaves ``B(1) G(1) != I``; the
+        steady-state predictor of eq. 7.6 needs it, so use e.g. 10 there. 0 = off.
 
     Returns
     -------
@@ -83,9 +88,17 @@ def pseudo_inverse_series(
     target[:, lead * n_u : (lead + 1) * n_u] = np.eye(n_u)
     lhs = big_t.T
     rhs = target.T
+    if dc_weight < 0:
+        raise ControllerValueError(f"dc_weight must be >= 0, got {dc_weight}")
+    if dc_weight > 0:
+        # (sum_j B_j) G(1) = I  ->  X [G(1); G(1); ...] = I
+        gdc = np.tile(markov.sum(axis=0), (order + 1, 1))
+        lhs = np.vstack([lhs, dc_weight * gdc.T])
+        rhs = np.vstack([rhs, dc_weight * np.eye(n_u)])
     if regularisation > 0:
-        lhs = np.vstack([lhs, regularisation * np.eye(lhs.shape[1])])
-        rhs = np.vstack([rhs, np.zeros((lhs.shape[1], n_u))])
+        n_unknown = lhs.shape[1]
+        lhs = np.vstack([lhs, regularisation * np.eye(n_unknown)])
+        rhs = np.vstack([rhs, np.zeros((n_unknown, n_u))])
     solution, *_ = np.linalg.lstsq(lhs, rhs, rcond=None)
     return solution.T.reshape(n_u, order + 1, n_y).transpose(1, 0, 2)
 
