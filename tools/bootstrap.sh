@@ -7,6 +7,7 @@
 #   tools/bootstrap.sh            # what `make demo` and `make test` run first
 #   FORCE=1 tools/bootstrap.sh    # reinstall requirements and rebuild
 set -euo pipefail
+trap 'echo "[bootstrap] failed (line $LINENO): see the output above" >&2' ERR
 
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 VENV="$ROOT/.venv"
@@ -54,9 +55,11 @@ if [ "${FORCE:-0}" = 1 ] || [ "$(cat "$VENV/.requirements-stamp" 2>/dev/null)" !
 fi
 
 # 3. colcon build (only when a build input changed)
+# (the data files colcon installs are listed by name: adding or removing one needs a rebuild)
 build_hash=$( { cat requirements.txt setup.py setup.cfg package.xml;
                 find amb_msgs -type f | LC_ALL=C sort | xargs cat;
-                ls config config/scenarios launch 2>/dev/null; } | sha256sum | cut -c1-16)
+                for d in config launch; do if [ -d "$d" ]; then find "$d" -type f; fi; done | LC_ALL=C sort;
+              } | sha256sum | cut -c1-16)
 if [ "${FORCE:-0}" = 1 ] || [ ! -f install/setup.bash ] || [ "$(cat build/.bootstrap-stamp 2>/dev/null)" != "$build_hash" ]; then
   say "colcon build --base-paths . amb_msgs"
   (
