@@ -198,6 +198,12 @@ class ProportionalController:
             self.predictor._history = history.copy()
             self.predictor._last_period = last
 
+    def skip(self, period_index: int) -> None:
+        """Mark ``period_index`` consumed without updating the predictor (hold)."""
+        self._last_period = int(period_index)
+        if self.predictor is not None:
+            self.predictor._last_period = int(period_index)
+
     def step(self, period_index: int, measured: np.ndarray) -> ControlStep:
         """
         Return the command for period ``period_index + delay``.

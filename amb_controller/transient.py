@@ -164,6 +164,10 @@ class TransientController:
         """Restore a state returned by :meth:`get_state` (e.g. to hold while saturated)."""
         self._state = state.copy()
 
+    def skip(self, period_index: int) -> None:
+        """Mark ``period_index`` consumed without updating the filters (hold / anti-windup)."""
+        self._state.last_period = int(period_index)
+
     # ------------------------------------------------------------------ step
     def step(self, period_index: int, measured: np.ndarray) -> ControlStep:
         """

@@ -1,0 +1,324 @@
+"""
+Mode logic between the controller core and the ``wavelet_controller`` node.
+
+Once per control period the node hands :meth:`WaveletControlSupervisor.step` the
+measured coefficients of period k and publishes the returned :class:`Command` for
+period ``k + delay``: control coefficients and their force samples (even in OFF mode,
+as zeros, to keep the lock-step loop alive). Modes follow ``ControllerStatus``:
+
+* ``OFF``: zero force, controller reset.
+* ``IDENTIFYING``: the :class:`~amb_controller.identification.StepExperiment` drives
+  the commands; the measured coefficients and the commands actually applied in each
+  period feed the :class:`~amb_controller.identification.MarkovIdentifier`. When the
+  last step has been followed by ``order`` settling periods the fit is made, stored
+  in :attr:`identification_result`, and the mode returns to OFF.
+* ``ACTIVE``: the controller (transient, proportional or moderated) runs; each command
+  passes the :class:`~amb_controller.synthesis.ForceLimiter`. While any axis saturates
+  the controller's state is held (not advanced: anti-windup) and the scaled command is
+  sent.
+* ``HOLD``: the last command is repeated and the controller state frozen (fault
+  reconfiguration, e.g. auxiliary-bearing contact); after a divergence-guard trip the
+  force is zero instead and only :meth:`reset` re-arms.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import IntEnum
+
+import numpy as np
+
+from amb_controller.errors import ControllerValueError, NotIdentifiedError
+from amb_controller.guard import DivergenceGuard
+from amb_controller.identification import IdentificationResult, MarkovIdentifier, StepExperiment
+from amb_controller.synthesis import ForceLimiter
+
+
+class Mode(IntEnum):
+    """Controller modes, numbered as ``amb_msgs/ControllerStatus.MODE_*``."""
+
+    OFF = 0
+    IDENTIFYING = 1
+    ACTIVE = 2
+    HOLD = 3
+
+
+#: FaultEvent.fault_type values (amb_msgs/FaultEvent.msg).
+AUX_BEARING_CONTACT = 2
+DEFAULT_FAULT_ACTIONS = {AUX_BEARING_CONTACT: "hold"}
+
+
+@dataclass(frozen=True)
+class Command:
+    """
+    One command for a future control period (maps onto ``ControlCommand``).
+
+    Attributes
+    ----------
+    target_period : int
+        Period ``k + delay`` the command is for.
+    based_on_period : int
+        Last measured period used (k).
+    coefficients : numpy.ndarray
+        Control coefficients in the control-basis order (N * sqrt(samples)).
+    force : numpy.ndarray
+        Force samples, shape ``(n_axes, samples_per_period)`` (N).
+    mode : Mode
+        Mode in force when the command was made.
+    hold : bool
+        True when the controller is holding (no new correction).
+    saturated : numpy.ndarray of bool
+        Per axis.
+    guard_tripped : bool
+        Divergence guard state.
+    message : str
+        Reason for the current mode.
+
+    """
+
+    target_period: int
+    based_on_period: int
+    coefficients: np.ndarray
+    force: np.ndarray
+    mode: Mode
+    hold: bool
+    saturated: np.ndarray
+    guard_tripped: bool
+    message: str = ""
+
+
+@dataclass
+class _Identification:
+    experiment: StepExperiment
+    identifier: MarkovIdentifier
+    last_measured_period: int = field(init=False)
+
+    def __post_init__(self) -> None:
+        self.last_measured_period = (
+            self.experiment.start_period + self.experiment.n_periods + self.identifier.order - 1
+        )
+
+
+class WaveletControlSupervisor:
+    """
+    Modes, saturation, guard and identification around one controller.
+
+    Parameters
+    ----------
+    limiter : ForceLimiter
+        Synthesis and per-axis force limit (defines the control coefficient layout).
+    delay : int
+        Evaluation delay ``i`` >= 1 in periods (commands are for ``k + delay``).
+    controller : object, optional
+        A controller with ``step``, ``reset``, ``skip``, ``get_state``, ``set_state``,
+        ``delay`` (:class:`~amb_controller.transient.TransientController` or
+        :class:`~amb_controller.steady_state.ProportionalController`).
+    guard : DivergenceGuard, optional
+        Divergence guard.
+    fault_actions : dict of int to str, optional
+        ``FaultEvent.fault_type`` -> ``"hold"``, ``"off"`` or ``"ignore"``
+        (default: hold on auxiliary-bearing contact).
+
+    """
+
+    def __init__(
+        self,
+        limiter: ForceLimiter,
+        delay: int,
+        controller=None,
+        guard: DivergenceGuard | None = None,
+        fault_actions: dict[int, str] | None = None,
+    ) -> None:
+        if int(delay) != delay or delay < 1:
+            raise ControllerValueError(f"delay must be an integer >= 1 period, got {delay}")
+        self.limiter = limiter
+        self.delay = int(delay)
+        self.guard = guard
+        self.fault_actions = dict(DEFAULT_FAULT_ACTIONS if fault_actions is None else fault_actions)
+        for action in self.fault_actions.values():
+            if action not in ("hold", "off", "ignore"):
+                raise ControllerValueError(f"fault action must be hold/off/ignore, got {action!r}")
+        self.controller = None
+        if controller is not None:
+            self.set_controller(controller)
+        self.mode = Mode.OFF
+        self.message = "off"
+        self.identification_result: IdentificationResult | None = None
+        self._identification: _Identification | None = None
+        self._sent: dict[int, np.ndarray] = {}
+        self._last = np.zeros(limiter.basis.n_coefficients)
+
+    # ------------------------------------------------------------------ configuration
+    def set_controller(self, controller) -> None:
+        """Install a controller (its delay must equal the supervisor's)."""
+        if getattr(controller, "delay", None) != self.delay:
+            raise ControllerValueError(
+                f"controller delay {getattr(controller, 'delay', None)} differs from the "
+                f"supervisor's {self.delay}"
+            )
+        if controller.n_outputs != self.limiter.basis.n_coefficients:
+            raise ControllerValueError(
+                f"controller gives {controller.n_outputs} control coefficients, the control "
+                f"basis has {self.limiter.basis.n_coefficients}"
+            )
+        self.controller = controller
+        controller.reset()
+
+    def set_mode(self, mode: Mode) -> tuple[bool, str]:
+        """
+        Request OFF, ACTIVE or HOLD (IDENTIFYING via :meth:`start_identification`).
+
+        Returns
+        -------
+        tuple of (bool, str)
+            Accepted, and the reason (as ``SetControllerMode`` returns).
+
+        """
+        mode = Mode(mode)
+        if mode == Mode.IDENTIFYING:
+            return False, "use start_identification() to enter IDENTIFYING"
+        if mode == Mode.ACTIVE:
+            if self.controller is None:
+                return False, "no controller model loaded: identify or load a model first"
+            if self.guard is not None and self.guard.tripped:
+                return False, f"divergence guard tripped ({self.guard.reason}); reset() first"
+            if self.mode != Mode.HOLD:
+                self.controller.reset()
+        if mode == Mode.OFF:
+            self._identification = None
+            if self.controller is not None:
+                self.controller.reset()
+        self.mode = mode
+        self.message = mode.name.lower()
+        return True, self.message
+
+    def start_identification(self, experiment: StepExperiment, identifier: MarkovIdentifier):
+        """Enter IDENTIFYING with this excitation and estimator."""
+        if experiment.n_inputs != self.limiter.basis.n_coefficients:
+            raise ControllerValueError(
+                f"experiment has {experiment.n_inputs} inputs, control basis "
+                f"{self.limiter.basis.n_coefficients}"
+            )
+        identifier.reset()
+        self._identification = _Identification(experiment, identifier)
+        self.identification_result = None
+        self.mode = Mode.IDENTIFYING
+        self.message = "identifying"
+
+    def on_fault(self, fault_type: int) -> str:
+        """Apply the configured reconfiguration for a fault event; return the action."""
+        action = self.fault_actions.get(int(fault_type), "ignore")
+        if action == "hold" and self.mode == Mode.ACTIVE:
+            self.mode = Mode.HOLD
+            self.message = f"hold on fault {fault_type}"
+        elif action == "off" and self.mode in (Mode.ACTIVE, Mode.HOLD):
+            self.set_mode(Mode.OFF)
+            self.message = f"off on fault {fault_type}"
+        return action
+
+    def reset(self) -> None:
+        """Return to OFF, re-arm the guard and forget sent commands."""
+        if self.guard is not None:
+            self.guard.reset()
+        self.set_mode(Mode.OFF)
+        self._sent.clear()
+        self._last = np.zeros(self.limiter.basis.n_coefficients)
+
+    def applied(self, period_index: int) -> np.ndarray:
+        """Return the control coefficients commanded for ``period_index`` (zeros if none)."""
+        return self._sent.get(period_index, np.zeros(self.limiter.basis.n_coefficients))
+
+    # ------------------------------------------------------------------ period step
+    def step(
+        self, period_index: int, measured: np.ndarray, displacement_peak: float | None = None
+    ) -> Command:
+        """
+        Consume period k; return the command for period ``k + delay``.
+
+        Parameters
+        ----------
+        period_index : int
+            Measured period k.
+        measured : numpy.ndarray
+            Measured coefficients of period k (controller input layout).
+        displacement_peak : float, optional
+            Largest absolute displacement over period k in m (for the guard).
+
+        Returns
+        -------
+        Command
+
+        """
+        k = int(period_index)
+        target = k + self.delay
+        zeros = np.zeros(self.limiter.basis.n_coefficients)
+        hold = False
+        guard_tripped = False
+        if self.guard is not None and self.mode != Mode.OFF:
+            was = self.guard.tripped
+            guard_tripped = self.guard.update(measured, displacement_peak)
+            if guard_tripped and not was:
+                self.mode = Mode.HOLD
+                self.message = f"guard: {self.guard.reason}"
+                if self.controller is not None:
+                    self.controller.reset()
+        result = None
+        if self.mode == Mode.IDENTIFYING:
+            coefficients = self._identify(k, measured, target)
+        elif self.mode == Mode.ACTIVE:
+            saved = self.controller.get_state()
+            coefficients = self.controller.step(k, measured).coefficients
+            result = self.limiter.apply(coefficients)
+            if result.saturated.any():
+                self.controller.set_state(saved)  # anti-windup: hold the state
+                self.controller.skip(k)
+                hold = True
+        elif self.mode == Mode.HOLD:
+            hold = True
+            if self.controller is not None and not guard_tripped:
+                self.controller.skip(k)
+            coefficients = zeros if guard_tripped else self._last
+        else:
+            coefficients = zeros
+        if result is None:
+            result = self.limiter.apply(coefficients)
+        self._last = result.coefficients
+        self._sent[target] = result.coefficients
+        for old in [p for p in self._sent if p < k - self.delay - 1]:
+            del self._sent[old]
+        return Command(
+            target,
+            k,
+            result.coefficients,
+            result.force,
+            self.mode,
+            hold,
+            result.saturated,
+            bool(self.guard is not None and self.guard.tripped),
+            self.message,
+        )
+
+    def _identify(self, k: int, measured: np.ndarray, target: int) -> np.ndarray:
+        ident = self._identification
+        if k >= ident.experiment.start_period:
+            ident.identifier.update(k, self.applied(k), measured)
+        if k >= ident.last_measured_period:
+            try:
+                self.identification_result = ident.identifier.estimate()
+                self.message = f"identified from {ident.identifier.n_periods} periods"
+            except NotIdentifiedError as exc:
+                self.message = f"identification failed: {exc}"
+            self._identification = None
+            self.mode = Mode.OFF
+            return np.zeros(self.limiter.basis.n_coefficients)
+        return ident.experiment.command(target)
+
+    @property
+    def identification_progress(self) -> float:
+        """Fraction 0..1 of the running identification (1 when none is running)."""
+        if self._identification is None:
+            return 1.0
+        ident = self._identification
+        last = ident.last_measured_period
+        done = ident.identifier.n_periods + ident.identifier.order
+        return float(min(1.0, done / max(1, last - ident.experiment.start_period + 1)))
