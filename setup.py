@@ -8,6 +8,7 @@ PACKAGE = "amb_wavelet_control"
 
 # Node executables (``ros2 run amb_wavelet_control <name>``) and command-line tools.
 NODES = {
+    "plant_sim": "amb_plant_sim.node:main",
     "recorder": "amb_tools.recorder_node:main",
     "wavelet_filterbank": "amb_wavelet.node:main",
 }

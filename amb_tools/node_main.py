@@ -4,6 +4,8 @@ rclpy's own signal handling covers SIGINT but a node may miss SIGTERM (``ros2 la
 SIGINT first, a process manager SIGTERM). :func:`run_node` installs handlers for both that only
 set a flag, spins with a timeout so the flag is seen within ``spin_timeout`` seconds, then calls
 the node's ``on_shutdown()`` (if it has one) before destroying it, so that files are closed.
+A node that has finished its work (a simulator at the end of its scenario) sets ``done = True``
+and the process exits with status 0.
 A node whose constructor raises :class:`ConfigurationError` (invalid parameter or file) makes the
 process exit with status 2 and the reason on stderr.
 """
@@ -63,7 +65,7 @@ def run_node(
             return EXIT_CONFIGURATION_ERROR
         executor = SingleThreadedExecutor()
         executor.add_node(node)
-        while not stop and rclpy.ok():
+        while not stop and rclpy.ok() and not getattr(node, "done", False):
             executor.spin_once(timeout_sec=spin_timeout)
         return 0
     except (KeyboardInterrupt, ExternalShutdownException):

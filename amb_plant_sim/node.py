@@ -1,0 +1,406 @@
+"""``plant_sim``: the simulated rig on ROS 2 (thesis chapter 2 model, chapter 3 faults).
+
+A thin ROS layer over :class:`amb_plant_sim.simulator.PlantSimulator`. It publishes one
+``Measurement`` per sample on ``/amb/measurement`` (only what a rig can measure), ``/clock``
+(simulated time), and applies the wavelet control force of each ``ControlCommand`` during the
+command's target period, in parallel with the local PID that the simulator runs (on a rig the
+PID runs on the real-time board, so it belongs with the hardware side). A hardware I/O bridge
+replaces this node by publishing and subscribing the same topics and types.
+
+Run modes (ARCHITECTURE.md, "Time")
+-----------------------------------
+``lockstep`` (default)
+    The plant owns simulated time. Control period ``k`` (samples ``k N .. k N + N - 1``,
+    ``N = samples_per_period``) starts only when the command whose ``period_index`` is ``k``
+    has arrived, for ``k >= delay_periods``; the first ``delay_periods`` periods run with zero
+    wavelet force, since no measured period precedes them. The controller answers every measured
+    period ``m`` with one command for ``m + delay_periods`` (zero force when it is OFF), so the
+    loop sustains itself and its results do not depend on machine speed. A command that has not
+    arrived ``command_timeout`` wall seconds after the period could start is declared missing:
+    logged, counted, and the period runs with zero wavelet force (the rotor stays on its PID).
+``realtime``
+    Samples are produced on the wall clock (times ``time_scale``); a command is applied if it
+    arrived before its period starts, else the period runs with zero force and the command is
+    counted late. This is how a rig behaves.
+
+A command is rejected (counted, reported, never applied) if its period has already started,
+its arrays have the wrong length, or it holds a non-finite value; forces beyond
+``wavelet_force_limit`` are clipped to it and counted.
+
+When the scenario's duration is reached the node waits until every subscriber has acknowledged
+the last measurement, reports, and exits with status 0 (``exit_at_end``).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+import yaml
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+from rclpy.duration import Duration
+from rclpy.node import Node
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rosgraph_msgs.msg import Clock
+
+from amb_msgs.msg import ControlCommand, Measurement
+from amb_msgs.srv import InjectFault
+from amb_plant_sim.errors import RigError, ScenarioError, SimulationError
+from amb_plant_sim.rig import load_rig
+from amb_plant_sim.scenario import load_scenario
+from amb_plant_sim.simulator import MeasurementBlock, PlantSimulator
+from amb_tools.conversions import NUM_AXES, from_float_array, stamp
+from amb_tools.node_main import ConfigurationError, run_node
+from amb_tools.paths import config_file
+from amb_wavelet.node import stream_qos
+
+MODES = ("lockstep", "realtime")
+COMMAND_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST, depth=16, reliability=ReliabilityPolicy.RELIABLE
+)
+
+
+def _descriptor(description: str, read_only: bool = True, **ranges) -> ParameterDescriptor:
+    if "ints" in ranges:
+        lo, hi = ranges.pop("ints")
+        ranges["integer_range"] = [IntegerRange(from_value=lo, to_value=hi)]
+    if "floats" in ranges:
+        lo, hi = ranges.pop("floats")
+        ranges["floating_point_range"] = [FloatingPointRange(from_value=lo, to_value=hi)]
+    return ParameterDescriptor(description=description, read_only=read_only, **ranges)
+
+
+class PlantSimNode(Node):
+    """The simulated rig (module docstring)."""
+
+    def __init__(self) -> None:
+        super().__init__("plant_sim")
+        d = self.declare_parameter
+        d("rig_file", "", _descriptor("rig description YAML ('' = the package's config/rig.yaml)"))
+        d("scenario_file", "", _descriptor("scenario YAML: speed, duration, events (required)"))
+        d(
+            "samples_per_rev",
+            0,
+            _descriptor("samples per revolution, power of two (0 = scenario's)", ints=(0, 4096)),
+        )
+        d(
+            "samples_per_period",
+            0,
+            _descriptor("control period in samples (0 = samples_per_rev)", ints=(0, 65536)),
+        )
+        d("mode", "lockstep", _descriptor("lockstep | realtime"))
+        d(
+            "delay_periods",
+            2,
+            _descriptor("i: commands for period k answer measured period k - i", ints=(1, 16)),
+        )
+        d(
+            "command_timeout",
+            5.0,
+            _descriptor(
+                "lockstep: wall s to wait for a command before running the period without it",
+                floats=(0.01, 600.0),
+            ),
+        )
+        d(
+            "wait_for_subscribers",
+            1,
+            _descriptor(
+                "subscribers of /amb/measurement to wait for before sample 0", ints=(0, 64)
+            ),
+        )
+        d("startup_timeout", 30.0, _descriptor("wall s to wait for them", floats=(0.0, 600.0)))
+        d("time_scale", 1.0, _descriptor("realtime: simulated s per wall s", floats=(0.01, 100.0)))
+        d(
+            "wavelet_force_limit",
+            0.0,
+            _descriptor("N per axis (0 = the rig's bearing capacity)", floats=(0.0, 1.0e5)),
+        )
+        d("seed", 0, _descriptor("noise seed", ints=(0, 2**31 - 1)))
+        d("exit_at_end", True, _descriptor("exit when the scenario duration is reached"))
+        d("clock_every", 8, _descriptor("publish /clock every this many samples", ints=(1, 65536)))
+        d(
+            "status_period",
+            1.0,
+            _descriptor(
+                "period of the /diagnostics report, wall s", read_only=False, floats=(0.05, 60.0)
+            ),
+        )
+        self._configure()
+        self._meas_pub = self.create_publisher(Measurement, "/amb/measurement", stream_qos(self._N))
+        self._clock_pub = self.create_publisher(Clock, "/clock", 10)
+        self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        self.create_subscription(
+            ControlCommand, "/amb/control/command", self._on_command, COMMAND_QOS
+        )
+        self.create_service(InjectFault, "/amb/plant/inject_fault", self._on_inject)
+        self.create_timer(self.get_parameter("status_period").value, self._publish_status)
+        self._timer = self.create_timer(0.002, self._tick)
+        self._commands: dict[int, np.ndarray] = {}
+        self.counts = dict.fromkeys(
+            ("applied", "missing", "late", "rejected", "clipped", "saturated_samples"), 0
+        )
+        self._last_reason = ""
+        self._started = False
+        self._startup_deadline = time.monotonic() + self.get_parameter("startup_timeout").value
+        self._waiting_since: float | None = None
+        self._wall0 = 0.0
+        self.done = False
+        self.get_logger().info(
+            f"{self._scenario.name}: {self._sim.omega / (2 * math.pi):.3f} Hz, "
+            f"{self._spr} samples/rev ({self._sim.fs:.1f} Hz), {self._duration} s, "
+            f"mode {self._mode}"
+        )
+
+    # ------------------------------------------------------------------ configuration
+    def _configure(self) -> None:
+        p = lambda name: self.get_parameter(name).value  # noqa: E731
+        rig_file = p("rig_file") or str(config_file("rig.yaml"))
+        try:
+            rig = load_rig(rig_file)
+        except RigError as exc:
+            raise ConfigurationError(f"parameter 'rig_file' = {rig_file!r}: {exc}") from exc
+        scenario_file = p("scenario_file")
+        if not scenario_file:
+            raise ConfigurationError("parameter 'scenario_file' is empty: name a scenario YAML")
+        if not Path(scenario_file).is_file():
+            candidate = config_file(Path("scenarios") / scenario_file)
+            if not candidate.is_file():
+                raise ConfigurationError(
+                    f"parameter 'scenario_file' = {scenario_file!r}: no such file"
+                )
+            scenario_file = str(candidate)
+        try:
+            scenario = load_scenario(scenario_file, rig)
+        except ScenarioError as exc:
+            raise ConfigurationError(
+                f"parameter 'scenario_file' = {scenario_file!r}: {exc}"
+            ) from exc
+        spr = p("samples_per_rev") or scenario.samples_per_rev or 64
+        if spr < 4 or spr & (spr - 1):
+            raise ConfigurationError(
+                f"parameter 'samples_per_rev' = {spr}: must be a power of two >= 4"
+            )
+        self._N = p("samples_per_period") or spr
+        if self._N % spr and spr % self._N:
+            raise ConfigurationError(
+                f"parameter 'samples_per_period' = {self._N}: must divide or be a multiple of "
+                f"samples_per_rev = {spr}"
+            )
+        self._mode = p("mode")
+        if self._mode not in MODES:
+            raise ConfigurationError(f"parameter 'mode' = {self._mode!r}: allowed {MODES}")
+        limit = p("wavelet_force_limit") or rig.amb.force_limit
+        if limit > rig.amb.force_limit:
+            raise ConfigurationError(
+                f"parameter 'wavelet_force_limit' = {limit} N exceeds the bearing capacity "
+                f"{rig.amb.force_limit} N (rig file amb.force_limit)"
+            )
+        self._force_limit = limit
+        self._delay = p("delay_periods")
+        self._timeout = p("command_timeout")
+        self._clock_every = p("clock_every")
+        self._spr = spr
+        self._scenario = scenario
+        self._duration = scenario.duration
+        try:
+            self._sim = PlantSimulator(rig, scenario, samples_per_rev=spr, seed=p("seed"))
+        except SimulationError as exc:
+            raise ConfigurationError(str(exc)) from exc
+        self._n_total = round(self._duration * self._sim.fs) if not scenario.profile_hz else None
+
+    # ------------------------------------------------------------------ commands
+    def _on_command(self, msg: ControlCommand) -> None:
+        k = msg.period_index
+        next_period = self._sim.sample_index // self._N
+        reason = None
+        if k < next_period:
+            self.counts["late"] += 1
+            reason = f"command for period {k} arrived after it started (now {next_period})"
+        elif msg.samples_per_period != self._N or msg.start_sample_index != k * self._N:
+            reason = (
+                f"command for period {k}: samples_per_period {msg.samples_per_period} / start "
+                f"{msg.start_sample_index}, expected {self._N} / {k * self._N}"
+            )
+        else:
+            force = from_float_array(msg.force)
+            if force.size != NUM_AXES * self._N:
+                expected = NUM_AXES * self._N
+                reason = f"command for period {k}: {force.size} force values, expected {expected}"
+            elif not np.all(np.isfinite(force)):
+                reason = f"command for period {k}: non-finite force"
+        if reason is not None:
+            if k >= next_period:
+                self.counts["rejected"] += 1
+            self._last_reason = reason
+            self.get_logger().warning(reason, throttle_duration_sec=2.0)
+            return
+        f = force.reshape(NUM_AXES, self._N).T  # (N, 4), axis-major in the message
+        if np.any(np.abs(f) > self._force_limit):
+            self.counts["clipped"] += 1
+            f = np.clip(f, -self._force_limit, self._force_limit)
+        self._commands[k] = f
+        if self._mode == "lockstep":
+            self._tick()
+
+    # ------------------------------------------------------------------ stepping
+    def _tick(self) -> None:
+        if self.done:
+            return
+        if not self._started:
+            want = self.get_parameter("wait_for_subscribers").value
+            if self._meas_pub.get_subscription_count() < want:
+                if time.monotonic() < self._startup_deadline:
+                    return
+                self.get_logger().warning(
+                    f"only {self._meas_pub.get_subscription_count()} of {want} subscribers of "
+                    "/amb/measurement after startup_timeout: starting anyway"
+                )
+            self._started = True
+            self._wall0 = time.monotonic()
+        if self._mode == "lockstep":
+            self._tick_lockstep()
+        else:
+            self._tick_realtime()
+
+    def _remaining(self) -> int:
+        if self._n_total is not None:
+            return self._n_total - self._sim.sample_index
+        return 1 if self._sim.time < self._duration else 0
+
+    def _tick_lockstep(self) -> None:
+        for _ in range(64):  # bounded work per callback: let the executor breathe
+            if self._remaining() <= 0:
+                self._finish()
+                return
+            k = self._sim.sample_index // self._N
+            if k >= self._delay and k not in self._commands:
+                now = time.monotonic()
+                if self._waiting_since is None:
+                    self._waiting_since = now
+                if now - self._waiting_since < self._timeout:
+                    return
+                self.counts["missing"] += 1
+                self._last_reason = (
+                    f"no command for period {k} within {self._timeout} s: zero force"
+                )
+                self.get_logger().warning(self._last_reason, throttle_duration_sec=2.0)
+            self._waiting_since = None
+            self._run_period(k)
+
+    def _tick_realtime(self) -> None:
+        due = (time.monotonic() - self._wall0) * self.get_parameter("time_scale").value
+        while self._remaining() > 0 and self._sim.time <= due:
+            self._run_period(self._sim.sample_index // self._N)
+        if self._remaining() <= 0:
+            self._finish()
+
+    def _run_period(self, k: int) -> None:
+        n0 = self._sim.sample_index
+        n = min(self._N - n0 % self._N, max(self._remaining(), 1))
+        force = self._commands.pop(k, None)
+        status = 0
+        if force is None:
+            wf = np.zeros((n, NUM_AXES))
+            if k >= self._delay:
+                status |= Measurement.STATUS_COMMAND_MISSING
+                if self._mode == "realtime":
+                    self.counts["missing"] += 1
+        else:
+            wf = force[n0 % self._N : n0 % self._N + n]
+            self.counts["applied"] += 1
+        for old in [c for c in self._commands if c < k]:
+            del self._commands[old]
+        block = self._sim.advance(n, wf)
+        self._publish(block, wf, status)
+
+    def _publish(self, block: MeasurementBlock, wf: np.ndarray, status: int) -> None:
+        saturated = np.any(
+            np.abs(block.bearing_force) >= self._sim.rig.amb.force_limit * (1 - 1e-9), axis=1
+        )
+        self.counts["saturated_samples"] += int(np.count_nonzero(saturated))
+        for s in range(block.sample_index.size):
+            m = Measurement()
+            t = stamp(float(block.time[s]))
+            m.header.stamp = t
+            m.header.frame_id = "amb_rig"
+            m.sample_index = int(block.sample_index[s])
+            m.samples_per_rev = self._spr
+            m.rotor_angle = float(block.angle[s])
+            m.rotor_speed = float(block.omega[s])
+            m.displacement = block.displacement[s]
+            m.current = block.current[s]
+            m.bearing_force = block.bearing_force[s]
+            m.wavelet_force = wf[s]
+            m.status = status | (Measurement.STATUS_FORCE_SATURATED if saturated[s] else 0)
+            self._meas_pub.publish(m)
+            if m.sample_index % self._clock_every == 0:
+                self._clock_pub.publish(Clock(clock=t))
+
+    def _finish(self) -> None:
+        if self.done:
+            return
+        self._meas_pub.wait_for_all_acked(Duration(seconds=10.0))
+        self._publish_status()
+        self.get_logger().info(
+            f"scenario {self._scenario.name} complete at t = {self._sim.time:.4f} s "
+            f"({self._sim.sample_index} samples); commands: "
+            + ", ".join(f"{k} {v}" for k, v in self.counts.items())
+        )
+        if self.get_parameter("exit_at_end").value:
+            self.done = True
+        else:
+            self._timer.cancel()
+
+    # ------------------------------------------------------------------ service, status
+    def _on_inject(self, request: InjectFault.Request, response: InjectFault.Response):
+        try:
+            event = yaml.safe_load(request.event_yaml)
+            if not isinstance(event, dict):
+                raise ScenarioError(f"event_yaml must be a mapping, got {type(event).__name__}")
+            if event.get("time") is None or event["time"] < self._sim.time:
+                event["time"] = self._sim.time
+            injected = self._sim.inject(event)
+        except (yaml.YAMLError, ScenarioError, SimulationError, ValueError, TypeError) as exc:
+            response.accepted = False
+            response.message = str(exc)
+            return response
+        response.accepted = True
+        response.scheduled_time = float(injected.time)
+        response.message = f"{injected.kind} scheduled at t = {injected.time:.4f} s"
+        self.get_logger().info(response.message)
+        return response
+
+    def _publish_status(self) -> None:
+        level = DiagnosticStatus.OK
+        if self.counts["missing"] or self.counts["late"] or self.counts["rejected"]:
+            level = DiagnosticStatus.WARN
+        values = {
+            "time": f"{self._sim.time:.6f}",
+            "sample_index": self._sim.sample_index,
+            "speed_hz": f"{self._sim.omega / (2 * math.pi):.4f}",
+            "done": self.done or self._remaining() <= 0,
+            **self.counts,
+        }
+        status = DiagnosticStatus(
+            level=level,
+            name="plant_sim",
+            message=self._last_reason or "ok",
+            hardware_id=self._scenario.name,
+            values=[KeyValue(key=k, value=str(v)) for k, v in values.items()],
+        )
+        array = DiagnosticArray(status=[status])
+        array.header.stamp = self.get_clock().now().to_msg()
+        self._diag_pub.publish(array)
+
+
+def main(args: list[str] | None = None) -> int:
+    """Entry point of the ``plant_sim`` executable."""
+    return run_node(PlantSimNode, args)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,176 @@
+"""plant_sim over real DDS: lock-step exchange, forces applied, bad commands, fault injection.
+
+The reference for the published measurements is the simulator core itself run in this process
+with the same forces: the node must add nothing and lose nothing (bit-for-bit equality).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import yaml
+from amb_msgs.msg import ControlCommand, Measurement
+from amb_msgs.srv import InjectFault
+from diagnostic_msgs.msg import DiagnosticArray
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+from amb_plant_sim.rig import load_rig
+from amb_plant_sim.scenario import scenario_from_dict
+from amb_plant_sim.simulator import PlantSimulator
+from amb_tools.conversions import to_float_array
+from amb_wavelet.node import stream_qos
+
+pytestmark = pytest.mark.ros
+
+SPR = 16
+DELAY = 2
+SCENARIO = {
+    "name": "node_test",
+    "speed": {"hz": 20.0},
+    "duration": 0.5,  # 10 revolutions = 10 periods
+    "measurement_noise": 1.0e-7,
+    "events": [
+        {"kind": "unbalance", "time": 0.0, "disk": "D1", "me": 1.0e-3, "angle": 0.0},
+        {"kind": "mass_loss", "time": 0.2, "disk": "D1", "me": 4.3e-3, "angle": 1.0},
+    ],
+}
+COMMAND_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST, depth=16, reliability=ReliabilityPolicy.RELIABLE
+)
+
+
+def _force(period: int) -> np.ndarray:
+    """A distinct wavelet force pattern per period, (SPR, 4) N."""
+    n = np.arange(SPR)[:, None]
+    axis = np.arange(4)[None, :]
+    return 20.0 * np.sin(2 * np.pi * n / SPR + period + axis)
+
+
+def _command(period: int, force: np.ndarray) -> ControlCommand:
+    c = ControlCommand(period_index=period, start_sample_index=period * SPR)
+    c.samples_per_period = SPR
+    c.delay_periods = DELAY
+    c.force = to_float_array(force.T.ravel())  # axis-major
+    return c
+
+
+class _Loop:
+    """Test-side controller: answers every measured period m with a command for m + DELAY."""
+
+    def __init__(self, ros, skip=(), corrupt=()) -> None:
+        self.node = ros.node("amb_test_controller")
+        self.samples: list[Measurement] = []
+        self.diag: dict[str, str] = {}
+        self.skip, self.corrupt = set(skip), set(corrupt)
+        self.pub = self.node.create_publisher(ControlCommand, "/amb/control/command", COMMAND_QOS)
+        self.node.create_subscription(
+            Measurement, "/amb/measurement", self.on_measurement, stream_qos(SPR)
+        )
+        self.node.create_subscription(DiagnosticArray, "/diagnostics", self.on_diag, 10)
+
+    def on_measurement(self, m: Measurement) -> None:
+        self.samples.append(m)
+        if m.sample_index % SPR == SPR - 1:
+            target = m.sample_index // SPR + DELAY
+            if target in self.skip:
+                return
+            cmd = _command(target, _force(target))
+            if target in self.corrupt:
+                bad = _command(target, _force(target))
+                bad.force[3] = float("nan")
+                self.pub.publish(bad)  # rejected; the good one follows
+            self.pub.publish(cmd)
+
+    def on_diag(self, msg: DiagnosticArray) -> None:
+        for s in msg.status:
+            if s.name == "plant_sim":
+                self.diag.update({kv.key: kv.value for kv in s.values})
+
+
+def _start_plant(node_process, tmp_path, **params):
+    scenario = tmp_path / "scenario.yaml"
+    scenario.write_text(yaml.safe_dump(SCENARIO))
+    return node_process(
+        "plant_sim",
+        params={
+            "scenario_file": str(scenario),
+            "samples_per_rev": SPR,
+            "delay_periods": DELAY,
+            "status_period": 0.1,
+            **params,
+        },
+    )
+
+
+def _reference(forces_by_period: dict[int, np.ndarray]):
+    rig = load_rig()
+    sim = PlantSimulator(rig, scenario_from_dict(SCENARIO, rig), samples_per_rev=SPR, seed=0)
+    n_periods = 10
+    blocks = [sim.advance(SPR, forces_by_period.get(k)) for k in range(n_periods)]
+    return np.concatenate([b.displacement for b in blocks])
+
+
+def test_lockstep_applies_each_command_in_its_period(ros, node_process, tmp_path) -> None:
+    loop = _Loop(ros, corrupt={5})
+    plant = _start_plant(node_process, tmp_path)
+    assert ros.spin_until(lambda: len(loop.samples) == 10 * SPR, 60.0), (
+        len(loop.samples),
+        plant.log(),
+    )
+    assert plant.wait(20) == 0, plant.log()
+    idx = [m.sample_index for m in loop.samples]
+    assert idx == list(range(10 * SPR))
+    forces = {k: _force(k) for k in range(DELAY, 10)}
+    wf = np.array([m.wavelet_force for m in loop.samples])
+    expected = np.concatenate([forces.get(k, np.zeros((SPR, 4))) for k in range(10)])
+    np.testing.assert_array_equal(wf, expected)
+    assert not any(m.status & Measurement.STATUS_COMMAND_MISSING for m in loop.samples)
+    disp = np.array([m.displacement for m in loop.samples])
+    np.testing.assert_array_equal(disp, _reference(forces))
+    assert "rejected 1" in plant.log()  # the NaN command of period 5
+
+
+def test_missing_command_times_out_to_zero_force(ros, node_process, tmp_path) -> None:
+    loop = _Loop(ros, skip={4})
+    plant = _start_plant(node_process, tmp_path, command_timeout=0.3)
+    assert ros.spin_until(lambda: len(loop.samples) == 10 * SPR, 60.0), plant.log()
+    assert plant.wait(20) == 0, plant.log()
+    period4 = loop.samples[4 * SPR : 5 * SPR]
+    assert all(m.status & Measurement.STATUS_COMMAND_MISSING for m in period4)
+    assert all(not np.any(m.wavelet_force) for m in period4)
+    assert "missing 1" in plant.log()
+
+
+def test_fault_injection_service(ros, node_process, tmp_path) -> None:
+    loop = _Loop(ros, skip=set(range(DELAY, 10)))  # no commands: the plant waits
+    plant = _start_plant(node_process, tmp_path, command_timeout=600.0)
+    client = loop.node.create_client(InjectFault, "/amb/plant/inject_fault")
+    assert client.wait_for_service(timeout_sec=30.0), plant.log()
+
+    def call(event_yaml: str) -> InjectFault.Response:
+        future = client.call_async(InjectFault.Request(event_yaml=event_yaml))
+        assert ros.spin_until(future.done, 30.0)
+        return future.result()
+
+    ok = call("{kind: sensor_fault, plane: 1, axis: x, mode: offset, value: 1.0e-4}")
+    assert ok.accepted, ok.message
+    bad = call("{kind: mass_loss, disk: D1}")
+    assert not bad.accepted and "me" in bad.message
+    worse = call("not: [valid")
+    assert not worse.accepted
+
+
+@pytest.mark.parametrize(
+    ("params", "words"),
+    [
+        ({"samples_per_rev": 12}, ("samples_per_rev", "power of two")),
+        ({"scenario_file": "/nonexistent.yaml"}, ("scenario_file", "no such file")),
+        ({"wavelet_force_limit": 5000.0}, ("wavelet_force_limit", "capacity")),
+        ({"mode": "fast"}, ("mode", "lockstep")),
+    ],
+)
+def test_invalid_parameters_stop_the_node_with_a_reason(node_process, tmp_path, params, words):
+    plant = _start_plant(node_process, tmp_path, **params)
+    assert plant.wait(60) == 2
+    log = plant.log()
+    assert all(w in log for w in words), log
