@@ -52,7 +52,7 @@ from amb_plant_sim.errors import RigError, ScenarioError, SimulationError
 from amb_plant_sim.rig import load_rig
 from amb_plant_sim.scenario import load_scenario
 from amb_plant_sim.simulator import MeasurementBlock, PlantSimulator
-from amb_tools.conversions import NUM_AXES, from_float_array, stamp
+from amb_tools.conversions import NUM_AXES, from_float_array, measurement_msgs
 from amb_tools.node_main import ConfigurationError, run_node
 from amb_tools.paths import config_file
 from amb_wavelet.node import stream_qos
@@ -318,27 +318,13 @@ class PlantSimNode(Node):
         self._publish(block, wf, status)
 
     def _publish(self, block: MeasurementBlock, wf: np.ndarray, status: int) -> None:
-        saturated = np.any(
-            np.abs(block.bearing_force) >= self._sim.rig.amb.force_limit * (1 - 1e-9), axis=1
-        )
-        self.counts["saturated_samples"] += int(np.count_nonzero(saturated))
-        for s in range(block.sample_index.size):
-            m = Measurement()
-            t = stamp(float(block.time[s]))
-            m.header.stamp = t
-            m.header.frame_id = "amb_rig"
-            m.sample_index = int(block.sample_index[s])
-            m.samples_per_rev = self._spr
-            m.rotor_angle = float(block.angle[s])
-            m.rotor_speed = float(block.omega[s])
-            m.displacement = block.displacement[s]
-            m.current = block.current[s]
-            m.bearing_force = block.bearing_force[s]
-            m.wavelet_force = wf[s]
-            m.status = status | (Measurement.STATUS_FORCE_SATURATED if saturated[s] else 0)
+        limit = self._sim.rig.amb.force_limit
+        for m in measurement_msgs(block, wf, status, self._spr, limit):
+            if m.status & Measurement.STATUS_FORCE_SATURATED:
+                self.counts["saturated_samples"] += 1
             self._meas_pub.publish(m)
             if m.sample_index % self._clock_every == 0:
-                self._clock_pub.publish(Clock(clock=t))
+                self._clock_pub.publish(Clock(clock=m.header.stamp))
 
     def _finish(self) -> None:
         if self.done:

@@ -60,3 +60,172 @@ def check_length(name: str, values: np.ndarray, expected: int) -> np.ndarray:
     if len(values) != expected:
         raise MessageError(f"field '{name}' has {len(values)} values, expected {expected}")
     return values
+
+
+# ---------------------------------------------------------------------------------------------
+# Message builders shared by the nodes and the in-process runner (identical bytes in both bags)
+# ---------------------------------------------------------------------------------------------
+
+
+def measurement_msgs(
+    block, wavelet_force: np.ndarray, status, samples_per_rev: int, force_limit: float
+):
+    """Build one ``Measurement`` per sample of a simulator block.
+
+    Parameters
+    ----------
+    block : amb_plant_sim.simulator.MeasurementBlock
+        ``n`` samples (only the measurable fields are used, never ``truth``).
+    wavelet_force : numpy.ndarray
+        ``(n, 4)`` N, the wavelet force applied in each sample.
+    status : int or numpy.ndarray
+        ``Measurement.STATUS_*`` flags for all samples, or ``(n,)`` per sample;
+        ``STATUS_FORCE_SATURATED`` is added where a bearing force reaches ``force_limit``.
+    samples_per_rev : int
+        Samples per revolution.
+    force_limit : float
+        N, bearing capacity per axis.
+
+    Returns
+    -------
+    list of amb_msgs.msg.Measurement
+    """
+    from amb_msgs.msg import Measurement
+
+    n = block.sample_index.size
+    flags = np.broadcast_to(np.asarray(status, dtype=np.int64), (n,)).copy()
+    saturated = np.any(np.abs(block.bearing_force) >= force_limit * (1 - 1e-9), axis=1)
+    flags[saturated] |= Measurement.STATUS_FORCE_SATURATED
+    out = []
+    for s in range(n):
+        m = Measurement()
+        m.header.stamp = stamp(float(block.time[s]))
+        m.header.frame_id = "amb_rig"
+        m.sample_index = int(block.sample_index[s])
+        m.samples_per_rev = samples_per_rev
+        m.rotor_angle = float(block.angle[s])
+        m.rotor_speed = float(block.omega[s])
+        m.displacement = block.displacement[s]
+        m.current = block.current[s]
+        m.bearing_force = block.bearing_force[s]
+        m.wavelet_force = wavelet_force[s]
+        m.status = int(flags[s])
+        out.append(m)
+    return out
+
+
+def coefficients_msg(
+    header,
+    wavelet: str,
+    samples_per_rev: int,
+    samples_per_period: int,
+    sample_index: int,
+    rotor_speed: float,
+    coefficients,
+    slots,
+):
+    """Build the ``WaveletCoefficients`` message of the coefficients one sample completed.
+
+    Parameters
+    ----------
+    header : std_msgs.msg.Header
+        Header of the completing ``Measurement``.
+    wavelet : str
+        PyWavelets name.
+    samples_per_rev, samples_per_period : int
+        Sampling and control period.
+    sample_index : int
+        The completing sample.
+    rotor_speed : float
+        rad/s, for the levels' pseudo-frequencies.
+    coefficients : list of amb_wavelet.analysis.Coefficient
+        What the filterbank returned for the sample; ``values`` ordered (slot, sensor channel).
+    slots : list of (frame, quadrature) codes
+        ``CoefficientSet.FRAME_*`` and ``QUADRATURE_*`` of each block of 8 values, in the
+        front end's channel order.
+
+    Returns
+    -------
+    amb_msgs.msg.WaveletCoefficients
+    """
+    from amb_msgs.msg import CoefficientSet, WaveletCoefficients
+    from amb_wavelet.analysis import APPROXIMATION
+    from amb_wavelet.levels import pseudo_frequency
+
+    fs = samples_per_rev * rotor_speed / (2.0 * np.pi)
+    sets = []
+    n = NUM_SENSORS
+    for c in coefficients:
+        kind = (
+            CoefficientSet.KIND_APPROXIMATION
+            if c.kind == APPROXIMATION
+            else CoefficientSet.KIND_DETAIL
+        )
+        f_level = pseudo_frequency(c.level, fs) if fs > 0 else 0.0
+        for i, (frame, quad) in enumerate(slots):
+            sets.append(
+                CoefficientSet(
+                    level=c.level,
+                    kind=kind,
+                    frame=frame,
+                    quadrature=quad,
+                    translation_index=c.translation_index,
+                    first_sample_index=c.first_sample_index,
+                    last_sample_index=c.last_sample_index,
+                    pseudo_frequency=f_level,
+                    settled=c.settled,
+                    values=to_float_array(c.values[i * n : (i + 1) * n]),
+                )
+            )
+    return WaveletCoefficients(
+        header=header,
+        wavelet=wavelet,
+        samples_per_rev=samples_per_rev,
+        sample_index=sample_index,
+        period_index=sample_index // samples_per_period,
+        samples_per_period=samples_per_period,
+        channel_names=list(SENSOR_NAMES),
+        sets=sets,
+    )
+
+
+def coefficient_records(msg):
+    """Turn a ``WaveletCoefficients`` message back into filterbank records.
+
+    Inverse of :func:`coefficients_msg`: the sets of one (level, kind, translation) are joined
+    in message order into one ``values`` vector, as the filterbank core produced it.
+
+    Parameters
+    ----------
+    msg : amb_msgs.msg.WaveletCoefficients
+
+    Returns
+    -------
+    list of tuple
+        ``(level, kind, translation_index, first, last, values, settled, slots)`` with ``kind``
+        ``"detail"`` or ``"approximation"``, ``values`` of shape ``(len(slots) * 8,)`` and
+        ``slots`` the ``(frame, quadrature)`` codes in order.
+
+    Raises
+    ------
+    MessageError
+        If a set has the wrong number of values or a non-finite value.
+    """
+    from amb_msgs.msg import CoefficientSet
+
+    records: dict[tuple, list] = {}
+    for s in msg.sets:
+        values = from_float_array(s.values)
+        check_length("sets[].values", values, NUM_SENSORS)
+        check_finite("sets[].values", values)
+        key = (s.level, s.kind, s.translation_index)
+        entry = records.setdefault(
+            key, [s.first_sample_index, s.last_sample_index, s.settled, [], []]
+        )
+        entry[3].append(values)
+        entry[4].append((s.frame, s.quadrature))
+    out = []
+    for (level, kind, m), (first, last, settled, vals, slots) in records.items():
+        name = "approximation" if kind == CoefficientSet.KIND_APPROXIMATION else "detail"
+        out.append((level, name, m, first, last, np.concatenate(vals), settled, slots))
+    return out

@@ -27,13 +27,13 @@ from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from amb_msgs.msg import CoefficientSet, Measurement, WaveletCoefficients
-from amb_tools.conversions import SENSOR_NAMES, to_float_array
+from amb_tools.conversions import coefficients_msg
 from amb_tools.node_main import ConfigurationError, run_node
-from amb_wavelet.analysis import APPROXIMATION, AnalysisFilterbank
+from amb_wavelet.analysis import AnalysisFilterbank
 from amb_wavelet.errors import LevelError, WaveletNameError
 from amb_wavelet.filters import get_filters
 from amb_wavelet.frontend import FRAMES, QUADRATURES, ChannelFrontEnd
-from amb_wavelet.levels import check_level, pseudo_frequency, revolution_level
+from amb_wavelet.levels import check_level, revolution_level
 
 FRAME_CODES = {"fixed": CoefficientSet.FRAME_FIXED, "rotating": CoefficientSet.FRAME_ROTATING}
 QUAD_CODES = {"even": CoefficientSet.QUADRATURE_EVEN, "odd": CoefficientSet.QUADRATURE_ODD}
@@ -185,40 +185,15 @@ class WaveletFilterbankNode(Node):
         coefficients = self._bank.step(self._front.step(xy, msg.rotor_angle), index)
         if not coefficients:
             return
-        fs = self._spr * msg.rotor_speed / (2.0 * math.pi)
-        sets = []
-        n = len(SENSOR_NAMES)
-        for c in coefficients:
-            kind = (
-                CoefficientSet.KIND_APPROXIMATION
-                if c.kind == APPROXIMATION
-                else CoefficientSet.KIND_DETAIL
-            )
-            f_level = pseudo_frequency(c.level, fs) if fs > 0 else 0.0
-            for i, (frame, quad) in enumerate(self._slots):
-                sets.append(
-                    CoefficientSet(
-                        level=c.level,
-                        kind=kind,
-                        frame=frame,
-                        quadrature=quad,
-                        translation_index=c.translation_index,
-                        first_sample_index=c.first_sample_index,
-                        last_sample_index=c.last_sample_index,
-                        pseudo_frequency=f_level,
-                        settled=c.settled,
-                        values=to_float_array(c.values[i * n : (i + 1) * n]),
-                    )
-                )
-        out = WaveletCoefficients(
-            header=msg.header,
-            wavelet=self._wavelet,
-            samples_per_rev=self._spr,
-            sample_index=index,
-            period_index=index // self._samples_per_period,
-            samples_per_period=self._samples_per_period,
-            channel_names=list(SENSOR_NAMES),
-            sets=sets,
+        out = coefficients_msg(
+            msg.header,
+            self._wavelet,
+            self._spr,
+            self._samples_per_period,
+            index,
+            msg.rotor_speed,
+            coefficients,
+            self._slots,
         )
         self._pub.publish(out)
         self.published += 1
