@@ -39,6 +39,8 @@ from pathlib import Path
 
 import numpy as np
 import yaml
+from amb_msgs.msg import ControlCommand, Measurement
+from amb_msgs.srv import InjectFault
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.duration import Duration
@@ -46,8 +48,6 @@ from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 
-from amb_msgs.msg import ControlCommand, Measurement
-from amb_msgs.srv import InjectFault
 from amb_plant_sim.errors import RigError, ScenarioError, SimulationError
 from amb_plant_sim.rig import load_rig
 from amb_plant_sim.scenario import load_scenario

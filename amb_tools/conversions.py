@@ -149,6 +149,7 @@ def coefficients_msg(
     amb_msgs.msg.WaveletCoefficients
     """
     from amb_msgs.msg import CoefficientSet, WaveletCoefficients
+
     from amb_wavelet.analysis import APPROXIMATION
     from amb_wavelet.levels import pseudo_frequency
 
@@ -189,43 +190,57 @@ def coefficients_msg(
     )
 
 
-def coefficient_records(msg):
-    """Turn a ``WaveletCoefficients`` message back into filterbank records.
+def coefficient_records(msg, slots) -> list:
+    """Turn a ``WaveletCoefficients`` message back into the filterbank's records.
 
-    Inverse of :func:`coefficients_msg`: the sets of one (level, kind, translation) are joined
-    in message order into one ``values`` vector, as the filterbank core produced it.
+    Inverse of :func:`coefficients_msg`: the sets of one (level, kind, translation) are joined,
+    in the order of ``slots``, into one ``values`` vector, exactly as the filterbank core
+    produced it, so that a consumer of the message stream sees the same numbers as one fed by
+    the core directly.
 
     Parameters
     ----------
     msg : amb_msgs.msg.WaveletCoefficients
+    slots : list of (frame, quadrature) codes
+        The blocks the consumer expects, in order (a subset of what the filterbank publishes).
 
     Returns
     -------
-    list of tuple
-        ``(level, kind, translation_index, first, last, values, settled, slots)`` with ``kind``
-        ``"detail"`` or ``"approximation"``, ``values`` of shape ``(len(slots) * 8,)`` and
-        ``slots`` the ``(frame, quadrature)`` codes in order.
+    list of amb_wavelet.analysis.Coefficient
+        In message order (finest level first), ``values`` of shape ``(len(slots) * 8,)``.
 
     Raises
     ------
     MessageError
-        If a set has the wrong number of values or a non-finite value.
+        If a set has the wrong number of values or a non-finite value, or a requested slot is
+        missing for a coefficient.
     """
     from amb_msgs.msg import CoefficientSet
 
-    records: dict[tuple, list] = {}
+    from amb_wavelet.analysis import APPROXIMATION, DETAIL, Coefficient
+
+    records: dict[tuple, dict] = {}
     for s in msg.sets:
+        key = (s.level, s.kind, s.translation_index)
+        entry = records.setdefault(key, {"set": s, "values": {}})
         values = from_float_array(s.values)
         check_length("sets[].values", values, NUM_SENSORS)
-        check_finite("sets[].values", values)
-        key = (s.level, s.kind, s.translation_index)
-        entry = records.setdefault(
-            key, [s.first_sample_index, s.last_sample_index, s.settled, [], []]
-        )
-        entry[3].append(values)
-        entry[4].append((s.frame, s.quadrature))
+        entry["values"][(s.frame, s.quadrature)] = values
     out = []
-    for (level, kind, m), (first, last, settled, vals, slots) in records.items():
-        name = "approximation" if kind == CoefficientSet.KIND_APPROXIMATION else "detail"
-        out.append((level, name, m, first, last, np.concatenate(vals), settled, slots))
+    for (level, kind, m), entry in records.items():
+        missing = [slot for slot in slots if slot not in entry["values"]]
+        if missing:
+            raise MessageError(
+                f"coefficient level {level} translation {m}: (frame, quadrature) {missing} "
+                "not published; configure the filterbank with those frames and channels"
+            )
+        values = np.concatenate([entry["values"][slot] for slot in slots])
+        check_finite("sets[].values", values)
+        s = entry["set"]
+        name = APPROXIMATION if kind == CoefficientSet.KIND_APPROXIMATION else DETAIL
+        out.append(
+            Coefficient(
+                level, name, m, s.first_sample_index, s.last_sample_index, values, s.settled
+            )
+        )
     return out

@@ -21,12 +21,12 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from amb_msgs.msg import CoefficientSet, Measurement, WaveletCoefficients
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-from amb_msgs.msg import CoefficientSet, Measurement, WaveletCoefficients
 from amb_tools.conversions import coefficients_msg
 from amb_tools.node_main import ConfigurationError, run_node
 from amb_wavelet.analysis import AnalysisFilterbank

@@ -8,12 +8,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from amb_msgs.msg import ControlCommand, FaultEvent, Measurement, WaveletCoefficients
 from diagnostic_msgs.msg import DiagnosticArray
 from msg_fill import diff, random_message, to_plain
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosbags.rosbag2 import Reader
 
-from amb_msgs.msg import ControlCommand, FaultEvent, Measurement, WaveletCoefficients
 from amb_tools.bag_types import typestore
 
 pytestmark = pytest.mark.ros

@@ -10,10 +10,9 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+import amb_msgs.msg
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
-
-import amb_msgs.msg
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 from amb_tools.node_main import run_node
