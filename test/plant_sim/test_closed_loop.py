@@ -1,0 +1,117 @@
+"""
+PID closed loop (eq. 2.45-2.48, Table 2.3), AMB law (eq. 2.33-2.40) and the calibration.
+
+External references: Table 2.3 (PID law), section 2.3 (K_z = 2240 N/mm, K_i = 572 N/A from
+Table 2.2), the thesis's 11, 18, 29, 67 Hz, and the numbers recorded in config/rig.yaml.
+"""
+
+import math
+
+import numpy as np
+import pytest
+
+from amb_plant_sim import amb as amb_law
+from amb_plant_sim.closed_loop import build_closed_loop, build_plant
+from amb_plant_sim.discretize import discretise
+from amb_plant_sim.modal import natural_frequencies
+from amb_plant_sim.pid import pid_frequency_response, pid_state_space
+from amb_plant_sim.rig import PidGains
+
+
+def test_pid_state_space_is_the_table_2_3_law(rig):
+    ss = pid_state_space(rig.pid, rig.amb.Ki, n_axes=1)
+    w = np.array([1.0, 10.0, 100.0, 1500.0, 1e4])
+    tf = np.array(
+        [(ss.C @ np.linalg.solve(1j * wk * np.eye(2) - ss.A, ss.B) + ss.D)[0, 0] for wk in w]
+    )
+    s = 1j * w
+    # Table 2.3: 3 MN/m, 0.1 MN/(m s), 3 kN s/m (see rig.yaml), roll-off at 1500 rad/s
+    law = 3.0e6 + 0.1e6 / s + 3.0e3 * s / (1 + s / 1500.0)
+    np.testing.assert_allclose(-tf * 572.0, law, rtol=1e-12)
+    np.testing.assert_allclose(pid_frequency_response(rig.pid, w), law, rtol=1e-12)
+
+
+def test_table_2_2_geometry_gives_the_thesis_stiffness_and_gain(rig):
+    a = rig.amb
+    x = np.array([-1e-7, 1e-7])
+    i = np.array([-1e-5, 1e-5])
+    kz = np.diff(amb_law.pair_force(a, np.zeros(2), x))[0] / 2e-7
+    ki = np.diff(amb_law.pair_force(a, i, np.zeros(2)))[0] / 2e-5
+    assert ki == pytest.approx(572.0, rel=1e-6)  # I_b is chosen from K_i
+    assert kz == pytest.approx(2240e3, rel=0.01)  # section 2.3: 2240 N/mm from Table 2.2
+    # the linear law has the same slopes
+    assert amb_law.linear_force(a, 1.0, 0.0) == pytest.approx(572.0)
+    assert amb_law.linear_force(a, 0.0, 1e-3) == pytest.approx(2240.0)
+
+
+def test_single_coil_left_attracts_by_its_bias_force(rig):
+    a = rig.amb
+    modes = np.array([amb_law.COIL_POSITIVE, amb_law.COIL_NEGATIVE, amb_law.LOST, 0])
+    f = amb_law.amb_force(a, np.zeros(4), np.zeros(4), modes)
+    mu0 = 4e-7 * math.pi
+    f_bias = mu0 * a.turns**2 * a.pole_area * (a.bias_current / a.nominal_air_gap) ** 2
+    np.testing.assert_allclose(f, [f_bias, -f_bias, 0.0, 0.0], rtol=1e-12)
+    assert 500.0 < f_bias < 1000.0  # uncompensated pull of several hundred newtons
+
+
+@pytest.mark.parametrize("speed_hz", np.arange(0.0, 101.0, 10.0))
+def test_pid_closed_loop_stable_from_0_to_100_hz(rig, speed_hz):
+    cl = build_closed_loop(rig, 2 * math.pi * speed_hz)
+    assert np.max(np.linalg.eigvals(cl.A).real) < 0.0
+
+
+@pytest.mark.parametrize("speed_hz,spr", [(5.0, 64), (11.0, 64), (67.0, 32), (100.0, 32)])
+def test_sampled_closed_loop_stable(rig, speed_hz, spr):
+    plant = build_plant(rig, 2 * math.pi * speed_hz)
+    d = discretise(
+        plant,
+        pid_state_space(rig.pid, rig.amb.Ki),
+        spr,
+        rig.simulation.internal_rate_min,
+        plant.position_rows([0]),
+        4,
+    )
+    assert d.n_sub * spr * speed_hz >= 5000.0  # the PID runs at >= 5 kHz
+    assert np.max(np.abs(np.linalg.eigvals(d.F))) < 1.0
+
+
+def test_calibrated_frequencies_match_the_record_and_the_thesis(rig):
+    rec = rig.calibration
+    f = natural_frequencies(rig, 4)
+    np.testing.assert_allclose(f, rec["achieved_hz"], rtol=2e-4)
+    rel = np.asarray(rec["achieved_hz"]) / np.array([11.0, 18.0, 29.0, 67.0]) - 1.0
+    np.testing.assert_allclose(rel, rec["relative_error"], atol=1e-4)
+    assert np.max(np.abs(rel)) <= rec["max_relative_error"] + 1e-4
+    assert rec["max_relative_error"] < 0.15  # the residual the calibration reached
+    assert rec["stable"] is True
+
+
+def test_calibrated_masses_and_moves_within_their_bounds(rig):
+    for d in rig.disks:
+        assert 10.0 <= d.mass <= d.geometric_mass + 1e-9
+    for c in rig.amb_cores:
+        assert 5.0 <= c.mass <= c.geometric_mass + 1e-9
+    proposal = {"D1": 1.94, "D2": 1.28, "D3": 0.72, "D4": 0.06}
+    for d in rig.disks:
+        assert abs(d.z - proposal[d.tag]) <= 0.06 + 1e-9
+    # arrangement: D4 < AMB2 < S3 < D3 < D2 < S2 < AMB1 < D1 along z
+    z = {d.tag: d.z for d in rig.disks}
+    b1, b2 = (b.z for b in rig.bearings)
+    s2, s3 = rig.sensor_planes[1].z, rig.sensor_planes[2].z
+    chain = [z["D4"], b2, s3, z["D3"], z["D2"], s2, b1, z["D1"]]
+    assert all(np.diff(chain) > 0)
+
+
+def test_proportional_gain_must_exceed_the_negative_stiffness(rig):
+    """Section 2.6 / figure 2.13: P-only control needs K_p above K_z (non-collocation)."""
+
+    def unstable_real_poles(kp):
+        g = PidGains(Kp=kp, KI=0.0, Kd=0.0, derivative_cutoff=1500.0)
+        lam = np.linalg.eigvals(build_closed_loop(rig, 0.0, gains=g).A)
+        return np.sum((lam.real > 1e-3) & (np.abs(lam.imag) < 1e-6))
+
+    kz = rig.amb.Kz
+    assert unstable_real_poles(0.0) > 0
+    assert unstable_real_poles(0.99 * kz) > 0
+    assert unstable_real_poles(1.01 * kz) > 0  # sensor 40 mm from the AMB: K_z is not enough
+    assert unstable_real_poles(3.0e6) == 0
