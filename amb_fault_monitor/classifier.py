@@ -1,0 +1,222 @@
+"""
+Classification of a detected episode (thesis Table 5.1 and section 5.4).
+
+Table 5.1 compares the wavelet coefficients in the fixed and the synchronously rotating
+frames: a transient in the rotating frame with a new *steady state* in the fixed frame is a
+sudden mass loss; a transient in *both* frames with no lasting change is a rotor/bearing
+contact; a steady change in the rotating frame is "unidentified". Section 5.4 adds that
+mass loss and contact excite many pseudo-frequencies, which separates them from
+band-limited vibration such as base motion; chapter 3 characterises sensor faults as an
+inconsistent or constant signal of one transducer. The rules, in order:
+
+1. ``SENSOR_FAULT``: one channel carries at least ``isolation`` of the fixed-frame change
+   energy (each channel's change normalised by its plane threshold), i.e. it disagrees with
+   its plane partner and with the other planes while the rotor is not disturbed.
+2. ``BASE_MOTION``: no crossing at any level above 1 x in either frame (band-limited), and
+   fixed-frame levels below 1 x cross on at least 3 of the 4 planes (coherent).
+3. ``MASS_LOSS``: the rotating frame shows a transient (a crossing) and the fixed-frame
+   synchronous phasor moved to a new level: ``sync_ratio >= sync_change`` on the two latest
+   revolutions (Table 5.1, "sudden mass loss"; figure 5.29).
+4. ``AUX_BEARING_CONTACT``: crossings at levels above 1 x in *both* frames (figure 5.30, the
+   4 Omega coefficients) without a lasting synchronous change; the count is the number of
+   separate bursts.
+5. ``UNKNOWN``: anything else (Table 5.1 "unidentified").
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from amb_fault_monitor.events import FaultType
+
+if TYPE_CHECKING:
+    from amb_fault_monitor.monitor import MonitorConfig
+
+__all__ = ["Decision", "EpisodeEvidence", "classify"]
+
+
+@dataclass
+class EpisodeEvidence:
+    """
+    What the monitor saw during an episode.
+
+    Attributes
+    ----------
+    revolution_level : int
+        ``R``: level at 1 x running speed.
+    max_ratio : dict
+        ``(level, frame) -> (4,)`` largest change-to-threshold ratio per plane.
+    channel_energy : numpy.ndarray
+        (8,) sum of squared fixed-frame changes over crossing coefficients, each normalised by
+        its plane threshold.
+    sync_ratio : numpy.ndarray
+        (4,) synchronous phasor change / threshold per plane (smaller of the two latest
+        revolutions).
+    sync_change : numpy.ndarray
+        (4,) synchronous phasor change per plane, m.
+    bursts : list of tuple
+        ``(start, end, max ratio fixed, max ratio rotating)`` of crossings above 1 x.
+    mask : numpy.ndarray
+        (8,) channels in use.
+    """
+
+    revolution_level: int
+    max_ratio: dict[tuple[int, str], np.ndarray]
+    channel_energy: np.ndarray
+    sync_ratio: np.ndarray
+    sync_change: np.ndarray
+    bursts: list[tuple] = field(default_factory=list)
+    mask: np.ndarray = field(default_factory=lambda: np.ones(8, dtype=bool))
+
+    def peak(self, frame: str, which: str) -> np.ndarray:
+        """Largest ratio per plane over levels ``above`` / ``below`` / ``at`` 1 x in ``frame``."""
+        R = self.revolution_level
+        sel = {
+            "above": lambda j: j < R,
+            "below": lambda j: j > R,
+            "at": lambda j: j == R,
+            "all": lambda j: True,
+        }[which]
+        out = np.zeros(4)
+        for (j, f), r in self.max_ratio.items():
+            if f == frame and sel(j):
+                out = np.maximum(out, r)
+        return out
+
+
+@dataclass
+class Decision:
+    """Result of :func:`classify` (fields as in :class:`~amb_fault_monitor.events.FaultEvent`)."""
+
+    fault_type: FaultType
+    plane: int = 0
+    channel: int = -1
+    bearing: int = 0
+    severity: float = 0.0
+    confidence: float = 0.0
+    count: int = 1
+    evidence: dict[str, Any] = field(default_factory=dict)
+    description: str = ""
+
+
+def _confidence(ratio: float) -> float:
+    return float(min(max(1.0 - math.exp(-(ratio - 1.0)), 0.0), 1.0))
+
+
+def _levels_crossed(ev: EpisodeEvidence, frame: str) -> list[int]:
+    return sorted({j for (j, f), r in ev.max_ratio.items() if f == frame and r.max() > 1.0})
+
+
+def classify(ev: EpisodeEvidence, config: MonitorConfig) -> Decision:
+    """
+    Classify an episode (rules in the module docstring).
+
+    Parameters
+    ----------
+    ev : EpisodeEvidence
+    config : MonitorConfig
+        Uses ``isolation``, ``sync_change`` and ``confirm_ratio``.
+
+    Returns
+    -------
+    Decision
+    """
+    above_fixed = ev.peak("fixed", "above")
+    above_rot = ev.peak("rotating", "above")
+    below_fixed = ev.peak("fixed", "below")
+    all_rot = ev.peak("rotating", "all")
+    base = {
+        "levels_crossed_fixed": ",".join(map(str, _levels_crossed(ev, "fixed"))),
+        "levels_crossed_rotating": ",".join(map(str, _levels_crossed(ev, "rotating"))),
+        "peak_ratio_above_1x_fixed": float(above_fixed.max()),
+        "peak_ratio_above_1x_rotating": float(above_rot.max()),
+        "peak_ratio_below_1x_fixed": float(below_fixed.max()),
+        "sync_ratio": float(ev.sync_ratio.max()),
+        "sync_change_m": float(ev.sync_change.max()),
+        "revolution_level": ev.revolution_level,
+    }
+    energy = ev.channel_energy
+    total = float(energy.sum())
+    if total > 0:
+        ch = int(np.argmax(energy))
+        share = float(energy[ch] / total)
+        base["largest_channel"] = ch
+        base["largest_channel_share"] = share
+        if share >= config.isolation:
+            plane = ch // 2 + 1
+            return Decision(
+                FaultType.SENSOR_FAULT,
+                plane=plane,
+                channel=ch,
+                severity=float(math.sqrt(energy[ch])),
+                confidence=share,
+                evidence={**base, "rule": "one channel inconsistent with its partner and planes"},
+                description=(
+                    f"sensor channel {ch} (plane {plane} {'xy'[ch % 2]}) carries {share:.0%} of "
+                    "the fixed-frame change: a transducer fault, the rotor is not disturbed"
+                ),
+            )
+    n_low_planes = int(np.count_nonzero(below_fixed > 1.0))
+    if above_fixed.max() <= 1.0 and above_rot.max() <= 1.0 and n_low_planes >= 3:
+        r = float(below_fixed.max())
+        return Decision(
+            FaultType.BASE_MOTION,
+            plane=0,
+            severity=0.0,
+            confidence=_confidence(r),
+            evidence={**base, "planes_below_1x": n_low_planes, "rule": "coherent below 1 x"},
+            description=(
+                f"coherent content below 1 x on {n_low_planes} planes, nothing above 1 x: "
+                "band-limited base motion"
+            ),
+        )
+    sync = float(ev.sync_ratio.max())
+    strong = [b for b in ev.bursts if min(b[2], b[3]) >= config.confirm_ratio]
+    if sync >= config.sync_change and all_rot.max() > 1.0:
+        plane = int(np.argmax(ev.sync_change)) + 1
+        return Decision(
+            FaultType.MASS_LOSS,
+            plane=plane,
+            severity=float(ev.sync_change.max()),
+            confidence=_confidence(sync / config.sync_change),
+            count=1,
+            evidence={
+                **base,
+                "rule": "rotating transient + new fixed-frame 1 x level (Table 5.1)",
+                "contact_bursts_after_onset": max(len(strong) - 1, 0),
+            },
+            description=(
+                f"sudden unbalance change: 1 x level moved by {ev.sync_change.max():.3g} m "
+                f"(ratio {sync:.1f}) at plane {plane}, transient in the rotating frame"
+            ),
+        )
+    if above_fixed.max() > 1.0 and above_rot.max() > 1.0:
+        both = np.maximum(above_fixed, above_rot)
+        plane = int(np.argmax(both)) + 1
+        count = max(1, len([b for b in ev.bursts if min(b[2], b[3]) > 1.0]))
+        r = float(min(above_fixed.max(), above_rot.max()))
+        from amb_fault_monitor.monitor import _bearing_of_plane
+
+        return Decision(
+            FaultType.AUX_BEARING_CONTACT,
+            plane=plane,
+            bearing=_bearing_of_plane(plane),
+            severity=0.0,
+            confidence=_confidence(r),
+            count=count,
+            evidence={**base, "bursts": count, "rule": "transient above 1 x in both frames"},
+            description=(
+                f"{count} short transient(s) above 1 x in both frames, no lasting 1 x change: "
+                f"rotor/bearing contact, largest at plane {plane}"
+            ),
+        )
+    return Decision(
+        FaultType.UNKNOWN,
+        confidence=0.5,
+        evidence={**base, "rule": "none of Table 5.1"},
+        description="a confirmed detection that fits no class of Table 5.1",
+    )

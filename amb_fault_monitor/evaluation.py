@@ -1,0 +1,303 @@
+"""
+Scenario-suite evaluation of the fault monitor on the simulator (no ROS).
+
+Scenario file format
+--------------------
+A fault scenario is an ``amb_plant_sim`` scenario file (speed, duration, noise, events: see
+:mod:`amb_plant_sim.scenario` and :mod:`amb_plant_sim.events`) with one extra section,
+``expect``, that the simulator ignores::
+
+    name: mass_loss_67hz_430gcm_0deg
+    speed: {hz: 67.64}                      # 425 rad/s (figures 5.1-5.6)
+    duration: 3.0                           # s
+    samples_per_rev: 32                     # 0.46 ms at 67 Hz, as section 5.2
+    measurement_noise: 0.2e-6               # m
+    events:
+      - {kind: unbalance, time: 0.0, disk: D1, me: 0.5e-3, angle: 0.0}
+      - {kind: mass_loss, time: 2.0, disk: D1, me: 4.3e-3, angle: 0.0}
+    expect:                                 # what the monitor must report
+      - {fault: MASS_LOSS, time: 2.0}       # true onset, s (the event's time)
+      - {fault: AUX_BEARING_CONTACT, from: contact}   # onset = first simulated contact
+    monitor: {wavelet: db2}                 # optional MonitorConfig / filterbank overrides
+
+``expect: []`` (or no ``expect``) declares a healthy run: every event is a false alarm. The
+``fault`` names are those of :class:`~amb_fault_monitor.events.FaultType`. ``from: contact``
+takes the true onset from the simulator's truth (first sample with a contact force), so
+contact cases need no guessed time; the run must then contain a contact or the case is
+reported as ``NO_TRUTH``. To add a case, copy a file, change the events and the
+expectation, and run ``amb-fault-eval --scenarios DIR``.
+
+Scoring
+-------
+An expected fault is matched to the earliest unmatched event of the same class whose onset
+lies within ``match_revs`` revolutions after (or one revolution before) the true onset;
+failing that to the earliest event of any class in that window (a confusion), failing that it
+is ``MISSED``. Events matched to nothing are false alarms. Detection delay is
+``detection - true onset``, the onset error ``estimated onset - true onset``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, fields, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from amb_fault_monitor.errors import FaultMonitorError
+from amb_fault_monitor.events import FaultEvent, FaultType
+from amb_fault_monitor.monitor import FaultMonitor, MonitorConfig
+from amb_fault_monitor.records import FilterbankAdapter
+from amb_wavelet.filters import get_filters
+from amb_wavelet.levels import support_length
+
+__all__ = ["CaseResult", "Expectation", "evaluate_case", "load_case", "summarise"]
+
+MISSED = "MISSED"
+NONE = "NONE"
+
+
+@dataclass(frozen=True)
+class Expectation:
+    """An expected fault: class and true onset (s, or from the simulator truth)."""
+
+    fault: FaultType
+    time: float | None = None
+    source: str = "time"
+
+
+@dataclass
+class CaseResult:
+    """Outcome of one scenario."""
+
+    name: str
+    path: str
+    speed_hz: float
+    samples_per_rev: int
+    wavelet: str
+    duration: float
+    matches: list[dict[str, Any]] = field(default_factory=list)
+    false_alarms: list[dict[str, Any]] = field(default_factory=list)
+    events: list[dict[str, Any]] = field(default_factory=list)
+    finest_support: int = 2
+    wall_time: float = 0.0
+
+
+def load_case(path: str | Path) -> tuple[dict[str, Any], list[Expectation], dict[str, Any]]:
+    """
+    Read a fault scenario file.
+
+    Returns
+    -------
+    scenario : dict
+        The ``amb_plant_sim`` part.
+    expect : list of Expectation
+    monitor : dict
+        Overrides (``wavelet``, ``levels`` and any :class:`MonitorConfig` field).
+
+    Raises
+    ------
+    FaultMonitorError
+        On an unknown fault name or a missing onset.
+    """
+    p = Path(path)
+    with p.open(encoding="utf-8") as fh:
+        d = yaml.safe_load(fh)
+    if not isinstance(d, dict):
+        raise FaultMonitorError(f"{p}: expected a mapping at the top level")
+    expect = []
+    for e in d.pop("expect", None) or []:
+        name = str(e.get("fault", ""))
+        if name not in FaultType.__members__:
+            raise FaultMonitorError(
+                f"{p}: unknown fault {name!r}; expected one of {list(FaultType.__members__)}"
+            )
+        if "time" in e:
+            expect.append(Expectation(FaultType[name], float(e["time"])))
+        elif e.get("from") == "contact":
+            expect.append(Expectation(FaultType[name], None, "contact"))
+        else:
+            raise FaultMonitorError(f"{p}: expectation {e} needs 'time' (s) or 'from: contact'")
+    monitor = d.pop("monitor", None) or {}
+    return d, expect, monitor
+
+
+def _truth_onset(exp: Expectation, truth: dict, fs: float, after: float) -> int | None:
+    if exp.source == "time":
+        return math.ceil(exp.time * fs - 1e-9)
+    contact = truth["contact"].any(axis=1)
+    idx = np.flatnonzero(contact & (np.arange(contact.size) >= after * fs))
+    return int(idx[0]) if idx.size else None
+
+
+def evaluate_case(
+    path: str | Path,
+    rig: Any,
+    samples_per_rev: int | None = None,
+    wavelet: str | None = None,
+    match_revs: float = 20.0,
+    seed: int = 0,
+) -> CaseResult:
+    """
+    Simulate one scenario, run the filterbank core and the monitor, score the events.
+
+    Parameters
+    ----------
+    path : str or Path
+        Fault scenario file (module docstring).
+    rig : amb_plant_sim.rig.Rig
+    samples_per_rev : int, optional
+        Overrides the file (default 32).
+    wavelet : str, optional
+        Overrides the file (default ``haar``).
+    match_revs : float
+        Matching window after the true onset, revolutions.
+    seed : int
+        Noise seed.
+
+    Returns
+    -------
+    CaseResult
+    """
+    import time
+
+    from amb_plant_sim.scenario import scenario_from_dict
+    from amb_plant_sim.simulator import PlantSimulator
+
+    scen_d, expect, mon_d = load_case(path)
+    scenario = scenario_from_dict(scen_d, rig)
+    spr = int(samples_per_rev or scenario.samples_per_rev or 32)
+    wav = wavelet or mon_d.get("wavelet", "haar")
+    names = {f.name for f in fields(MonitorConfig)} - {"samples_per_rev"}
+    cfg = MonitorConfig(spr, **{k: v for k, v in mon_d.items() if k in names})
+    if "levels" in mon_d:
+        cfg = replace(cfg, levels=tuple(mon_d["levels"]))
+    t0 = time.perf_counter()
+    sim = PlantSimulator(rig, scenario, spr, seed)
+    fs = spr * scenario.speed_hz
+    n = round(scenario.duration * fs)
+    block = sim.advance(n)
+    adapter = FilterbankAdapter(spr, wav)
+    monitor = FaultMonitor(cfg)
+    events: list[FaultEvent] = []
+    for i in range(n):
+        rec = adapter.step(
+            int(block.sample_index[i]), block.displacement[i], block.angle[i], block.omega[i]
+        )
+        events += monitor.step(rec)
+    wall = time.perf_counter() - t0
+    L = get_filters(wav).length
+    res = CaseResult(
+        name=scenario.name,
+        path=str(path),
+        speed_hz=scenario.speed_hz,
+        samples_per_rev=spr,
+        wavelet=wav,
+        duration=scenario.duration,
+        finest_support=support_length(1, L),
+        wall_time=wall,
+    )
+    res.events = [e.to_dict() for e in events]
+    used: set[int] = set()
+    last_fault_time = max((e.time for e in expect if e.time is not None), default=0.0)
+    for exp in expect:
+        true = _truth_onset(exp, block.truth, fs, last_fault_time if exp.source != "time" else 0)
+        row: dict[str, Any] = {"expected": exp.fault.name, "true_onset_sample": true}
+        if true is None:
+            row["predicted"] = "NO_TRUTH"
+            res.matches.append(row)
+            continue
+        lo, hi = true - spr, true + match_revs * spr
+        window = [
+            (i, e)
+            for i, e in enumerate(events)
+            if i not in used and lo <= e.onset_sample_index <= hi
+        ]
+        same = [w for w in window if w[1].fault_type == exp.fault]
+        pick = (same or window or [None])[0]
+        if pick is None:
+            row["predicted"] = MISSED
+        else:
+            i, e = pick
+            used.add(i)
+            row.update(
+                predicted=e.fault_type.name,
+                count=e.count,
+                confidence=e.confidence,
+                detection_delay_samples=e.detection_sample_index - true,
+                decision_delay_samples=e.decision_sample_index - true,
+                onset_error_samples=e.onset_sample_index - true,
+                detection_delay_ms=1e3 * (e.detection_sample_index - true) / fs,
+                detection_delay_revs=(e.detection_sample_index - true) / spr,
+                decision_delay_revs=(e.decision_sample_index - true) / spr,
+                onset_error_ms=1e3 * (e.onset_sample_index - true) / fs,
+            )
+        res.matches.append(row)
+    for i, e in enumerate(events):
+        if i not in used:
+            res.false_alarms.append(
+                {"predicted": e.fault_type.name, "detection_time": e.detection_sample_index / fs}
+            )
+    return res
+
+
+def summarise(results: list[CaseResult]) -> dict[str, Any]:
+    """
+    Confusion matrix, delays, onset errors and false alarms per simulated hour.
+
+    Returns
+    -------
+    dict
+        ``confusion`` (expected -> predicted -> count; ``NONE`` row for false alarms),
+        ``delays`` per class (median / max detection delay in ms and revolutions, decision
+        delay in revolutions, onset error in ms and in finest-level supports),
+        ``false_alarms_per_hour``, ``simulated_s``, ``correct`` and ``total``.
+    """
+    classes = [t.name for t in FaultType if t not in (FaultType.COIL_FAILURE, FaultType.TRIP)]
+    cols = [*classes, MISSED, "NO_TRUTH"]
+    confusion = {r: dict.fromkeys(cols, 0) for r in [*classes, NONE]}
+    per: dict[str, dict[str, list[float]]] = {}
+    correct = total = 0
+    fa = 0
+    sim_s = 0.0
+    for r in results:
+        sim_s += r.duration
+        for m in r.matches:
+            total += 1
+            confusion[m["expected"]][m["predicted"]] += 1
+            if m["predicted"] == m["expected"]:
+                correct += 1
+                d = per.setdefault(m["expected"], {})
+                d.setdefault("detection_ms", []).append(m["detection_delay_ms"])
+                d.setdefault("detection_revs", []).append(m["detection_delay_revs"])
+                d.setdefault("decision_revs", []).append(m["decision_delay_revs"])
+                d.setdefault("onset_error_ms", []).append(m["onset_error_ms"])
+                d.setdefault("onset_error_supports", []).append(
+                    m["onset_error_samples"] / r.finest_support
+                )
+        for f in r.false_alarms:
+            fa += 1
+            confusion[NONE][f["predicted"]] += 1
+    delays = {}
+    for cls, d in per.items():
+        delays[cls] = {
+            "n": len(d["detection_ms"]),
+            "detection_ms_median": float(np.median(d["detection_ms"])),
+            "detection_ms_max": float(np.max(d["detection_ms"])),
+            "detection_revs_max": float(np.max(d["detection_revs"])),
+            "decision_revs_median": float(np.median(d["decision_revs"])),
+            "decision_revs_max": float(np.max(d["decision_revs"])),
+            "onset_error_ms_median": float(np.median(d["onset_error_ms"])),
+            "onset_error_abs_supports_max": float(np.max(np.abs(d["onset_error_supports"]))),
+        }
+    return {
+        "confusion": confusion,
+        "delays": delays,
+        "false_alarms": fa,
+        "simulated_s": sim_s,
+        "false_alarms_per_hour": fa / sim_s * 3600.0 if sim_s else 0.0,
+        "correct": correct,
+        "total": total,
+    }

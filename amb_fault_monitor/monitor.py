@@ -1,0 +1,662 @@
+"""
+Fault detection from wavelet coefficients in the fixed and rotating frames (thesis chapter 5).
+
+Features (per completed detail coefficient, per level ``j``, frame and sensor plane ``p``)
+-----------------------------------------------------------------------------------------
+Coefficients are first normalised to metres, ``c = d / 2**(j / 2)`` (the orthonormal filters
+of eq. 4.6 scale a level-``j`` coefficient by the square root of its support). The feature is
+the change of the coefficient (figure 5.30 c-d: "the change in wavelet coefficients with each
+sample"), taken between coefficients one revolution apart where a level has several
+coefficients per revolution:
+
+.. math::
+
+    \\Delta_j[k] = c_j[k] - c_j[k - m_j], \\quad
+    m_j = \\max(1, 2^{R - j}), \\qquad
+    e_{j,p}[k] = \\sqrt{\\Delta_{j,x_p}^2 + \\Delta_{j,y_p}^2},
+
+with ``R = log2(samples_per_rev)`` (level ``R`` is 1 x running speed). Decision (a
+generalisation of the thesis): for ``j < R`` the thesis's coefficient-to-coefficient change
+is periodic, not zero, under a steady orbit in the fixed frame (eq. 5.3-5.4 only make the
+*rotating*-frame coefficients vanish); the one-revolution lag makes ``Delta`` vanish for any
+steady response periodic in the revolution, in both frames (the steady orbit, its harmonics,
+and the rotating-frame image of static offsets such as gravity sag), so that only transients
+remain, as eq. 5.4 requires. At ``j = R`` and coarser, ``m_j = 1`` is the thesis's change
+from one coefficient to the next.
+
+Thresholds ``theta_{j,f,p}`` come from a healthy calibration window
+(:mod:`amb_fault_monitor.calibration`); the ratio ``r = e / theta`` crosses when ``r > 1``.
+
+The synchronous (1 x) phasor per channel is ``P = c_even + i c_odd`` at level ``R`` in the
+fixed frame (the odd channel is delayed a quarter revolution, section 4.3, so ``|P|`` does not
+depend on the phase of the orbit); it is compared before and after an episode to decide
+whether the synchronous level changed for good (a new steady state, Table 5.1).
+
+Episodes
+--------
+1. *Onset candidate*: the first crossing opens an episode.
+2. *Detection (alarm)*: confirmed when a crossing has ``r >= confirm_ratio`` or crossings
+   occurred in ``confirm_features`` different (level, frame) features; otherwise the episode
+   is dropped after ``confirm_revs`` revolutions (an isolated noise crossing).
+3. *Decision*: ``quiet_revs`` revolutions after the last crossing, or ``decision_revs``
+   revolutions after the alarm, whichever is first: the evidence is classified
+   (:mod:`amb_fault_monitor.classifier`) and one event emitted.
+4. *Tail*: the disturbance may ring on; no new episode starts until ``quiet_revs`` pass without
+   a crossing (at most ``max_tail_revs``). Strong fine-level bursts in both frames during the
+   tail (contacts that a mass loss leads to, figure 5.27 case 2) are counted and reported
+   as one ``AUX_BEARING_CONTACT`` event with their count when the tail ends.
+
+Sensor channels found faulty are masked (their plane feature uses the partner channel only)
+until :meth:`FaultMonitor.reset`. A channel whose finest-level coefficient stays below
+``dead_fraction`` of its healthy median for ``dead_revs`` revolutions is reported as stuck or
+zero (a constant signal has zero detail coefficients at every level).
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from amb_fault_monitor.calibration import robust_threshold
+from amb_fault_monitor.classifier import EpisodeEvidence, classify
+from amb_fault_monitor.errors import FaultMonitorError, RecordError
+from amb_fault_monitor.events import FaultEvent, FaultType
+from amb_fault_monitor.records import N_SENSORS, SampleCoefficients
+from amb_wavelet.analysis import DETAIL
+from amb_wavelet.levels import revolution_level
+
+__all__ = ["Crossing", "FaultMonitor", "MonitorConfig", "estimate_onset"]
+
+FRAMES = ("fixed", "rotating")
+
+
+@dataclass(frozen=True)
+class MonitorConfig:
+    """
+    Parameters of :class:`FaultMonitor` (all times in revolutions of the rotor).
+
+    Attributes
+    ----------
+    samples_per_rev : int
+        Samples per revolution (power of two >= 4).
+    levels : tuple of int
+        Detail levels used; empty = every level received.
+    frames : tuple of str
+        ``"fixed"`` and/or ``"rotating"``.
+    calibration_revs : float
+        Length of the healthy calibration window.
+    k : float
+        Robust standard deviations of the threshold (see ``calibration``).
+    threshold_floor : float
+        m, smallest threshold (noise-free signals).
+    confirm_ratio, confirm_features, confirm_revs
+        Detection confirmation (module notes).
+    quiet_revs, decision_revs, max_tail_revs
+        Episode timing (module notes).
+    isolation : float
+        Share of the fixed-frame change energy in one channel that makes a sensor fault.
+    sync_change : float
+        Ratio over threshold of the synchronous phasor change that makes a new steady level.
+    sync_relative_floor : float
+        Smallest synchronous change counted, as a fraction of the pre-fault 1 x level.
+    burst_gap_revs : float
+        Quiet gap separating two fine-level bursts (contacts).
+    tail_rise : float
+        In the tail, a burst counts as a contact only if its ratio is this many times the
+        largest ratio of the preceding revolution (a new impulse, not the ringing).
+    dead_fraction, dead_revs
+        Stuck/zero channel test (module notes).
+    """
+
+    samples_per_rev: int
+    levels: tuple[int, ...] = ()
+    frames: tuple[str, ...] = FRAMES
+    calibration_revs: float = 16.0
+    k: float = 8.0
+    threshold_floor: float = 2.0e-8
+    confirm_ratio: float = 3.0
+    confirm_features: int = 2
+    confirm_revs: float = 1.0
+    quiet_revs: float = 2.0
+    decision_revs: float = 4.0
+    max_tail_revs: float = 200.0
+    isolation: float = 0.8
+    sync_change: float = 2.0
+    sync_relative_floor: float = 0.05
+    burst_gap_revs: float = 0.5
+    tail_rise: float = 2.0
+    dead_fraction: float = 0.02
+    dead_revs: float = 1.0
+
+    def __post_init__(self) -> None:
+        spr = self.samples_per_rev
+        if isinstance(spr, bool) or not isinstance(spr, int) or spr < 4 or spr & (spr - 1):
+            raise FaultMonitorError(f"samples_per_rev must be a power of two >= 4, got {spr!r}")
+        bad = [f for f in self.frames if f not in FRAMES]
+        if bad or not self.frames:
+            raise FaultMonitorError(
+                f"frames must be a non-empty subset of {FRAMES}, got {self.frames}"
+            )
+        if any(int(j) != j or j < 1 for j in self.levels):
+            raise FaultMonitorError(f"levels must be integers >= 1, got {self.levels}")
+        positive = (
+            "calibration_revs", "k", "confirm_ratio", "confirm_revs", "quiet_revs",
+            "decision_revs", "max_tail_revs", "isolation", "sync_change", "burst_gap_revs",
+            "tail_rise", "dead_revs",
+        )  # fmt: skip
+        for name in positive:
+            if not getattr(self, name) > 0:
+                raise FaultMonitorError(f"{name} must be > 0, got {getattr(self, name)}")
+        if self.threshold_floor < 0 or self.sync_relative_floor < 0 or self.dead_fraction < 0:
+            raise FaultMonitorError(
+                "threshold_floor, sync_relative_floor and dead_fraction must be >= 0"
+            )
+        if self.confirm_features < 1:
+            raise FaultMonitorError(f"confirm_features must be >= 1, got {self.confirm_features}")
+        if self.isolation > 1:
+            raise FaultMonitorError(f"isolation is a share in (0, 1], got {self.isolation}")
+
+
+class Crossing(tuple):
+    """``(level, frame, plane, first_sample_index, last_sample_index, ratio)`` of a crossing."""
+
+    __slots__ = ()
+
+    def __new__(cls, level: int, frame: str, plane: int, first: int, last: int, ratio: float):
+        return super().__new__(cls, (level, frame, plane, first, last, ratio))
+
+    level = property(lambda s: s[0])
+    frame = property(lambda s: s[1])
+    plane = property(lambda s: s[2])
+    first = property(lambda s: s[3])
+    last = property(lambda s: s[4])
+    ratio = property(lambda s: s[5])
+
+
+def estimate_onset(crossings: list[Crossing]) -> int:
+    """
+    Onset sample from the crossings of an episode (back-dated by the wavelet support).
+
+    The first crossing (earliest completion; among equals the shortest support) bounds the
+    onset to its support ``[first, last]``: the change that made it cross lies inside.
+    Crossings whose supports overlap the current bound narrow it (intersection), so a
+    fine-level crossing shortly after a coarse one sharpens the estimate to that finer
+    support. The estimate is the earliest sample of the final bound.
+
+    Parameters
+    ----------
+    crossings : list of Crossing
+        In order of completion.
+
+    Returns
+    -------
+    int
+        Estimated onset sample index.
+    """
+    if not crossings:
+        raise FaultMonitorError("estimate_onset needs at least one crossing")
+    ordered = sorted(crossings, key=lambda c: (c.last, c.last - c.first))
+    lo, hi = ordered[0].first, ordered[0].last
+    for c in ordered[1:]:
+        if c.first <= hi and c.last >= lo:
+            lo, hi = max(lo, c.first), min(hi, c.last)
+    return lo
+
+
+@dataclass
+class _Episode:
+    start: int
+    crossings: list[Crossing] = field(default_factory=list)
+    keys: set = field(default_factory=set)
+    alarm: int | None = None
+    last_crossing: int = 0
+    max_ratio: dict = field(default_factory=dict)  # (level, frame) -> (4,) plane ratios
+    channel_energy: np.ndarray = field(default_factory=lambda: np.zeros(N_SENSORS))
+    bursts: list = field(default_factory=list)  # [start, end, max ratio fixed, max rotating]
+    p_ref: np.ndarray | None = None
+    decided: FaultEvent | None = None
+    tail_contacts: int = 0
+    tail_peak: float = 0.0
+    tail_plane_peak: np.ndarray = field(default_factory=lambda: np.zeros(4))
+    tail_first: int = -1
+    tail_onset: int = -1
+    tail_history: deque = field(default_factory=deque)
+    tail_detect: int = -1
+
+
+class _Lag:
+    """Ring buffer of the last ``m`` coefficient vectors of one (level, frame)."""
+
+    def __init__(self, m: int) -> None:
+        self.buf = np.zeros((m, N_SENSORS))
+        self.m = m
+        self.pos = 0
+        self.count = 0
+
+    def push(self, v: np.ndarray) -> np.ndarray | None:
+        old = self.buf[self.pos].copy() if self.count >= self.m else None
+        self.buf[self.pos] = v
+        self.pos = (self.pos + 1) % self.m
+        self.count += 1
+        return old
+
+
+class FaultMonitor:
+    """
+    Streaming fault detector and classifier (ROS-free core of the ``fault_monitor`` node).
+
+    Parameters
+    ----------
+    config : MonitorConfig
+
+    Notes
+    -----
+    Feed one :class:`~amb_fault_monitor.records.SampleCoefficients` per sample with
+    :meth:`step`, in increasing ``sample_index``. The first ``calibration_revs`` revolutions
+    of settled coefficients calibrate the thresholds (they must be healthy); events are
+    emitted afterwards. :meth:`reset` starts again (new calibration).
+    """
+
+    def __init__(self, config: MonitorConfig) -> None:
+        self.config = config
+        self._R = revolution_level(config.samples_per_rev)
+        self.reset()
+
+    # ------------------------------------------------------------------ public
+    def reset(self) -> None:
+        """Forget all state, thresholds and masked channels; calibrate again."""
+        self._lags: dict[tuple[int, str], _Lag] = {}
+        self._calib: dict[tuple[int, str], list[np.ndarray]] = {}
+        self._thr: dict[tuple[int, str], np.ndarray] = {}
+        self._sync_calib: list[np.ndarray] = []
+        self._sync_thr: np.ndarray | None = None
+        self._dead_calib: list[np.ndarray] = []
+        self._dead_ref: np.ndarray | None = None
+        self._dead_run = np.zeros(N_SENSORS, dtype=int)
+        self._phasors: deque[tuple[int, np.ndarray]] = deque(maxlen=64)
+        self._mask = np.ones(N_SENSORS, dtype=bool)
+        self._calib_start: int | None = None
+        self._last_index: int | None = None
+        self._episode: _Episode | None = None
+        self._omega = 0.0
+        self.unconfirmed = 0
+        self.samples = 0
+
+    @property
+    def calibrated(self) -> bool:
+        """True once thresholds are set."""
+        return bool(self._thr)
+
+    @property
+    def thresholds(self) -> dict[tuple[int, str], np.ndarray]:
+        """Per (level, frame): plane thresholds (4,), m. Empty while calibrating."""
+        return {k: v.copy() for k, v in self._thr.items()}
+
+    @property
+    def sync_threshold(self) -> np.ndarray | None:
+        """Per plane threshold of the synchronous phasor change (4,), m."""
+        return None if self._sync_thr is None else self._sync_thr.copy()
+
+    @property
+    def masked_channels(self) -> list[int]:
+        """Channels excluded after a sensor fault."""
+        return [int(c) for c in np.flatnonzero(~self._mask)]
+
+    @property
+    def in_episode(self) -> bool:
+        """True while a disturbance is being tracked (alarm raised or pending)."""
+        return self._episode is not None
+
+    @property
+    def alarm(self) -> bool:
+        """True from a confirmed detection until the episode ends."""
+        return self._episode is not None and self._episode.alarm is not None
+
+    def step(self, record: SampleCoefficients) -> list[FaultEvent]:
+        """
+        Process the coefficients completed by one sample.
+
+        Parameters
+        ----------
+        record : SampleCoefficients
+
+        Returns
+        -------
+        list of FaultEvent
+            Events decided at this sample (usually empty).
+
+        Raises
+        ------
+        RecordError
+            If the sample index does not increase or a set has the wrong length.
+        """
+        n = int(record.sample_index)
+        if self._last_index is not None and n <= self._last_index:
+            raise RecordError(
+                f"sample_index must increase: got {n} after {self._last_index}; "
+                "call reset() after a restart of the stream"
+            )
+        self._last_index = n
+        self.samples += 1
+        self._omega = float(record.omega)
+        events: list[FaultEvent] = []
+        if not record.sets:
+            self._advance(n, events)
+            return events
+        by_key = {}
+        for s in record.sets:
+            if s.kind != DETAIL or s.frame not in self.config.frames:
+                continue
+            if self.config.levels and s.level not in self.config.levels:
+                continue
+            if len(s.values) != N_SENSORS:
+                raise RecordError(f"coefficient set has {len(s.values)} values, expected 8")
+            by_key[(s.level, s.frame, s.quadrature)] = s
+        for (level, frame, quad), s in by_key.items():
+            if quad != "even" or not s.settled:
+                continue
+            self._feature(n, level, frame, s, events)
+            if level == self._R and frame == "fixed":
+                odd = by_key.get((level, frame, "odd"))
+                self._phasor(s, odd if odd is not None and odd.settled else None)
+            if level == 1 and frame == "fixed":
+                self._dead_channels(n, s, events)
+        self._advance(n, events)
+        return events
+
+    # ------------------------------------------------------------------ features
+    def _norm(self, level: int, values: np.ndarray) -> np.ndarray:
+        v = np.asarray(values, dtype=float) / 2.0 ** (level / 2)
+        return v
+
+    def _feature(self, n: int, level: int, frame: str, s, events: list[FaultEvent]) -> None:
+        key = (level, frame)
+        lag = self._lags.get(key)
+        if lag is None:
+            lag = self._lags[key] = _Lag(max(1, 2 ** (self._R - level)))
+        old = lag.push(self._norm(level, s.values))
+        if old is None:
+            return
+        delta = (lag.buf[(lag.pos - 1) % lag.m] - old) * self._mask
+        planes = np.hypot(delta[0::2], delta[1::2])
+        if not self._thr:
+            self._calibrate(n, key, planes)
+            return
+        thr = self._thr.get(key)
+        if thr is None:
+            return  # a feature that appeared after calibration: not monitored
+        ratio = planes / thr
+        self._evidence(n, level, frame, s, ratio, delta, thr)
+
+    def _calibrate(self, n: int, key: tuple[int, str], planes: np.ndarray) -> None:
+        cfg = self.config
+        if self._calib_start is None:
+            self._calib_start = n
+        self._calib.setdefault(key, []).append(planes)
+        if n - self._calib_start < cfg.calibration_revs * cfg.samples_per_rev:
+            return
+        if any(len(v) < 8 for v in self._calib.values()) or len(self._sync_calib) < 8:
+            return  # coarse levels (few coefficients per revolution) still filling
+        self._thr = {
+            k: robust_threshold(np.array(v), cfg.k, cfg.threshold_floor)
+            for k, v in self._calib.items()
+        }
+        self._sync_thr = robust_threshold(np.array(self._sync_calib), cfg.k, cfg.threshold_floor)
+        if self._dead_calib:
+            self._dead_ref = np.median(np.abs(np.array(self._dead_calib)), axis=0)
+        self._calib.clear()
+
+    def _phasor(self, even, odd) -> None:
+        p = self._norm(self._R, even.values).astype(complex)
+        if odd is not None:
+            p = p + 1j * self._norm(self._R, odd.values)
+        if not self._thr and self._phasors:
+            d = (p - self._phasors[-1][1]) * self._mask
+            self._sync_calib.append(np.sqrt(np.abs(d[0::2]) ** 2 + np.abs(d[1::2]) ** 2))
+        self._phasors.append((int(even.last_sample_index), p))
+
+    def _dead_channels(self, n: int, s, events: list[FaultEvent]) -> None:
+        v = np.abs(self._norm(1, s.values))
+        if not self._thr:
+            self._dead_calib.append(v)
+            return
+        ref = self._dead_ref
+        if ref is None:
+            return
+        cfg = self.config
+        low = (v < cfg.dead_fraction * ref) & (ref > 0) & self._mask
+        self._dead_run = np.where(low, self._dead_run + 1, 0)
+        need = max(2, math.ceil(cfg.dead_revs * cfg.samples_per_rev / 2))
+        for ch in np.flatnonzero(self._dead_run >= need):
+            start = n - 2 * int(self._dead_run[ch])
+            self._mask[ch] = False
+            self._dead_run[ch] = 0
+            ev = FaultEvent(
+                FaultType.SENSOR_FAULT,
+                onset_sample_index=max(start, 0),
+                detection_sample_index=n,
+                decision_sample_index=n,
+                samples_per_rev=cfg.samples_per_rev,
+                omega=self._omega,
+                plane=int(ch) // 2 + 1,
+                channel=int(ch),
+                severity=float(ref[ch]),
+                confidence=float(1.0 - v[ch] / max(cfg.dead_fraction * ref[ch], 1e-300)),
+                evidence={
+                    "mode": "stuck_or_zero",
+                    "level": 1,
+                    "frame": "fixed",
+                    "healthy_median_m": float(ref[ch]),
+                    "now_m": float(v[ch]),
+                },
+                description=(
+                    f"sensor channel {ch} stuck or zero: finest-level coefficient below "
+                    f"{cfg.dead_fraction:g} x its healthy median for {self._dead_run_revs()} rev"
+                ),
+            )
+            ev.confidence = float(min(max(ev.confidence, 0.0), 1.0))
+            events.append(ev)
+            ep = self._episode
+            if ep is not None and ep.decided is None and ep.start >= start - cfg.samples_per_rev:
+                self._episode = None  # the crossings came from the failing channel
+
+    def _dead_run_revs(self) -> str:
+        return f"{self.config.dead_revs:g}"
+
+    # ------------------------------------------------------------------ episodes
+    def _evidence(self, n, level, frame, s, ratio, delta, thr) -> None:
+        cfg = self.config
+        crossed = ratio > 1.0
+        ep = self._episode
+        if ep is None:
+            if not crossed.any():
+                return
+            ep = self._episode = _Episode(start=n, last_crossing=n)
+            ep.p_ref = self._reference_phasor(s.first_sample_index)
+        if ep.decided is not None:  # tail
+            if crossed.any():
+                ep.last_crossing = n
+                if level < self._R:
+                    self._tail_burst(n, s.first_sample_index, ratio)
+            return
+        key = (level, frame)
+        prev = ep.max_ratio.get(key)
+        ep.max_ratio[key] = ratio.copy() if prev is None else np.maximum(prev, ratio)
+        if not crossed.any():
+            return
+        ep.last_crossing = n
+        for p in np.flatnonzero(crossed):
+            ep.crossings.append(
+                Crossing(level, frame, int(p) + 1, s.first_sample_index, s.last_sample_index,
+                         float(ratio[p]))
+            )  # fmt: skip
+        ep.keys.add(key)
+        if frame == "fixed":
+            w = np.repeat(thr, 2)
+            ep.channel_energy += (delta / w) ** 2
+        if level < self._R:
+            rmax = float(ratio.max())
+            if ep.bursts and n - ep.bursts[-1][1] <= cfg.burst_gap_revs * cfg.samples_per_rev:
+                b = ep.bursts[-1]
+                b[1] = n
+            else:
+                b = [n, n, 0.0, 0.0]
+                ep.bursts.append(b)
+            b[2 if frame == "fixed" else 3] = max(b[2 if frame == "fixed" else 3], rmax)
+        if ep.alarm is None and (
+            float(ratio.max()) >= cfg.confirm_ratio or len(ep.keys) >= cfg.confirm_features
+        ):
+            ep.alarm = n
+
+    def _tail_burst(self, n: int, first: int, ratio: np.ndarray) -> None:
+        ep = self._episode
+        cfg = self.config
+        r = float(ratio.max())
+        spr = cfg.samples_per_rev
+        hist = ep.tail_history
+        while hist and hist[0][0] < n - spr:
+            hist.popleft()
+        recent = max((h[1] for h in hist if h[0] <= n - spr // 4), default=0.0)
+        hist.append((n, r))
+        # a contact is a new impulse: strong, and well above the ringing of the last revolution
+        if r < cfg.confirm_ratio or r < cfg.tail_rise * recent:
+            return
+        gap = cfg.burst_gap_revs * cfg.samples_per_rev
+        if ep.tail_first < 0 or n - ep.tail_first > gap:
+            ep.tail_contacts += 1
+            if ep.tail_onset < 0:
+                ep.tail_onset, ep.tail_detect = first, n
+            ep.tail_first = n
+        ep.tail_peak = max(ep.tail_peak, float(ratio.max()))
+        ep.tail_plane_peak = np.maximum(ep.tail_plane_peak, ratio)
+
+    def _reference_phasor(self, before: int) -> np.ndarray | None:
+        for last, p in reversed(self._phasors):
+            if last < before:
+                return p
+        return None
+
+    def _advance(self, n: int, events: list[FaultEvent]) -> None:
+        ep = self._episode
+        if ep is None:
+            return
+        cfg = self.config
+        spr = cfg.samples_per_rev
+        quiet = n - ep.last_crossing >= cfg.quiet_revs * spr
+        if ep.alarm is None:
+            if n - ep.start > cfg.confirm_revs * spr:
+                self.unconfirmed += 1
+                self._episode = None
+            return
+        if ep.decided is None:
+            if quiet or n - ep.alarm >= cfg.decision_revs * spr:
+                ev = self._decide(n, ep)
+                ep.decided = ev
+                events.append(ev)
+                if ev.fault_type == FaultType.SENSOR_FAULT and ev.channel >= 0:
+                    self._mask[ev.channel] = False
+                if ev.fault_type == FaultType.MASS_LOSS:
+                    extra = [b for b in ep.bursts[1:] if min(b[2], b[3]) >= cfg.confirm_ratio]
+                    ep.tail_contacts += len(extra)
+                    if extra:
+                        ep.tail_onset, ep.tail_detect = extra[0][0], extra[0][0]
+                        ep.tail_peak = max(ep.tail_peak, self.config.confirm_ratio)
+                        ep.tail_plane_peak = ep.max_ratio.get((1, "fixed"), np.zeros(4))
+                if quiet:
+                    self._end_tail(n, events)
+            return
+        if quiet or n - ep.decided.decision_sample_index >= cfg.max_tail_revs * spr:
+            self._end_tail(n, events)
+
+    def _end_tail(self, n: int, events: list[FaultEvent]) -> None:
+        ep = self._episode
+        self._episode = None
+        if ep is None or ep.tail_contacts == 0:
+            return
+        plane = int(np.argmax(ep.tail_plane_peak)) + 1
+        r = ep.tail_peak
+        events.append(
+            FaultEvent(
+                FaultType.AUX_BEARING_CONTACT,
+                onset_sample_index=ep.tail_onset,
+                detection_sample_index=ep.tail_detect,
+                decision_sample_index=n,
+                samples_per_rev=self.config.samples_per_rev,
+                omega=self._omega,
+                plane=plane,
+                bearing=_bearing_of_plane(plane),
+                confidence=float(1.0 - math.exp(-(r - 1.0))),
+                count=ep.tail_contacts,
+                evidence={
+                    "after": ep.decided.fault_type.name,
+                    "bursts": ep.tail_contacts,
+                    "peak_ratio_fine_levels": r,
+                },
+                description=(
+                    f"{ep.tail_contacts} contact burst(s) at levels above 1 x while the "
+                    f"{ep.decided.fault_type.name.lower()} transient rang on"
+                ),
+            )
+        )
+
+    def _decide(self, n: int, ep: _Episode) -> FaultEvent:
+        cfg = self.config
+        p_now = self._phasors[-1][1] if self._phasors else None
+        p_prev = None
+        onset = estimate_onset(ep.crossings)
+        # the two latest phasors completed after the onset: both must show the change
+        after = [p for last, p in self._phasors if last - 2**self._R + 1 >= onset]
+        if len(after) >= 2:
+            p_prev = after[-2]
+        sync_ratio = np.zeros(4)
+        sync_change = np.zeros(4)
+        if ep.p_ref is not None and p_now is not None and p_prev is not None:
+            ref_level = np.hypot(np.abs(ep.p_ref[0::2]), np.abs(ep.p_ref[1::2]))
+            thr = np.maximum(self._sync_thr, cfg.sync_relative_floor * ref_level)
+            ratios = []
+            for p in (p_now, p_prev):
+                d = (p - ep.p_ref) * self._mask
+                ch = np.hypot(np.abs(d[0::2]), np.abs(d[1::2]))
+                ratios.append(ch / thr)
+            sync_ratio = np.minimum(ratios[0], ratios[1])
+            d = (p_now - ep.p_ref) * self._mask
+            sync_change = np.hypot(np.abs(d[0::2]), np.abs(d[1::2]))
+        evidence = EpisodeEvidence(
+            revolution_level=self._R,
+            max_ratio={k: v.copy() for k, v in ep.max_ratio.items()},
+            channel_energy=ep.channel_energy.copy(),
+            sync_ratio=sync_ratio,
+            sync_change=sync_change,
+            bursts=[tuple(b) for b in ep.bursts],
+            mask=self._mask.copy(),
+        )
+        decision = classify(evidence, cfg)
+        return FaultEvent(
+            decision.fault_type,
+            onset_sample_index=onset,
+            detection_sample_index=int(ep.alarm),
+            decision_sample_index=n,
+            samples_per_rev=cfg.samples_per_rev,
+            omega=self._omega,
+            plane=decision.plane,
+            channel=decision.channel,
+            bearing=decision.bearing,
+            severity=decision.severity,
+            confidence=decision.confidence,
+            count=decision.count,
+            evidence=decision.evidence,
+            description=decision.description,
+        )
+
+
+def _bearing_of_plane(plane: int) -> int:
+    """Clearance bearing nearest a sensor plane: 2 -> AB1 (1), 3 -> AB2 (2), 1 -> 3, 4 -> 4."""
+    return {1: 3, 2: 1, 3: 2, 4: 4}.get(plane, 0)
+
+
+def with_levels(config: MonitorConfig, levels: tuple[int, ...]) -> MonitorConfig:
+    """Copy of ``config`` using ``levels``."""
+    return replace(config, levels=tuple(levels))
