@@ -13,6 +13,7 @@ NODES = {
     "wavelet_filterbank": "amb_wavelet.node:main",
 }
 TOOLS = {
+    "amb-run": "amb_tools.run_cli:main",
     "amb-wavelet-info": "amb_wavelet.info_cli:main",
 }
 

@@ -1,0 +1,297 @@
+"""``amb-run``: the nodes as separate processes over DDS, recorded, until the scenario ends.
+
+What ``launch/amb_system.launch.py`` does on a full ROS 2 install, for environments without
+``ros2 launch``: each node executable is started as its own process with
+``--ros-args --params-file <params>`` (plus ``-p`` overrides), the recorder writes
+``OUT/bag``, progress (simulated time, real-time factor) is printed from the plant's
+``/diagnostics`` while it runs, and when ``plant_sim`` exits at the end of its scenario the other
+nodes are stopped with SIGINT (the recorder last, after its queue has drained). Logs of every
+node are in ``OUT/logs``. The exit status is 0 only if every node stopped cleanly.
+
+Examples
+--------
+::
+
+    amb-run --scenario config/scenarios/mass_loss_first_critical.yaml --out out/run1
+    amb-run --scenario mass_loss_first_critical.yaml --controller none --out out/pid_only
+    amb-run --scenario ... --set wavelet_controller.w:=0.65 --set wavelet_filterbank.wavelet:=db4
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import signal
+import subprocess
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import yaml
+
+from amb_tools.paths import config_file
+
+INSTALL_LIB = Path(__file__).resolve().parent.parent / "install" / "amb_wavelet_control" / "lib"
+NODES = ("recorder", "wavelet_filterbank", "fault_monitor", "wavelet_controller", "plant_sim")
+
+
+@dataclass
+class NodeRun:
+    """One node process of the run."""
+
+    name: str
+    cmd: list[str]
+    log_path: Path
+    proc: subprocess.Popen | None = None
+    extra: dict = field(default_factory=dict)
+
+    def start(self, env: dict) -> None:
+        """Start the process, output to its log file."""
+        self._log = open(self.log_path, "w")
+        self.proc = subprocess.Popen(self.cmd, stdout=self._log, stderr=subprocess.STDOUT, env=env)
+
+    def stop(self, timeout: float = 20.0) -> int:
+        """SIGINT, wait, then SIGKILL; return the exit status."""
+        if self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGINT)
+            try:
+                self.proc.wait(timeout)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait(5)
+        self._log.close()
+        return self.proc.returncode
+
+
+def executable(name: str) -> list[str]:
+    """Command that starts node ``name`` (the colcon-installed executable, else ``-m``)."""
+    path = INSTALL_LIB / "amb_wavelet_control" / name
+    if path.exists():
+        return [str(path)]
+    modules = {
+        "recorder": "amb_tools.recorder_node",
+        "wavelet_filterbank": "amb_wavelet.node",
+        "fault_monitor": "amb_fault_monitor.node",
+        "wavelet_controller": "amb_controller.node",
+        "plant_sim": "amb_plant_sim.node",
+    }
+    return [sys.executable, "-m", modules[name]]
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """Command-line interface."""
+    p = argparse.ArgumentParser(prog="amb-run", description=__doc__.split("\n\n")[0])
+    p.add_argument(
+        "--scenario", required=True, help="scenario YAML (path or name in config/scenarios)"
+    )
+    p.add_argument(
+        "--out", required=True, type=Path, help="output folder (bag, logs); must not exist"
+    )
+    p.add_argument(
+        "--params", type=Path, default=None, help="ROS params file (default config/amb_params.yaml)"
+    )
+    p.add_argument(
+        "--controller",
+        default=None,
+        help="wavelet_controller.controller (none | proportional | moderated | transient)",
+    )
+    p.add_argument(
+        "--without",
+        action="append",
+        default=[],
+        choices=["fault_monitor", "wavelet_controller"],
+        help="do not start this node (plant then runs without commands: use --set "
+        "plant_sim.mode:=realtime)",
+    )
+    p.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="NODE.PARAM:=VALUE",
+        help="parameter override for one node (repeatable)",
+    )
+    p.add_argument("--timeout", type=float, default=3600.0, help="wall s before the run is aborted")
+    p.add_argument("--quiet", action="store_true", help="no progress lines")
+    return p
+
+
+def _overrides(args: argparse.Namespace, scenario: Path) -> dict[str, list[str]]:
+    """``-p`` arguments per node, scoped to the node (``-p node:param:=value``).
+
+    A node-scoped override is needed: rcl ranks a node's section of a params file above an
+    unscoped ``-p``, so ``-p mode:=realtime`` would lose to ``plant_sim: mode: lockstep``.
+    """
+    over: dict[str, list[str]] = {n: [] for n in NODES}
+
+    def put(node: str, assignment: str) -> None:
+        over[node] += ["-p", f"{node}:{assignment}"]
+
+    with scenario.open() as fh:
+        spr = (yaml.safe_load(fh) or {}).get("samples_per_rev")
+    if spr:
+        for n in NODES:
+            put(n, f"samples_per_rev:={int(spr)}")
+    put("plant_sim", f"scenario_file:={scenario}")
+    if args.controller:
+        put("wavelet_controller", f"controller:={args.controller}")
+    for item in args.set:
+        node, _, rest = item.partition(".")
+        if node not in over or ":=" not in rest:
+            raise SystemExit(
+                f"amb-run: --set {item!r}: expected NODE.PARAM:=VALUE with NODE in {NODES}"
+            )
+        put(node, rest)
+    return over
+
+
+class _Progress:
+    """Reads the plant's /diagnostics in a node of this process (simulated time, counts)."""
+
+    def __init__(self) -> None:
+        import rclpy
+        from diagnostic_msgs.msg import DiagnosticArray
+
+        self.context = rclpy.Context()
+        rclpy.init(context=self.context)
+        self.node = rclpy.create_node("amb_run_progress", context=self.context)
+        self.values: dict[str, str] = {}
+        self.node.create_subscription(DiagnosticArray, "/diagnostics", self._on_diag, 10)
+        from rclpy.executors import SingleThreadedExecutor
+
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+
+    def _on_diag(self, msg) -> None:
+        for s in msg.status:
+            if s.name == "plant_sim":
+                self.values = {kv.key: kv.value for kv in s.values}
+
+    def spin(self, seconds: float) -> None:
+        deadline = time.monotonic() + seconds
+        while time.monotonic() < deadline:
+            self.executor.spin_once(timeout_sec=0.05)
+
+    def close(self) -> None:
+        self.executor.shutdown()
+        self.node.destroy_node()
+        self.context.try_shutdown()
+
+
+def run(args: argparse.Namespace) -> int:
+    """Start the nodes, wait for the scenario to end, stop them; return the exit status."""
+    scenario = Path(args.scenario)
+    if not scenario.is_file():
+        scenario = config_file(Path("scenarios") / args.scenario)
+    if not scenario.is_file():
+        print(f"amb-run: scenario {args.scenario!r} not found", file=sys.stderr)
+        return 2
+    params = args.params or config_file("amb_params.yaml")
+    if not Path(params).is_file():
+        print(f"amb-run: params file {params} not found", file=sys.stderr)
+        return 2
+    out: Path = args.out
+    if out.exists():
+        print(f"amb-run: output folder {out} exists; choose a new one", file=sys.stderr)
+        return 2
+    (out / "logs").mkdir(parents=True)
+    over = _overrides(args, scenario.resolve())
+    over["recorder"] += ["-p", f"recorder:output:={(out / 'bag').resolve()}"]
+    names = [n for n in NODES if n not in args.without and _available(n)]
+    missing = [n for n in NODES if n not in names and n not in args.without]
+    if "plant_sim" not in names:
+        print("amb-run: plant_sim is not available", file=sys.stderr)
+        return 2
+    subscribers = 1 + ("wavelet_filterbank" in names) + ("fault_monitor" in names)
+    over["plant_sim"] += ["-p", f"plant_sim:wait_for_subscribers:={subscribers}"]
+    runs = [
+        NodeRun(
+            n,
+            [*executable(n), "--ros-args", "--params-file", str(params), *over[n]],
+            out / "logs" / f"{n}.log",
+        )
+        for n in names
+    ]
+    env = dict(os.environ)
+    env["PYTHONUNBUFFERED"] = "1"
+    if not args.quiet:
+        print(f"[amb-run] {scenario.name}: starting {', '.join(names)}", flush=True)
+        if missing:
+            print(f"[amb-run] not built yet, not started: {', '.join(missing)}", flush=True)
+    progress = _Progress()
+    status = 0
+    t0 = time.monotonic()
+    try:
+        for r in runs:
+            r.start(env)
+        plant = next(r for r in runs if r.name == "plant_sim")
+        last_print = 0.0
+        first_sample_wall = None  # wall time of the first progress report (nodes are up)
+        while plant.proc.poll() is None:
+            progress.spin(0.2)
+            for r in runs:
+                if r is not plant and r.proc.poll() is not None:
+                    print(
+                        f"[amb-run] {r.name} exited early ({r.proc.returncode}); see {r.log_path}",
+                        file=sys.stderr,
+                    )
+                    status = 1
+                    plant.proc.send_signal(signal.SIGINT)
+            wall = time.monotonic() - t0
+            if wall > args.timeout:
+                print(f"[amb-run] timeout after {wall:.0f} s: stopping", file=sys.stderr)
+                status = 1
+                break
+            if progress.values and first_sample_wall is None:
+                first_sample_wall = wall
+            if not args.quiet and wall - last_print >= 1.0 and progress.values:
+                last_print = wall
+                sim_t = float(progress.values.get("time", "nan"))
+                running = wall - first_sample_wall
+                rtf = sim_t / running if running > 0 else math.nan
+                print(
+                    f"[amb-run] t_sim = {sim_t:8.3f} s  wall = {wall:7.1f} s  "
+                    f"real-time factor = {rtf:5.2f}  "
+                    f"commands missing {progress.values.get('missing', '?')}",
+                    flush=True,
+                )
+    finally:
+        progress.close()
+        codes = {}
+        for r in sorted(runs, key=lambda r: r.name == "recorder"):  # recorder last
+            if r.name == "recorder":
+                time.sleep(0.5)
+            codes[r.name] = r.stop()
+    wall = time.monotonic() - t0
+    bad = {n: c for n, c in codes.items() if c != 0}
+    if bad:
+        status = 1
+        print(
+            f"[amb-run] nodes that did not stop cleanly: {bad} (logs in {out / 'logs'})",
+            file=sys.stderr,
+        )
+    if not args.quiet:
+        print(
+            f"[amb-run] done in {wall:.1f} s wall; bag: {out / 'bag'}; logs: {out / 'logs'}",
+            flush=True,
+        )
+    return status
+
+
+def _available(name: str) -> bool:
+    if (INSTALL_LIB / "amb_wavelet_control" / name).exists():
+        return True
+    import importlib.util
+
+    module = executable(name)[-1]
+    return module.startswith("amb_") and importlib.util.find_spec(module) is not None
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of ``amb-run``."""
+    return run(build_parser().parse_args(argv))
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
