@@ -48,7 +48,7 @@ from pathlib import Path
 
 import numpy as np
 
-from amb_controller.basis import QUADRATURES, control_basis, measurement_basis
+from amb_controller.basis import QUADRATURES, BasisSet, control_basis, measurement_basis
 from amb_controller.errors import ControllerValueError
 from amb_controller.guard import DivergenceGuard, GuardConfig
 from amb_controller.identification import MarkovIdentifier, StepExperiment
@@ -111,6 +111,13 @@ class ControllerConfig:
     frames : tuple of str
         Frames the controller reads; only ``("fixed",)`` is supported (the bearing forces
         act in the fixed frame).
+    sensors : tuple of int
+        Sensor channels 0..7 ([x1, y1, ..., x4, y4]) the controller measures: the selection
+        ``B^(m)`` of eq. 7.2. Default: the inner planes 2 and 3 beside the AMBs, so that
+        ``G B_u`` is square (4 sensors, 4 axes) and the inverse of eq. 6.35 is a true
+        inverse; with more sensors than axes the least-squares inverse leaves an oblique
+        residual ``I - G (B G)^-1 B`` that the integral action of eq. 8.10 cannot remove
+        (section 8.2) and that, on the FE model, amplifies the outer planes' 1 x vibration.
     delay_periods : int
         Evaluation delay i >= 1 (thesis: 2 in chapter 8, 3 in section 7.4.2).
     controller : str
@@ -164,6 +171,7 @@ class ControllerConfig:
     levels: tuple[int, ...] = (1,)
     quadratures: tuple[str, ...] = QUADRATURES
     frames: tuple[str, ...] = ("fixed",)
+    sensors: tuple[int, ...] = (2, 3, 4, 5)
     delay_periods: int = 2
     controller: str = "transient"
     response: str = "exponential"
@@ -223,7 +231,7 @@ class ControllerConfig:
                 f"unknown controller config field(s) {unknown}; allowed: {sorted(known)}"
             )
         kw = dict(d)
-        for name in ("levels", "quadratures", "frames", "series"):
+        for name in ("levels", "quadratures", "frames", "series", "sensors"):
             if name in kw:
                 value = kw[name]
                 kw[name] = tuple(value) if isinstance(value, list | tuple) else (value,)
@@ -297,6 +305,12 @@ class ControllerConfig:
             raise _fail("quadratures", list(self.quadratures), f"a subset of {QUADRATURES}")
         if tuple(self.frames) != ("fixed",):
             raise _fail("frames", list(self.frames), "['fixed'] (forces act in the fixed frame)")
+        if (
+            not self.sensors
+            or any(not _is_int(c) or not 0 <= c < len(SENSOR_NAMES) for c in self.sensors)
+            or len(set(self.sensors)) != len(self.sensors)
+        ):
+            raise _fail("sensors", list(self.sensors), "distinct sensor channels in 0..7")
         if not _is_int(self.delay_periods) or not 1 <= self.delay_periods <= 16:
             raise _fail("delay_periods", self.delay_periods, "an integer in 1..16 periods")
         if self.controller not in CONTROLLERS:
@@ -363,6 +377,21 @@ def _finite(value) -> bool:
     return isinstance(value, int | float | np.floating) and math.isfinite(value)
 
 
+def selected_measurement_basis(config: ControllerConfig) -> BasisSet:
+    """
+    Measured-coefficient basis of the configured levels, quadratures and sensors.
+
+    The rows of :func:`amb_controller.basis.measurement_basis` (8 sensor channels) whose
+    channel is in ``config.sensors``, in the same order (level, translation, quadrature,
+    channel); labels keep the physical channel (``c2`` = x2).
+    """
+    full = measurement_basis(
+        config.wavelet, config.period_samples, config.levels, len(SENSOR_NAMES), config.quadratures
+    )
+    keep = [i for i, lab in enumerate(full.labels) if int(lab.split("/c")[-1]) in config.sensors]
+    return BasisSet(full.weights[keep], full.offset, tuple(full.labels[i] for i in keep))
+
+
 def prescribed_response(config: ControllerConfig) -> PrescribedResponse:
     """Return the alpha(z) of eq. 8.6-8.7 the configuration asks for."""
     if config.response == "exponential":
@@ -406,9 +435,7 @@ class ControllerPipeline:
         self.samples_per_period = n
         self._r = n.bit_length() - 1
         self.control = control_basis(config.wavelet, n, config.levels, N_AXES, config.quadratures)
-        self.measured = measurement_basis(
-            config.wavelet, n, config.levels, len(SENSOR_NAMES), config.quadratures
-        )
+        self.measured = selected_measurement_basis(config)
         if channel_labels is None:
             from amb_wavelet.frontend import ChannelFrontEnd
 
@@ -426,12 +453,17 @@ class ControllerPipeline:
                     "filterbank with the fixed frame and the quadratures the controller uses"
                 ) from exc
         self.n_channels = len(labels)
-        # slot of each (filterbank level j, q, quadrature) in the measured vector
-        self._slot: dict[tuple[int, int, str], int] = {}
-        for i in range(0, self.measured.n_coefficients, len(SENSOR_NAMES)):
-            p, q, quad, _ = self.measured.labels[i].split("/")
-            self._slot[(self._r - int(p[1:]) + 1, int(q[1:]), quad)] = i
-        self._levels_j = {j for j, _, _ in self._slot}
+        # per (filterbank level j, translation q): positions in the measured vector and the
+        # filterbank columns that fill them
+        groups: dict[tuple[int, int], tuple[list[int], list[int]]] = {}
+        for i, label in enumerate(self.measured.labels):
+            p, q, quad, c = label.split("/")
+            idx, cols = groups.setdefault((self._r - int(p[1:]) + 1, int(q[1:])), ([], []))
+            idx.append(i)
+            cols.append(int(self._columns[quad][int(c[1:])]))
+        self._groups = {key: (np.array(i), np.array(c)) for key, (i, c) in groups.items()}
+        self._group_index = {key: g for g, key in enumerate(self._groups)}
+        self._levels_j = {j for j, _ in self._groups}
         self.limiter = ForceLimiter(self.control, np.array(config.force_limit), capacity)
         guard = DivergenceGuard(
             GuardConfig(
@@ -453,6 +485,7 @@ class ControllerPipeline:
         self._last_period = -1
         self._period_message = ""
         self._expected: int | None = None
+        self.last_measured: np.ndarray | None = None
         self._new_period(None)
         if model is None and config.model_file:
             model = WaveletModel.load(config.model_file)
@@ -637,7 +670,7 @@ class ControllerPipeline:
     def _new_period(self, period: int | None) -> None:
         self._period = period
         self._q = np.zeros(self.measured.n_coefficients)
-        self._have = np.zeros(self.measured.n_coefficients // len(SENSOR_NAMES), dtype=bool)
+        self._have = np.zeros(len(self._groups), dtype=bool)
         self._ok = True
         self._peak = 0.0
         self._period_message = ""
@@ -696,10 +729,9 @@ class ControllerPipeline:
             k, q = divmod(int(rec.translation_index), per)
             if k != m:
                 continue  # completed outside this period (not possible in order; ignore)
-            for quad, cols in self._columns.items():
-                slot = self._slot[(rec.level, q + 1, quad)]
-                self._q[slot : slot + len(SENSOR_NAMES)] = rec.values[cols]
-                self._have[slot // len(SENSOR_NAMES)] = True
+            idx, cols = self._groups[(rec.level, q + 1)]
+            self._q[idx] = rec.values[cols]
+            self._have[self._group_index[(rec.level, q + 1)]] = True
             if not rec.settled:
                 self._ok = False
                 self._period_message = f"period {m}: start-up coefficients (not settled)"
@@ -714,6 +746,7 @@ class ControllerPipeline:
         if complete and self._last_period != m - 1 and self._last_period >= 0:
             complete = False
             self._period_message = f"period {m} after {self._last_period}: periods missing"
+        self.last_measured = self._q.copy() if complete else None
         if complete:
             command = sup.step(m, self._q.copy(), self._peak)
             self._after_identification()

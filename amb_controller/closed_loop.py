@@ -1,0 +1,535 @@
+"""
+In-process closed loop: plant, front end, filterbank and controller pipeline in lock step.
+
+The runner does exactly what the ROS nodes do (``ARCHITECTURE.md``, "Time", lockstep), in
+one process and one thread, so that its results are those of the node graph::
+
+    for period k:
+        force_k = commands.pop(k, zeros)            # plant_sim: wait for command k (k >= i)
+        block = plant.advance(N, force_k)           # N samples, force held per sample
+        for each sample n of the block:
+            records = bank.step(front.step(x[n], theta[n]), n)      # wavelet_filterbank
+            command = pipeline.on_sample(n, records, x[n], omega)   # wavelet_controller
+            (at the last sample of period k: command for k + i)
+
+Periods ``k < i`` run with zero wavelet force (no command can exist for them). Everything
+the controller sees is what a rig measures (``MeasurementBlock`` without ``truth``); the
+simulator's truth is used only for the metrics that say so (contact count).
+
+Models (``--model`` of ``amb-sim``)
+-----------------------------------
+* ``fe``: the chapter-6 route. Markov parameters of ``G_{p,q,a,b}`` from the FE model's
+  PID closed loop (:func:`amb_plant_sim.closed_loop.build_closed_loop`) at the scenario
+  speed, force per bearing axis in, the 8 sensors out, with the exact sampled projection
+  of :func:`amb_controller.wavelet_dynamics.wavelet_markov`.
+* ``identify``: section 6.4 on the simulated rig: the plant runs PID only at the scenario
+  speed with the scenario's residual unbalance but no fault; after ``settle`` seconds each
+  control coefficient is stepped in turn (:meth:`ControllerPipeline.start_identification`)
+  and the Markov parameters are fitted from what the filterbank measured.
+* a path: a model file written by either.
+
+Bag
+---
+With a :class:`BagRecorder` the run is written to a rosbag2 with the ROS pipeline's topics
+and types, built by the builders of :mod:`amb_tools.conversions` and serialised with
+``rclpy.serialization.serialize_message`` (the bytes the nodes publish); the bag time of every
+message is its header stamp (simulated time). rclpy is imported only when a bag is written.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import ClassVar
+
+import numpy as np
+
+from amb_controller.basis import control_basis
+from amb_controller.inverse import pseudo_inverse_series
+from amb_controller.model_file import WaveletModel
+from amb_controller.pipeline import (
+    ControllerConfig,
+    ControllerPipeline,
+    selected_measurement_basis,
+)
+from amb_controller.supervisor import Command, Mode
+from amb_controller.wavelet_dynamics import wavelet_markov
+from amb_wavelet.analysis import AnalysisFilterbank
+from amb_wavelet.frontend import FRAMES, QUADRATURES, ChannelFrontEnd
+
+__all__ = [
+    "BagRecorder",
+    "RunResult",
+    "fe_model",
+    "identify_model",
+    "run_closed_loop",
+]
+
+#: Event kinds that are faults (the onset of the first one is "the fault" of the metrics).
+FAULT_KINDS = ("mass_loss", "sync_force", "step_force", "sensor_fault", "amb_channel_loss",
+               "misalignment", "base_motion")  # fmt: skip
+
+
+@dataclass
+class RunResult:
+    """
+    Everything one closed-loop run produced (arrays over all samples, SI units).
+
+    Attributes
+    ----------
+    time : numpy.ndarray
+        ``(n,)`` s.
+    displacement : numpy.ndarray
+        ``(n, 8)`` m, measured.
+    wavelet_force : numpy.ndarray
+        ``(n, 4)`` N, wavelet force applied per axis.
+    bearing_force : numpy.ndarray
+        ``(n, 4)`` N, total AMB control force ``K_i i`` per axis (PID + wavelet).
+    contact : numpy.ndarray of bool
+        ``(n, k)`` simulator truth: contact at each clearance bearing.
+    phasor : numpy.ndarray of complex
+        ``(K, 8)`` per period, 1 x coefficient ``x_{1,1}`` even + i odd (fixed frame, m
+        sqrt(samples)).
+    commands : list of Command
+        One per measured period.
+    fault_time : float
+        Onset of the first fault event in s (0 if none).
+    fault_events : list of dict
+        Events of the fault monitor (empty if none ran).
+    samples_per_rev : int
+    omega : float
+        Running speed at the end, rad/s.
+    model : WaveletModel or None
+
+    """
+
+    time: np.ndarray
+    displacement: np.ndarray
+    wavelet_force: np.ndarray
+    bearing_force: np.ndarray
+    contact: np.ndarray
+    phasor: np.ndarray
+    commands: list[Command]
+    fault_time: float
+    samples_per_rev: int
+    omega: float
+    model: WaveletModel | None = None
+    fault_events: list[dict] = field(default_factory=list)
+
+
+# ---------------------------------------------------------------------------------------------
+# models
+# ---------------------------------------------------------------------------------------------
+
+
+def fe_model(rig, omega: float, config: ControllerConfig, n_terms: int = 60) -> WaveletModel:
+    """
+    Wavelet-domain model from the FE closed loop (chapter 6 route, numerical, eq. 6.19/6.34).
+
+    Parameters
+    ----------
+    rig : amb_plant_sim.rig.Rig
+        Rig description.
+    omega : float
+        Running speed in rad/s (the period is ``2 pi / omega``).
+    config : ControllerConfig
+        Wavelet, samples per period, levels, quadratures, inverse order.
+    n_terms : int
+        Markov parameters kept (periods of the impulse response).
+
+    Returns
+    -------
+    WaveletModel
+        ``source = "fe"``.
+
+    """
+    from amb_plant_sim.closed_loop import build_closed_loop
+
+    cl = build_closed_loop(rig, omega)
+    n = config.period_samples
+    cb = control_basis(config.wavelet, n, config.levels, 4, config.quadratures)
+    mb = selected_measurement_basis(config)
+    markov = wavelet_markov(
+        cl.A, cl.B_u, cl.output(cl.plant.C_s), 2 * math.pi / omega, cb, mb, n_terms
+    )
+    inverse = pseudo_inverse_series(
+        markov, config.inverse_order, regularisation=config.inverse_regularisation
+    )
+    return WaveletModel(
+        markov=markov,
+        inverse=inverse,
+        wavelet=config.wavelet,
+        samples_per_rev=n,
+        omega=float(omega),
+        levels=tuple(config.levels),
+        quadratures=tuple(config.quadratures),
+        delay=config.delay_periods,
+        source="fe",
+        control_labels=cb.labels,
+        measured_labels=mb.labels,
+    )
+
+
+def identify_model(
+    rig,
+    scenario,
+    config: ControllerConfig,
+    seed: int = 0,
+    settle: float = 3.0,
+    progress=None,
+) -> WaveletModel:
+    """
+    On-line identification (section 6.4) on the simulated rig, PID only, no fault.
+
+    Parameters
+    ----------
+    rig : amb_plant_sim.rig.Rig
+    scenario : amb_plant_sim.scenario.Scenario
+        Resolved scenario; its speed, noise and ``unbalance`` events are kept, every other
+        event is dropped.
+    config : ControllerConfig
+        Identification order, amplitude and periods per step are taken from it.
+    seed : int
+        Noise seed.
+    settle : float
+        s of PID-only running before the first step (start-up transient).
+    progress : callable, optional
+        ``progress(done, total)`` per period.
+
+    Returns
+    -------
+    WaveletModel
+        ``source = "identification"``.
+
+    Raises
+    ------
+    amb_controller.errors.ControllerValueError
+        If the identification does not complete.
+
+    """
+    from amb_controller.errors import NotIdentifiedError
+
+    quiet = replace(
+        scenario,
+        events=tuple(e for e in scenario.events if e.kind == "unbalance"),
+        duration=1e6,
+    )
+    cfg = replace(config, controller="none")
+    loop = _Loop(rig, quiet, cfg, None, seed)
+    n_settle = max(1, math.ceil(settle * scenario.speed_hz))
+    for _ in range(n_settle):
+        loop.period()
+    ok, message = loop.pipeline.start_identification()
+    if not ok:
+        raise NotIdentifiedError(message)
+    total = (
+        n_settle
+        + cfg.delay_periods
+        + 2 * cfg.identification_periods_per_step * (loop.pipeline.control.n_coefficients)
+        + cfg.identification_order
+        + 2
+    )
+    for k in range(n_settle, total + 1):
+        loop.period()
+        if progress is not None:
+            progress(k + 1, total + 1)
+        if loop.pipeline.model is not None:
+            return loop.pipeline.model
+    raise NotIdentifiedError(
+        f"identification did not complete in {total} periods: {loop.pipeline.supervisor.message}"
+    )
+
+
+# ---------------------------------------------------------------------------------------------
+# the loop
+# ---------------------------------------------------------------------------------------------
+
+
+class _Loop:
+    """Plant + front end + filterbank + pipeline, advanced one control period at a time."""
+
+    def __init__(self, rig, scenario, config: ControllerConfig, model, seed, recorder=None,
+                 monitor=None):  # fmt: skip
+        from amb_plant_sim.simulator import PlantSimulator
+
+        self.rig = rig
+        self.config = config
+        self.N = config.period_samples
+        spr = config.samples_per_rev
+        self.plant = PlantSimulator(rig, scenario, spr, seed)
+        self.front = ChannelFrontEnd(spr, FRAMES, QUADRATURES)
+        self.levels = spr.bit_length()  # log2(spr) + 1, the filterbank node's default
+        self.bank = AnalysisFilterbank(config.wavelet, self.levels, self.front.n_channels)
+        self.pipeline = ControllerPipeline(
+            config, rig.amb.force_limit, model, channel_labels=self.front.labels
+        )
+        self.recorder = recorder
+        self.monitor = monitor
+        self.commands: dict[int, Command] = {}
+        self.k = 0
+        self.blocks: list = []
+        self.forces: list[np.ndarray] = []
+        self.issued: list[Command] = []
+        self.phasors: list[np.ndarray] = []
+        self.fault_events: list[dict] = []
+        r = spr.bit_length() - 1
+        self._j1 = r  # filterbank level of p = 1 (1 x)
+        labels = self.front.labels
+        self._even = np.array([labels.index(f"fixed/even/{s}") for s in _SENSORS])
+        self._odd = np.array([labels.index(f"fixed/odd/{s}") for s in _SENSORS])
+
+    def period(self) -> None:
+        k, N = self.k, self.N
+        command = self.commands.pop(k, None)
+        force = np.zeros((N, 4)) if command is None else command.force.T
+        block = self.plant.advance(N, force)
+        recorder = self.recorder
+        meas = recorder.measurements(block, force) if recorder is not None else None
+        phasor = np.zeros(8, dtype=complex)
+        for s in range(N):
+            n = int(block.sample_index[s])
+            x = block.displacement[s]
+            records = self.bank.step(self.front.step(x, block.angle[s]), n)
+            for rec in records:
+                if rec.level == self._j1 and rec.kind == "detail":
+                    phasor = rec.values[self._even] + 1j * rec.values[self._odd]
+            if meas is not None and records:
+                recorder.coefficients(meas[s], n, float(block.omega[s]), records)
+            if self.monitor is not None:
+                for event in self.monitor.step(n, float(block.omega[s]), records):
+                    self.fault_events.append(event)
+                    if recorder is not None:
+                        recorder.fault_event(event, meas[s].header.stamp)
+                    self.pipeline.on_fault(int(event["fault_type"]))
+            out = self.pipeline.on_sample(n, records, x, float(block.omega[s]))
+            if out is not None:
+                self.commands[out.target_period] = out
+                self.issued.append(out)
+                if recorder is not None:
+                    recorder.command(out, meas[s].header, self.pipeline)
+        self.blocks.append(block)
+        self.forces.append(force)
+        self.phasors.append(phasor)
+        self.k += 1
+
+
+_SENSORS = ("x1", "y1", "x2", "y2", "x3", "y3", "x4", "y4")
+
+
+class _Monitor:
+    """The ``amb_fault_monitor`` core fed from the filterbank records (optional)."""
+
+    def __init__(self, samples_per_rev: int, labels) -> None:
+        from amb_fault_monitor.monitor import FaultMonitor, MonitorConfig
+
+        self.core = FaultMonitor(MonitorConfig(samples_per_rev=samples_per_rev))
+        self.spr = samples_per_rev
+        self.slots = []
+        for frame in FRAMES:
+            for quad in QUADRATURES:
+                self.slots.append((frame, quad, len(self.slots) * 8))
+
+    def step(self, n: int, omega: float, records) -> list[dict]:
+        from amb_fault_monitor.records import CoefficientSet, SampleCoefficients
+
+        sets = tuple(
+            CoefficientSet(
+                r.level,
+                r.kind,
+                frame,
+                quad,
+                r.translation_index,
+                r.first_sample_index,
+                r.last_sample_index,
+                r.values[i0 : i0 + 8],
+                r.settled,
+            )
+            for r in records
+            for frame, quad, i0 in self.slots
+        )
+        events = self.core.step(SampleCoefficients(n, omega, sets))
+        return [e.to_dict() for e in events]
+
+
+def run_closed_loop(
+    rig,
+    scenario,
+    config: ControllerConfig,
+    model: WaveletModel | None = None,
+    seed: int = 0,
+    recorder: BagRecorder | None = None,
+    fault_monitor: bool = False,
+    progress=None,
+) -> RunResult:
+    """
+    Run one scenario in lock step with the wavelet controller ACTIVE from period 0.
+
+    Parameters
+    ----------
+    rig : amb_plant_sim.rig.Rig
+    scenario : amb_plant_sim.scenario.Scenario
+        Resolved scenario (constant speed).
+    config : ControllerConfig
+        Controller configuration; ``controller = "none"`` runs PID only (commands of zero
+        force are still exchanged every period, as between the nodes).
+    model : WaveletModel, optional
+        Needed unless the controller is ``none``.
+    seed : int
+        Measurement-noise seed.
+    recorder : BagRecorder, optional
+        Writes the bag.
+    fault_monitor : bool
+        Run the ``amb_fault_monitor`` core on the records and forward its events to the
+        pipeline (``on_fault``) and the bag.
+    progress : callable, optional
+        ``progress(done, total)`` after each period.
+
+    Returns
+    -------
+    RunResult
+
+    """
+    monitor = None
+    if fault_monitor:
+        monitor = _Monitor(config.samples_per_rev, None)
+    loop = _Loop(rig, scenario, config, model, seed, recorder, monitor)
+    if config.controller != "none":
+        ok, message = loop.pipeline.set_mode(Mode.ACTIVE)
+        if not ok:
+            from amb_controller.errors import ControllerValueError
+
+            raise ControllerValueError(f"cannot activate the controller: {message}")
+    speed = scenario.speed_hz
+    n_periods = max(1, round(scenario.duration * speed))
+    for k in range(n_periods):
+        loop.period()
+        if progress is not None:
+            progress(k + 1, n_periods)
+    blocks = loop.blocks
+    faults = [e.time for e in scenario.events if e.kind in FAULT_KINDS]
+    return RunResult(
+        time=np.concatenate([b.time for b in blocks]),
+        displacement=np.concatenate([b.displacement for b in blocks]),
+        wavelet_force=np.concatenate(loop.forces),
+        bearing_force=np.concatenate([b.bearing_force for b in blocks]),
+        contact=np.concatenate([b.truth["contact"] for b in blocks]),
+        phasor=np.array(loop.phasors),
+        commands=loop.issued,
+        fault_time=float(min(faults)) if faults else 0.0,
+        samples_per_rev=config.samples_per_rev,
+        omega=float(blocks[-1].omega[-1]),
+        model=loop.pipeline.model,
+        fault_events=loop.fault_events,
+    )
+
+
+# ---------------------------------------------------------------------------------------------
+# bag
+# ---------------------------------------------------------------------------------------------
+
+
+class BagRecorder:
+    """
+    Write the run as the ROS pipeline's topics (same builders, same serialisation).
+
+    Parameters
+    ----------
+    path : str or Path
+        Bag folder to create (must not exist).
+    config : ControllerConfig
+        For the coefficient slots and message fields.
+    force_limit : float
+        Bearing capacity in N (``Measurement.STATUS_FORCE_SATURATED``).
+
+    """
+
+    TOPICS: ClassVar[dict[str, str]] = {
+        "/amb/measurement": "amb_msgs/msg/Measurement",
+        "/amb/wavelet/coefficients": "amb_msgs/msg/WaveletCoefficients",
+        "/amb/control/command": "amb_msgs/msg/ControlCommand",
+        "/amb/control/status": "amb_msgs/msg/ControllerStatus",
+        "/amb/fault/events": "amb_msgs/msg/FaultEvent",
+    }
+
+    def __init__(self, path: str | Path, config: ControllerConfig, force_limit: float) -> None:
+        from amb_msgs.msg import CoefficientSet
+        from rclpy.serialization import serialize_message
+
+        from amb_tools.bag_writer import BagWriter
+
+        self._serialize = serialize_message
+        self.writer = BagWriter(path)
+        for topic, msgtype in self.TOPICS.items():
+            self.writer.add_topic(topic, msgtype)
+        self.config = config
+        self.force_limit = float(force_limit)
+        frame = {"fixed": CoefficientSet.FRAME_FIXED, "rotating": CoefficientSet.FRAME_ROTATING}
+        quad = {"even": CoefficientSet.QUADRATURE_EVEN, "odd": CoefficientSet.QUADRATURE_ODD}
+        self.slots = [(frame[f], quad[q]) for f in FRAMES for q in QUADRATURES]
+
+    def _write(self, topic: str, msg) -> None:
+        st = msg.header.stamp
+        self.writer.write_raw(topic, st.sec * 1_000_000_000 + st.nanosec, self._serialize(msg))
+
+    def measurements(self, block, force: np.ndarray) -> list:
+        """Write the block's ``Measurement`` messages; return them (for their headers)."""
+        from amb_tools.conversions import measurement_msgs
+
+        msgs = measurement_msgs(block, force, 0, self.config.samples_per_rev, self.force_limit)
+        for m in msgs:
+            self._write("/amb/measurement", m)
+        return msgs
+
+    def coefficients(self, measurement, sample_index: int, omega: float, records) -> None:
+        """Write the ``WaveletCoefficients`` of one sample."""
+        from amb_tools.conversions import coefficients_msg
+
+        cfg = self.config
+        msg = coefficients_msg(
+            measurement.header, cfg.wavelet, cfg.samples_per_rev, cfg.period_samples,
+            sample_index, omega, records, self.slots,
+        )  # fmt: skip
+        self._write("/amb/wavelet/coefficients", msg)
+
+    def command(self, command: Command, header, pipeline: ControllerPipeline) -> None:
+        """Write a ``ControlCommand`` and the ``ControllerStatus`` after it."""
+        from amb_tools.conversions import command_msg, controller_status_msg
+
+        cfg = self.config
+        self._write(
+            "/amb/control/command",
+            command_msg(
+                command, header, pipeline.control.labels, cfg.period_samples,
+                cfg.delay_periods, cfg.wavelet,
+            ),
+        )  # fmt: skip
+        self._write("/amb/control/status", controller_status_msg(pipeline.status(), header))
+
+    def fault_event(self, event: dict, stamp) -> None:
+        """Write a ``FaultEvent`` (fields of :class:`amb_fault_monitor.events.FaultEvent`)."""
+        from amb_msgs.msg import FaultEvent
+        from diagnostic_msgs.msg import KeyValue
+
+        msg = FaultEvent()
+        msg.header.stamp = stamp
+        msg.header.frame_id = "amb_rig"
+        msg.event_id = int(event.get("event_id", 0))
+        msg.fault_type = int(event["fault_type"])
+        msg.onset_sample_index = int(event["onset_sample_index"])
+        msg.detection_sample_index = int(event["detection_sample_index"])
+        msg.plane = int(event.get("plane", 0))
+        msg.channel = int(event.get("channel", -1))
+        msg.bearing = int(event.get("bearing", 0))
+        msg.severity = float(event.get("severity", 0.0))
+        msg.confidence = float(event.get("confidence", 0.0))
+        msg.count = int(event.get("count", 1))
+        msg.rotor_speed = float(event.get("omega", 0.0))
+        msg.evidence = [KeyValue(key=str(k), value=str(v)) for k, v in event["evidence"].items()]
+        msg.description = str(event.get("description", ""))
+        msg.detection_stamp = stamp
+        self._write("/amb/fault/events", msg)
+
+    def close(self) -> None:
+        """Finish the bag."""
+        self.writer.close()
