@@ -104,6 +104,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 "samples_per_rev": r.samples_per_rev,
                 "matches": r.matches,
                 "false_alarms": r.false_alarms,
+                "events": r.events,
                 "wall_time_s": r.wall_time,
             }
             for r in results

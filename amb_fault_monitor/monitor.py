@@ -102,6 +102,9 @@ class MonitorConfig:
         Ratio over threshold of the synchronous phasor change that makes a new steady level.
     sync_relative_floor : float
         Smallest synchronous change counted, as a fraction of the pre-fault 1 x level.
+    sustain : float
+        The latest synchronous change must be at least this fraction of the one a revolution
+        earlier (a new level is sustained; a ring-down after a contact decays).
     burst_gap_revs : float
         Quiet gap separating two fine-level bursts (contacts).
     tail_rise : float
@@ -123,9 +126,10 @@ class MonitorConfig:
     quiet_revs: float = 2.0
     decision_revs: float = 4.0
     max_tail_revs: float = 200.0
-    isolation: float = 0.8
-    sync_change: float = 2.0
+    isolation: float = 0.9
+    sync_change: float = 1.5
     sync_relative_floor: float = 0.05
+    sustain: float = 0.8
     burst_gap_revs: float = 0.5
     tail_rise: float = 2.0
     dead_fraction: float = 0.02
@@ -276,7 +280,8 @@ class FaultMonitor:
         self._dead_calib: list[np.ndarray] = []
         self._dead_ref: np.ndarray | None = None
         self._dead_run = np.zeros(N_SENSORS, dtype=int)
-        self._phasors: deque[tuple[int, np.ndarray]] = deque(maxlen=64)
+        self._phasors: deque[tuple[int, int, np.ndarray]] = deque(maxlen=64)
+        self._support_R = self.config.samples_per_rev
         self._mask = np.ones(N_SENSORS, dtype=bool)
         self._calib_start: int | None = None
         self._last_index: int | None = None
@@ -348,8 +353,10 @@ class FaultMonitor:
             return events
         by_key = {}
         for s in record.sets:
-            if s.kind != DETAIL or s.frame not in self.config.frames:
+            if s.frame not in self.config.frames:
                 continue
+            if s.kind != DETAIL:  # deepest approximation: the band below the last detail
+                s = s._replace(level=s.level + 1)
             if self.config.levels and s.level not in self.config.levels:
                 continue
             if len(s.values) != N_SENSORS:
@@ -380,7 +387,7 @@ class FaultMonitor:
         old = lag.push(self._norm(level, s.values))
         if old is None:
             return
-        delta = (lag.buf[(lag.pos - 1) % lag.m] - old) * self._mask
+        delta = (lag.buf[(lag.pos - 1) % lag.m] - old) * self._frame_mask(frame)
         planes = np.hypot(delta[0::2], delta[1::2])
         if not self._thr:
             self._calibrate(n, key, planes)
@@ -390,6 +397,12 @@ class FaultMonitor:
             return  # a feature that appeared after calibration: not monitored
         ratio = planes / thr
         self._evidence(n, level, frame, s, ratio, delta, thr)
+
+    def _frame_mask(self, frame: str) -> np.ndarray:
+        """Channels in use: in the rotating frame u and v both mix x and y of the plane."""
+        if frame == "fixed":
+            return self._mask
+        return np.repeat(self._mask[0::2] & self._mask[1::2], 2)
 
     def _calibrate(self, n: int, key: tuple[int, str], planes: np.ndarray) -> None:
         cfg = self.config
@@ -414,9 +427,10 @@ class FaultMonitor:
         if odd is not None:
             p = p + 1j * self._norm(self._R, odd.values)
         if not self._thr and self._phasors:
-            d = (p - self._phasors[-1][1]) * self._mask
+            d = (p - self._phasors[-1][2]) * self._mask
             self._sync_calib.append(np.sqrt(np.abs(d[0::2]) ** 2 + np.abs(d[1::2]) ** 2))
-        self._phasors.append((int(even.last_sample_index), p))
+        self._phasors.append((int(even.first_sample_index), int(even.last_sample_index), p))
+        self._support_R = int(even.last_sample_index - even.first_sample_index + 1)
 
     def _dead_channels(self, n: int, s, events: list[FaultEvent]) -> None:
         v = np.abs(self._norm(1, s.values))
@@ -482,6 +496,10 @@ class FaultMonitor:
                 if level < self._R:
                     self._tail_burst(n, s.first_sample_index, ratio)
             return
+        if level < self._R:  # ringing level before the decision, for the tail's rise test
+            ep.tail_history.append((n, float(ratio.max())))
+            while ep.tail_history[0][0] < n - cfg.samples_per_rev:
+                ep.tail_history.popleft()
         key = (level, frame)
         prev = ep.max_ratio.get(key)
         ep.max_ratio[key] = ratio.copy() if prev is None else np.maximum(prev, ratio)
@@ -534,7 +552,7 @@ class FaultMonitor:
         ep.tail_plane_peak = np.maximum(ep.tail_plane_peak, ratio)
 
     def _reference_phasor(self, before: int) -> np.ndarray | None:
-        for last, p in reversed(self._phasors):
+        for _first, last, p in reversed(self._phasors):
             if last < before:
                 return p
         return None
@@ -552,7 +570,11 @@ class FaultMonitor:
                 self._episode = None
             return
         if ep.decided is None:
-            if quiet or n - ep.alarm >= cfg.decision_revs * spr:
+            # the synchronous phasor must have a support clear of the transient, or the
+            # longest wait (decision_revs plus the extra support of longer wavelets) is up
+            clean = bool(self._phasors) and self._phasors[-1][0] > ep.last_crossing
+            longest = cfg.decision_revs * spr + max(self._support_R - spr, 0)
+            if (quiet and clean) or n - ep.alarm >= longest:
                 ev = self._decide(n, ep)
                 ep.decided = ev
                 events.append(ev)
@@ -604,11 +626,11 @@ class FaultMonitor:
 
     def _decide(self, n: int, ep: _Episode) -> FaultEvent:
         cfg = self.config
-        p_now = self._phasors[-1][1] if self._phasors else None
+        p_now = self._phasors[-1][2] if self._phasors else None
         p_prev = None
         onset = estimate_onset(ep.crossings)
         # the two latest phasors completed after the onset: both must show the change
-        after = [p for last, p in self._phasors if last - 2**self._R + 1 >= onset]
+        after = [p for first, _last, p in self._phasors if first >= onset]
         if len(after) >= 2:
             p_prev = after[-2]
         sync_ratio = np.zeros(4)
@@ -622,6 +644,9 @@ class FaultMonitor:
                 ch = np.hypot(np.abs(d[0::2]), np.abs(d[1::2]))
                 ratios.append(ch / thr)
             sync_ratio = np.minimum(ratios[0], ratios[1])
+            # a new steady level does not die away: a decaying ring-down (contact) does
+            sustained = ratios[0] >= cfg.sustain * ratios[1]
+            sync_ratio = np.where(sustained, sync_ratio, 0.0)
             d = (p_now - ep.p_ref) * self._mask
             sync_change = np.hypot(np.abs(d[0::2]), np.abs(d[1::2]))
         evidence = EpisodeEvidence(
