@@ -301,7 +301,7 @@ class _Loop:
                     self.fault_events.append(event)
                     if recorder is not None:
                         recorder.fault_event(event, meas[s].header.stamp)
-                    self.pipeline.on_fault(int(event["fault_type"]))
+                    self.pipeline.on_fault(event["fault_type_code"])
             out = self.pipeline.on_sample(n, records, x, float(block.omega[s]))
             if out is not None:
                 self.commands[out.target_period] = out
@@ -349,7 +349,12 @@ class _Monitor:
             for frame, quad, i0 in self.slots
         )
         events = self.core.step(SampleCoefficients(n, omega, sets))
-        return [e.to_dict() for e in events]
+        out = []
+        for e in events:
+            d = e.to_dict()
+            d["fault_type_code"] = int(e.fault_type)
+            out.append(d)
+        return out
 
 
 def run_closed_loop(
@@ -515,7 +520,7 @@ class BagRecorder:
         msg.header.stamp = stamp
         msg.header.frame_id = "amb_rig"
         msg.event_id = int(event.get("event_id", 0))
-        msg.fault_type = int(event["fault_type"])
+        msg.fault_type = int(event["fault_type_code"])
         msg.onset_sample_index = int(event["onset_sample_index"])
         msg.detection_sample_index = int(event["detection_sample_index"])
         msg.plane = int(event.get("plane", 0))

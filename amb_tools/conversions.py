@@ -244,3 +244,124 @@ def coefficient_records(msg, slots) -> list:
             )
         )
     return out
+
+
+def command_msg(
+    command,
+    header,
+    control_labels,
+    samples_per_period: int,
+    delay_periods: int,
+    wavelet: str,
+):
+    """Build the ``ControlCommand`` of one controller command.
+
+    Parameters
+    ----------
+    command : amb_controller.supervisor.Command
+        Target period, based-on period, control coefficients (control-basis order) and
+        force samples ``(4, samples_per_period)`` in N.
+    header : std_msgs.msg.Header
+        Header of the last measured sample the command is based on (the last sample of
+        period ``based_on_period``): the command's stamp is that sample's stamp (simulated
+        time in lockstep), so that it does not depend on how long the computation took.
+    control_labels : sequence of str
+        Label of each control coefficient, ``"p{p}/q{q}/{quad}/c{axis}"``
+        (:func:`amb_controller.basis.control_basis`).
+    samples_per_period : int
+        Force samples per axis.
+    delay_periods : int
+        Evaluation delay ``i``.
+    wavelet : str
+        PyWavelets name of the control wavelet.
+
+    Returns
+    -------
+    amb_msgs.msg.ControlCommand
+        ``force[axis * samples_per_period + n]`` (axis-major); one ``AxisCoefficients`` per
+        (axis, level p, quadrature) with the values over the translations ``q = 1, 2, ...``.
+
+    Raises
+    ------
+    MessageError
+        If the force has the wrong shape or a non-finite value.
+    """
+    from amb_msgs.msg import AxisCoefficients, CoefficientSet, ControlCommand
+
+    force = np.asarray(command.force, dtype=float)
+    if force.shape != (NUM_AXES, samples_per_period):
+        raise MessageError(
+            f"field 'force' has shape {force.shape}, expected ({NUM_AXES}, {samples_per_period})"
+        )
+    check_finite("force", force)
+    coefficients = np.asarray(command.coefficients, dtype=float)
+    check_length("coefficients", coefficients, len(control_labels))
+    check_finite("coefficients", coefficients)
+    quad_codes = {"even": CoefficientSet.QUADRATURE_EVEN, "odd": CoefficientSet.QUADRATURE_ODD}
+    groups: dict[tuple[int, int, int], list[tuple[int, float]]] = {}
+    for label, value in zip(control_labels, coefficients, strict=True):
+        p, q, quad, axis = label.split("/")
+        key = (int(axis[1:]), int(p[1:]), quad_codes[quad])
+        groups.setdefault(key, []).append((int(q[1:]), float(value)))
+    axis_sets = [
+        AxisCoefficients(
+            axis=axis,
+            level=level,
+            quadrature=quad,
+            values=to_float_array(np.array([v for _, v in sorted(items)])),
+        )
+        for (axis, level, quad), items in sorted(groups.items())
+    ]
+    return ControlCommand(
+        header=header,
+        period_index=int(command.target_period),
+        start_sample_index=int(command.target_period) * samples_per_period,
+        samples_per_period=samples_per_period,
+        delay_periods=int(delay_periods),
+        based_on_period=int(command.based_on_period),
+        wavelet=wavelet,
+        coefficients=axis_sets,
+        force=to_float_array(force.ravel()),
+        hold=bool(command.hold),
+    )
+
+
+def controller_status_msg(status: dict, header):
+    """Build a ``ControllerStatus`` from ``ControllerPipeline.status()``.
+
+    Parameters
+    ----------
+    status : dict
+        Keys as the message fields (``mode``, ``controller``, ``period_index``,
+        ``delay_periods``, ``compute_time`` s, ``peak_wavelet_force`` (4,) N, ``saturated``,
+        ``guard_tripped``, ``identification_progress``, ``commands_sent``, ``commands_late``,
+        ``inputs_rejected``, ``model_file``, ``message``).
+    header : std_msgs.msg.Header
+        Stamp: the last measured sample the status refers to (as its command).
+
+    Returns
+    -------
+    amb_msgs.msg.ControllerStatus
+    """
+    from amb_msgs.msg import ControllerStatus
+
+    peak = check_length(
+        "peak_wavelet_force", np.asarray(status["peak_wavelet_force"], dtype=float), NUM_AXES
+    )
+    return ControllerStatus(
+        header=header,
+        mode=int(status["mode"]),
+        controller=str(status["controller"]),
+        period_index=int(status["period_index"]),
+        delay_periods=int(status["delay_periods"]),
+        compute_time=float(status["compute_time"]),
+        peak_wavelet_force=check_finite("peak_wavelet_force", peak),
+        saturated=bool(status["saturated"]),
+        guard_tripped=bool(status["guard_tripped"]),
+        identification_progress=float(status["identification_progress"]),
+        commands_sent=int(status["commands_sent"]),
+        commands_late=int(status["commands_late"]),
+        inputs_rejected=int(status["inputs_rejected"]),
+        model_file=str(status["model_file"]),
+        message=str(status["message"]),
+    )
