@@ -709,11 +709,9 @@ class ControllerPipeline:
         if self._period != m:
             self._new_period(m)
             if pos != 0:
-                self._ok = False
-                self._period_message = f"period {m} joined at sample {pos} of {N}"
+                self._invalidate(f"period {m} joined at sample {pos} of {N}")
         if self._expected is not None and n != self._expected:
-            self._ok = False
-            self._period_message = f"sample {n} after {self._expected - 1}: gap"
+            self._invalidate(f"sample {n} after {self._expected - 1}: gap")
         self._expected = n + 1
         if displacement is not None:
             d = np.asarray(displacement, dtype=float)
@@ -723,7 +721,7 @@ class ControllerPipeline:
                 continue
             if rec.values.shape != (self.n_channels,) or not np.all(np.isfinite(rec.values)):
                 self._stats["inputs_rejected"] += 1
-                self._ok = False
+                self._invalidate(f"period {m}: malformed coefficient record rejected")
                 continue
             per = 2 ** (self._r - rec.level)
             k, q = divmod(int(rec.translation_index), per)
@@ -733,11 +731,16 @@ class ControllerPipeline:
             self._q[idx] = rec.values[cols]
             self._have[self._group_index[(rec.level, q + 1)]] = True
             if not rec.settled:
-                self._ok = False
-                self._period_message = f"period {m}: start-up coefficients (not settled)"
+                self._invalidate(f"period {m}: start-up coefficients (not settled)")
         if pos != N - 1:
             return None
         return self._end_period(m)
+
+    def _invalidate(self, reason: str) -> None:
+        """Mark the current period unusable; keep the first reason."""
+        if self._ok:
+            self._period_message = reason
+        self._ok = False
 
     def _end_period(self, m: int) -> Command:
         t0 = time.perf_counter()
