@@ -1,0 +1,28 @@
+"""amb-fault-eval on two simulator scenarios of the suite (mass loss 430 g cm, sensor offset)."""
+
+import json
+import shutil
+from pathlib import Path
+
+from amb_fault_monitor.eval_cli import main
+
+SUITE = Path(__file__).resolve().parents[2] / "config" / "scenarios" / "faults"
+
+
+def test_eval_cli_json_on_two_scenarios(tmp_path, capsys):
+    for name in ("mass_loss_29hz_430gcm_000.yaml", "sensor_offset_plane1x_29hz.yaml"):
+        shutil.copy(SUITE / name, tmp_path / name)
+    status = main(["--scenarios", str(tmp_path), "--json"])
+    out = json.loads(capsys.readouterr().out)
+    assert status == 0
+    assert out["correct"] == out["total"] == 2 and out["false_alarms"] == 0
+    assert out["confusion"]["MASS_LOSS"]["MASS_LOSS"] == 1
+    assert out["confusion"]["SENSOR_FAULT"]["SENSOR_FAULT"] == 1
+    ml = out["delays"]["MASS_LOSS"]
+    assert 0 <= ml["detection_revs_max"] < 1.0  # within one revolution of the true onset
+    assert ml["onset_error_abs_supports_max"] <= 2.0
+
+
+def test_eval_cli_empty_folder_is_an_input_error(tmp_path, capsys):
+    assert main(["--scenarios", str(tmp_path)]) == 2
+    assert "no *.yaml" in capsys.readouterr().err
