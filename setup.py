@@ -8,12 +8,16 @@ PACKAGE = "amb_wavelet_control"
 
 # Node executables (``ros2 run amb_wavelet_control <name>``) and command-line tools.
 NODES = {
+    "fault_monitor": "amb_fault_monitor.node:main",
     "plant_sim": "amb_plant_sim.node:main",
     "recorder": "amb_tools.recorder_node:main",
+    "wavelet_controller": "amb_controller.node:main",
     "wavelet_filterbank": "amb_wavelet.node:main",
 }
 TOOLS = {
+    "amb-fault-eval": "amb_fault_monitor.eval_cli:main",
     "amb-run": "amb_tools.run_cli:main",
+    "amb-sim": "amb_controller.sim_cli:main",
     "amb-wavelet-info": "amb_wavelet.info_cli:main",
 }
 

@@ -79,8 +79,11 @@ class WaveletModel:
     measured_labels: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
-        markov = np.asarray(self.markov, dtype=float)
-        inverse = np.asarray(self.inverse, dtype=float)
+        # C order always: a model used straight from its computation and the same model
+        # loaded from its file must give bit-identical commands, and BLAS sums in a
+        # layout-dependent order (a Fortran-ordered inverse differed by an ulp).
+        markov = np.ascontiguousarray(self.markov, dtype=float)
+        inverse = np.ascontiguousarray(self.inverse, dtype=float)
         if markov.ndim != 3 or inverse.ndim != 3 or inverse.shape[1:] != markov.shape[2:0:-1]:
             raise ControllerValueError(
                 f"markov (M+1, n_y, n_u) and inverse (K+1, n_u, n_y) disagree: {markov.shape}, "
@@ -92,7 +95,7 @@ class WaveletModel:
         for name in ("offset", "residual_rms"):
             value = getattr(self, name)
             object.__setattr__(
-                self, name, np.zeros(n_y) if value is None else np.asarray(value, float)
+                self, name, np.zeros(n_y) if value is None else np.ascontiguousarray(value, float)
             )
 
     def save(self, path: str | Path) -> Path:

@@ -27,8 +27,9 @@ A command is rejected (counted, reported, never applied) if its period has alrea
 its arrays have the wrong length, or it holds a non-finite value; forces beyond
 ``wavelet_force_limit`` are clipped to it and counted.
 
-When the scenario's duration is reached the node waits until every subscriber has acknowledged
-the last measurement, reports, and exits with status 0 (``exit_at_end``).
+The run lasts a whole number of control periods, ``round(duration * fs / N)`` (the in-process
+runner ``amb-sim`` runs the same). When it is over the node waits until every subscriber has
+acknowledged the last measurement, reports, and exits with status 0 (``exit_at_end``).
 """
 
 from __future__ import annotations
@@ -210,7 +211,9 @@ class PlantSimNode(Node):
             self._sim = PlantSimulator(rig, scenario, samples_per_rev=spr, seed=p("seed"))
         except SimulationError as exc:
             raise ConfigurationError(str(exc)) from exc
-        self._n_total = round(self._duration * self._sim.fs) if not scenario.profile_hz else None
+        # whole control periods, as many as fit the duration (rounded): amb-sim runs the same
+        periods = max(1, round(self._duration * self._sim.fs / self._N))
+        self._n_total = periods * self._N if not scenario.profile_hz else None
 
     # ------------------------------------------------------------------ commands
     def _on_command(self, msg: ControlCommand) -> None:
