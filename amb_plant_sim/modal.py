@@ -61,6 +61,7 @@ def modes_from_matrix(
     n_dof: int,
     min_frequency_hz: float = 0.05,
     max_frequency_hz: float = math.inf,
+    max_damping_ratio: float = 0.95,
 ) -> list[Mode]:
     """
     Modes of a first-order system whose state starts with the ``n_dof`` nodal displacements.
@@ -73,6 +74,9 @@ def modes_from_matrix(
         Number of rotor DOFs (4N); the first ``n_dof`` states are the nodal displacements.
     min_frequency_hz, max_frequency_hz : float
         Keep modes with damped frequency in this range (drops real and rigid-body poles).
+    max_damping_ratio : float
+        Drop nearly real poles (the PID integrator and derivative-filter poles, which the
+        gyroscopic coupling makes slightly complex at speed): they are not vibration modes.
 
     Returns
     -------
@@ -80,8 +84,11 @@ def modes_from_matrix(
         Sorted by frequency.
     """
     lam, V = scipy.linalg.eig(A)
-    keep = (lam.imag / (2 * math.pi) > min_frequency_hz) & (
-        lam.imag / (2 * math.pi) < max_frequency_hz
+    zeta = -lam.real / np.maximum(np.abs(lam), 1e-300)
+    keep = (
+        (lam.imag / (2 * math.pi) > min_frequency_hz)
+        & (lam.imag / (2 * math.pi) < max_frequency_hz)
+        & (zeta < max_damping_ratio)
     )
     out = []
     for k in np.flatnonzero(keep):
