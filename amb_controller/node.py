@@ -61,7 +61,7 @@ from amb_wavelet.node import FRAME_CODES, QUAD_CODES, stream_qos
 COMMAND_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST, depth=16, reliability=ReliabilityPolicy.RELIABLE
 )
-START_MODES = ("off", "active")
+START_MODES = ("off", "active", "identify")
 
 # ROS parameter -> (default, description). Defaults equal ControllerConfig's; bounds of 0.0
 # mean "off" for the guards (ROS parameters cannot hold inf).
@@ -132,7 +132,13 @@ class WaveletControllerNode(Node):
             ParameterDescriptor(description="rig YAML ('' = package's)", read_only=True),
         )
         self.declare_parameter(
-            "start_mode", "off", ParameterDescriptor(description="off | active", read_only=True)
+            "start_mode",
+            "off",
+            ParameterDescriptor(
+                description="off | active | identify (on-line identification from the start, "
+                "model written to model_file_out)",
+                read_only=True,
+            ),
         )
         self.declare_parameter(
             "model_file_out",
@@ -155,8 +161,6 @@ class WaveletControllerNode(Node):
         self._measurements: dict[int, Measurement] = {}
         self._coefficients: deque[WaveletCoefficients] = deque()
         self._next: int | None = None
-        self._identifying = False
-        self._model_out = ""
 
     def _configure(self) -> None:
         values = {name: self.get_parameter(name).value for name in PARAMETERS}
@@ -175,10 +179,18 @@ class WaveletControllerNode(Node):
         start = self.get_parameter("start_mode").value
         if start not in START_MODES:
             raise ConfigurationError(f"parameter 'start_mode' = {start!r}: allowed {START_MODES}")
+        self._identifying = False
+        self._model_out = ""
         if start == "active":
             ok, why = self._pipe.set_mode(Mode.ACTIVE)
             if not ok:
                 raise ConfigurationError(f"parameter 'start_mode' = 'active': {why}")
+        elif start == "identify":
+            ok, why = self._pipe.start_identification()
+            if not ok:
+                raise ConfigurationError(f"parameter 'start_mode' = 'identify': {why}")
+            self._identifying = True
+            self.get_logger().info(why)
         model = self._pipe.model
         self.get_logger().info(
             f"{config.controller} controller, {config.wavelet}, levels p {list(config.levels)}, "

@@ -1,0 +1,111 @@
+"""wavelet_controller over real DDS: one command per measured period, services, bad params."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from amb_msgs.msg import ControlCommand, ControllerStatus, Measurement, WaveletCoefficients
+from amb_msgs.srv import SetControllerMode, StartIdentification
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+from amb_tools.conversions import coefficients_msg
+from amb_wavelet.analysis import AnalysisFilterbank
+from amb_wavelet.frontend import FRAMES, QUADRATURES, ChannelFrontEnd
+from amb_wavelet.node import FRAME_CODES, QUAD_CODES, stream_qos
+
+pytestmark = pytest.mark.ros
+
+SPR = 16
+DELAY = 2
+COMMAND_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST, depth=16, reliability=ReliabilityPolicy.RELIABLE
+)
+
+
+def _stream(n_periods: int, skip_coefficients_of: int | None = None):
+    """Measurements and the filterbank's coefficient messages of a synchronous orbit."""
+    front = ChannelFrontEnd(SPR)
+    bank = AnalysisFilterbank("haar", 5, front.n_channels)
+    slots = [(FRAME_CODES[f], QUAD_CODES[q]) for f in FRAMES for q in QUADRATURES]
+    out = []
+    for n in range(n_periods * SPR):
+        angle = 2 * np.pi * (n % SPR) / SPR
+        m = Measurement(sample_index=n, samples_per_rev=SPR, rotor_angle=angle)
+        m.rotor_speed = 2 * np.pi * 20.0
+        m.displacement = 1e-5 * np.array([np.cos(angle + c) for c in range(8)])
+        m.header.stamp.nanosec = n * 1000
+        records = bank.step(front.step(m.displacement, angle), n)
+        c = None
+        if records and n != skip_coefficients_of:
+            c = coefficients_msg(m.header, "haar", SPR, SPR, n, m.rotor_speed, records, slots)
+        out.append((m, c))
+    return out
+
+
+def _start(node_process, **params):
+    return node_process(
+        "wavelet_controller",
+        params={"samples_per_rev": SPR, "delay_periods": DELAY, **params},
+    )
+
+
+def test_one_command_per_period_and_mode_services(ros, node_process) -> None:
+    ctrl = _start(node_process, controller="transient")
+    node = ros.node("amb_test_driver")
+    qos = stream_qos(SPR)
+    pm = node.create_publisher(Measurement, "/amb/measurement", qos)
+    pc = node.create_publisher(WaveletCoefficients, "/amb/wavelet/coefficients", qos)
+    commands: list[ControlCommand] = []
+    statuses: list[ControllerStatus] = []
+    node.create_subscription(ControlCommand, "/amb/control/command", commands.append, COMMAND_QOS)
+    node.create_subscription(ControllerStatus, "/amb/control/status", statuses.append, 10)
+    assert ros.spin_until(
+        lambda: pm.get_subscription_count() and pc.get_subscription_count(), 30.0
+    ), ctrl.log()
+    n_periods = 6
+    lost = 4 * SPR - 1  # the coefficients completing period 3 (its 1x level) are lost
+    for m, c in _stream(n_periods, skip_coefficients_of=lost):
+        if c is not None:  # coefficients before their measurement: the node joins them
+            pc.publish(c)
+        pm.publish(m)
+    assert ros.spin_until(lambda: len(commands) == n_periods, 30.0), ctrl.log()
+    assert [c.period_index for c in commands] == [k + DELAY for k in range(n_periods)]
+    assert all(c.based_on_period == k for k, c in enumerate(commands))
+    assert all(len(c.force) == 4 * SPR and not any(c.force) for c in commands)  # OFF
+    assert commands[3].hold, "an incomplete period is answered with a held, zero command"
+    assert statuses[-1].mode == ControllerStatus.MODE_OFF
+
+    set_mode = node.create_client(SetControllerMode, "/amb/control/set_mode")
+    identify = node.create_client(StartIdentification, "/amb/control/start_identification")
+    assert set_mode.wait_for_service(timeout_sec=10.0) and identify.wait_for_service(10.0)
+
+    def call(client, request):
+        future = client.call_async(request)
+        assert ros.spin_until(future.done, 10.0)
+        return future.result()
+
+    no_model = call(set_mode, SetControllerMode.Request(mode=ControllerStatus.MODE_ACTIVE))
+    assert not no_model.accepted and no_model.mode == ControllerStatus.MODE_OFF
+    started = call(identify, StartIdentification.Request(level=1, amplitude=10.0))
+    assert started.accepted, started.message
+    bad = call(set_mode, SetControllerMode.Request(mode=9))
+    assert not bad.accepted
+
+
+@pytest.mark.parametrize(
+    ("params", "words"),
+    [
+        ({"w": 1.5}, ("'w'", "1.5")),
+        ({"v": -1.2}, ("'v'", "-1.2")),
+        ({"delay_periods": 0}, ("delay_periods",)),
+        ({"wavelet": "bior2.2"}, ("wavelet", "bior2.2")),
+        ({"force_limit": [2000.0, 2000.0, 2000.0, 2000.0]}, ("force_limit", "1000")),
+        ({"model_file": "/nonexistent/model.npz"}, ("model",)),
+        ({"start_mode": "active"}, ("start_mode",)),
+    ],
+)
+def test_invalid_parameters_stop_the_node_with_a_reason(node_process, params, words) -> None:
+    ctrl = _start(node_process, **params)
+    assert ctrl.wait(60) == 2, ctrl.log()
+    log = ctrl.log()
+    assert all(w in log for w in words), log
