@@ -115,3 +115,28 @@ def test_proportional_gain_must_exceed_the_negative_stiffness(rig):
     assert unstable_real_poles(0.99 * kz) > 0
     assert unstable_real_poles(1.01 * kz) > 0  # sensor 40 mm from the AMB: K_z is not enough
     assert unstable_real_poles(3.0e6) == 0
+
+
+def test_calibration_record_round_trips_through_the_rig_file(rig, tmp_path):
+    import dataclasses
+    import shutil
+
+    from amb_plant_sim.calibrate import apply_parameters, parameters_of, write_calibration
+    from amb_plant_sim.rig import load_rig
+
+    from .conftest import RIG_PATH
+
+    path = tmp_path / "rig.yaml"
+    shutil.copy(RIG_PATH, path)
+    p = parameters_of(rig)
+    p[0] -= 0.01  # move D1 by 10 mm and make the disks 11 kg
+    p[8] = 11.0
+    moved = apply_parameters(rig, p)
+    write_calibration(path, moved, {"targets_hz": [11.0], "note": "test"})
+    back = load_rig(path)
+    assert back.disks[0].z == pytest.approx(rig.disks[0].z - 0.01)
+    assert all(d.mass == 11.0 for d in back.disks)
+    assert back.calibration == {"targets_hz": [11.0], "note": "test"}
+    assert dataclasses.replace(back, calibration={}, source="") == dataclasses.replace(
+        moved, calibration={}, source=""
+    )
