@@ -11,11 +11,13 @@ NODES = {
     "fault_monitor": "amb_fault_monitor.node:main",
     "plant_sim": "amb_plant_sim.node:main",
     "recorder": "amb_tools.recorder_node:main",
+    "replay_bridge": "amb_tools.replay_bridge:main",
     "wavelet_controller": "amb_controller.node:main",
     "wavelet_filterbank": "amb_wavelet.node:main",
 }
 TOOLS = {
     "amb-fault-eval": "amb_fault_monitor.eval_cli:main",
+    "amb-modal": "amb_plant_sim.modal_cli:main",
     "amb-run": "amb_tools.run_cli:main",
     "amb-sim": "amb_controller.sim_cli:main",
     "amb-wavelet-info": "amb_wavelet.info_cli:main",
