@@ -18,6 +18,7 @@ NODES = {
 TOOLS = {
     "amb-fault-eval": "amb_fault_monitor.eval_cli:main",
     "amb-modal": "amb_plant_sim.modal_cli:main",
+    "amb-report": "amb_tools.report_cli:main",
     "amb-run": "amb_tools.run_cli:main",
     "amb-sim": "amb_controller.sim_cli:main",
     "amb-wavelet-info": "amb_wavelet.info_cli:main",
