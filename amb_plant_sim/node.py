@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections import deque
 from pathlib import Path
 
 import numpy as np
@@ -134,13 +135,15 @@ class PlantSimNode(Node):
         self._meas_pub = self.create_publisher(Measurement, "/amb/measurement", stream_qos(self._N))
         self._clock_pub = self.create_publisher(Clock, "/clock", 10)
         self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
-        self.create_subscription(
+        self._cmd_sub = self.create_subscription(
             ControlCommand, "/amb/control/command", self._on_command, COMMAND_QOS
         )
         self.create_service(InjectFault, "/amb/plant/inject_fault", self._on_inject)
         self.create_timer(self.get_parameter("status_period").value, self._publish_status)
         self._timer = self.create_timer(0.002, self._tick)
         self._commands: dict[int, np.ndarray] = {}
+        self._period_end_wall: dict[int, float] = {}
+        self._latency: deque[float] = deque(maxlen=100_000)
         self.counts = dict.fromkeys(
             ("applied", "missing", "late", "rejected", "clipped", "saturated_samples"), 0
         )
@@ -246,6 +249,9 @@ class PlantSimNode(Node):
             self.counts["clipped"] += 1
             f = np.clip(f, -self._force_limit, self._force_limit)
         self._commands[k] = f
+        sent = self._period_end_wall.get(msg.based_on_period)
+        if sent is not None:
+            self._latency.append(time.monotonic() - sent)
         if self._mode == "lockstep":
             self._tick()
 
@@ -255,12 +261,15 @@ class PlantSimNode(Node):
             return
         if not self._started:
             want = self.get_parameter("wait_for_subscribers").value
-            if self._meas_pub.get_subscription_count() < want:
+            # lockstep also needs the command publisher matched, or the first command is lost
+            commander = self._mode != "lockstep" or self._cmd_sub.get_publisher_count() > 0
+            if self._meas_pub.get_subscription_count() < want or not commander:
                 if time.monotonic() < self._startup_deadline:
                     return
                 self.get_logger().warning(
-                    f"only {self._meas_pub.get_subscription_count()} of {want} subscribers of "
-                    "/amb/measurement after startup_timeout: starting anyway"
+                    f"{self._meas_pub.get_subscription_count()} of {want} subscribers of "
+                    f"/amb/measurement, {self._cmd_sub.get_publisher_count()} publishers of "
+                    "/amb/control/command after startup_timeout: starting anyway"
                 )
             self._started = True
             self._wall0 = time.monotonic()
@@ -328,15 +337,47 @@ class PlantSimNode(Node):
             self._meas_pub.publish(m)
             if m.sample_index % self._clock_every == 0:
                 self._clock_pub.publish(Clock(clock=m.header.stamp))
+        last = int(block.sample_index[-1])
+        if last % self._N == self._N - 1:  # a period's last sample is out: latency starts
+            self._period_end_wall[last // self._N] = time.monotonic()
+            self._period_end_wall.pop(last // self._N - 64, None)
+
+    def latency_summary(self) -> dict[str, float]:
+        """Wall latency from a period's last sample to the command based on it (s).
+
+        Returns
+        -------
+        dict
+            ``p50``, ``p99``, ``max`` in s and ``n`` commands; empty before any command.
+        """
+        if not self._latency:
+            return {}
+        lat = np.asarray(self._latency)
+        return {
+            "n": float(lat.size),
+            "p50": float(np.median(lat)),
+            "p99": float(np.quantile(lat, 0.99)),
+            "max": float(lat.max()),
+        }
 
     def _finish(self) -> None:
         if self.done:
             return
         self._meas_pub.wait_for_all_acked(Duration(seconds=10.0))
+        wall = time.monotonic() - self._wall0
         self._publish_status()
+        lat = self.latency_summary()
+        period = self._N / self._sim.fs
+        latency = (
+            f"; command latency p50 {lat['p50'] * 1e3:.2f} ms, p99 {lat['p99'] * 1e3:.2f} ms "
+            f"({lat['p99'] / period:.1%} of the {period * 1e3:.1f} ms period)"
+            if lat
+            else ""
+        )
         self.get_logger().info(
             f"scenario {self._scenario.name} complete at t = {self._sim.time:.4f} s "
-            f"({self._sim.sample_index} samples); commands: "
+            f"({self._sim.sample_index} samples) in {wall:.2f} s wall, real-time factor "
+            f"{self._sim.time / wall:.2f}{latency}; commands: "
             + ", ".join(f"{k} {v}" for k, v in self.counts.items())
         )
         if self.get_parameter("exit_at_end").value:

@@ -203,7 +203,8 @@ def run(args: argparse.Namespace) -> int:
     if "plant_sim" not in names:
         print("amb-run: plant_sim is not available", file=sys.stderr)
         return 2
-    subscribers = 1 + ("wavelet_filterbank" in names) + ("fault_monitor" in names)
+    # every node but the plant subscribes /amb/measurement: sample 0 waits for all of them
+    subscribers = len(names) - 1
     over["plant_sim"] += ["-p", f"plant_sim:wait_for_subscribers:={subscribers}"]
     runs = [
         NodeRun(

@@ -84,7 +84,7 @@ def generate_launch_description() -> LaunchDescription:
         name="plant_sim",
         parameters=[
             params,
-            {"scenario_file": arg("scenario"), "mode": arg("mode"), "wait_for_subscribers": 3},
+            {"scenario_file": arg("scenario"), "mode": arg("mode"), "wait_for_subscribers": 4},
         ],
         output="screen",
         condition=IfCondition(arg("with_plant")),
