@@ -96,19 +96,39 @@ def comparison_table(labels: list[str], metrics: list[dict]) -> str:
     inner = ("x2", "y2", "x3", "y3")
     rows: list[tuple[str, list]] = []
     for name in inner:
-        rows.append((f"steady 1 x amplitude at {name} (µm)",
-                     [_get(m, "sensors", name, "steady_1x_amplitude") for m in metrics]))  # fmt: skip
+        rows.append(
+            (
+                f"steady 1 x amplitude at {name} (µm)",
+                [_get(m, "sensors", name, "steady_1x_amplitude") for m in metrics],
+            )
+        )
     for name in inner:
-        rows.append((f"peak after the fault at {name} (µm)",
-                     [_get(m, "sensors", name, "peak_after_fault") for m in metrics]))  # fmt: skip
-    rows.append(("revolutions to settle (largest at x2, y2, x3, y3)",
-                 [inner_summary(m)["settling"] for m in metrics]))  # fmt: skip
+        rows.append(
+            (
+                f"peak after the fault at {name} (µm)",
+                [_get(m, "sensors", name, "peak_after_fault") for m in metrics],
+            )
+        )
+    rows.append(
+        (
+            "revolutions to settle (largest at x2, y2, x3, y3)",
+            [inner_summary(m)["settling"] for m in metrics],
+        )
+    )
     for b in ("1", "2"):
-        rows.append((f"peak wavelet force, bearing {b} (N)",
-                     [_get(m, "bearings", b, "peak_wavelet_force") for m in metrics]))  # fmt: skip
+        rows.append(
+            (
+                f"peak wavelet force, bearing {b} (N)",
+                [_get(m, "bearings", b, "peak_wavelet_force") for m in metrics],
+            )
+        )
     for b in ("1", "2"):
-        rows.append((f"peak total control force, bearing {b} (N)",
-                     [_get(m, "bearings", b, "peak_total_force") for m in metrics]))  # fmt: skip
+        rows.append(
+            (
+                f"peak total control force, bearing {b} (N)",
+                [_get(m, "bearings", b, "peak_total_force") for m in metrics],
+            )
+        )
     two = len(metrics) == 2
     head = "| metric | " + " | ".join(labels) + (f" | {labels[1]} / {labels[0]} |" if two else " |")
     sep = "|---|" + "---:|" * (len(labels) + (1 if two else 0))
@@ -119,7 +139,7 @@ def comparison_table(labels: list[str], metrics: list[dict]) -> str:
         + "; ".join(
             f"{lab}: {m['fault_time']:.4g} s ({m['fault_time_source']})"
             for lab, m in zip(labels, metrics, strict=True)
-        )  # fmt: skip
+        )
         + ". Definitions: `amb_controller/metrics.py` (steady 1 x over the last 10 "
         "revolutions; settling = revolutions after the fault period until the 1 x wavelet "
         "phasor stays in a 5 % band of its largest excursion; forces = largest hypot(f_x, f_y)).",
@@ -148,8 +168,14 @@ def _get(m: dict, *keys):
 
 def report_markdown(runs, figures, metrics_paths, metrics) -> str:
     """Return ``report.md``: bags, fault times, figures (linked) and what was missing."""
-    lines = ["# amb-report", "", "## Bags", "",
-             "| label | bag | messages | missing topics | fault time |", "|---|---|---|---|---|"]  # fmt: skip
+    lines = [
+        "# amb-report",
+        "",
+        "## Bags",
+        "",
+        "| label | bag | messages | missing topics | fault time |",
+        "|---|---|---|---|---|",
+    ]
     for run, m in zip(runs, metrics, strict=True):
         counts = ", ".join(f"{t}: {n}" for t, n in sorted(run.data.counts.items()))
         missing = ", ".join(run.data.missing) or "none"

@@ -31,18 +31,22 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
 
-from amb_tools.bag_read import BagData  # noqa: E402
+from amb_tools.bag_read import BagData
 
 DPI = 110
 UM = 1e6
 COLOURS = ("tab:blue", "tab:red", "tab:green", "tab:orange", "tab:purple", "tab:brown")
 SENSOR_NAMES = ("x1", "y1", "x2", "y2", "x3", "y3", "x4", "y4")
 AXIS_NAMES = ("b1x", "b1y", "b2x", "b2y")
-PLANE_NOTE = {1: "non-driven end", 2: "inner, beside AMB 1", 3: "inner, beside AMB 2",
-              4: "drive end"}  # fmt: skip
+PLANE_NOTE = {
+    1: "non-driven end",
+    2: "inner, beside AMB 1",
+    3: "inner, beside AMB 2",
+    4: "drive end",
+}
 INNER = (2, 3, 4, 5)
 ORBIT_REVS_BEFORE = 2
 ORBIT_REVS_TRANSIENT = 5
@@ -95,7 +99,7 @@ def _save(fig, path: Path) -> Path:
     plt.close(fig)
     buf.seek(0)
     with Image.open(buf) as im:
-        im.convert("RGB").quantize(colors=256).save(path, optimize=True)
+        im.convert("RGB").quantize(colors=256).save(path)
     return path
 
 
@@ -138,13 +142,20 @@ def displacement_figure(runs: list[Run], path: Path) -> Figure:
             continue
         for c in range(8):
             ax = axes[c // 2, c % 2]
-            ax.plot(m.time, m.displacement[:, c] * UM, color=_colour(i), lw=0.6,
-                    alpha=0.9 if i else 0.8, label=run.label)  # fmt: skip
+            ax.plot(
+                m.time,
+                m.displacement[:, c] * UM,
+                color=_colour(i),
+                lw=0.6,
+                alpha=0.9 if i else 0.8,
+                label=run.label,
+            )
     for c in range(8):
         ax = axes[c // 2, c % 2]
         plane = c // 2 + 1
-        ax.set_title(f"sensor {c + 1}: {SENSOR_NAMES[c]}, plane {plane} ({PLANE_NOTE[plane]})",
-                     fontsize=9)  # fmt: skip
+        ax.set_title(
+            f"sensor {c + 1}: {SENSOR_NAMES[c]}, plane {plane} ({PLANE_NOTE[plane]})", fontsize=9
+        )
         _mark_faults(ax, have, with_label=(c == 0))
         ax.grid(alpha=0.3)
         if c % 2 == 0:
@@ -166,8 +177,12 @@ def one_x_figure(runs: list[Run], path: Path) -> Figure:
     title = "1 x wavelet coefficient per control period at the inner sensors"
     have = [r for r in runs if r.data.one_x is not None]
     if not have:
-        return Figure("coefficients_1x", title, None,
-                      "no 1 x level coefficients on /amb/wavelet/coefficients in any bag")  # fmt: skip
+        return Figure(
+            "coefficients_1x",
+            title,
+            None,
+            "no 1 x level coefficients on /amb/wavelet/coefficients in any bag",
+        )
     fig, axes = plt.subplots(2, 2, figsize=(11, 7), sharex=True, sharey=True)
     for i, run in enumerate(runs):
         ox = run.data.one_x
@@ -177,12 +192,27 @@ def one_x_figure(runs: list[Run], path: Path) -> Figure:
         for a, c in enumerate(INNER):
             ax = axes.flat[a]
             mag = np.abs(ox.phasor[:, c]) * UM
-            ax.plot(k, mag, "-o", color=_colour(i), ms=3.5, lw=1.4,
-                    label=f"{run.label}: magnitude")  # fmt: skip
-            ax.plot(k, ox.even[:, c] * UM, ":", marker=".", color=_colour(i), lw=0.8, ms=4,
-                    label=f"{run.label}: even")  # fmt: skip
-            ax.plot(k, ox.odd[:, c] * UM, "--", marker="x", color=_colour(i), lw=0.8, ms=3,
-                    label=f"{run.label}: odd")  # fmt: skip
+            ax.plot(k, mag, "-o", color=_colour(i), ms=3.5, lw=1.4, label=f"{run.label}: magnitude")
+            ax.plot(
+                k,
+                ox.even[:, c] * UM,
+                ":",
+                marker=".",
+                color=_colour(i),
+                lw=0.8,
+                ms=4,
+                label=f"{run.label}: even",
+            )
+            ax.plot(
+                k,
+                ox.odd[:, c] * UM,
+                "--",
+                marker="x",
+                color=_colour(i),
+                lw=0.8,
+                ms=3,
+                label=f"{run.label}: odd",
+            )
     for a, c in enumerate(INNER):
         ax = axes.flat[a]
         ax.set_title(f"sensor {c + 1} ({SENSOR_NAMES[c]}), plane {c // 2 + 1}", fontsize=9)
@@ -193,8 +223,9 @@ def one_x_figure(runs: list[Run], path: Path) -> Figure:
             if run.fault_time is not None and spr:
                 speed = run.data.speed_hz() or 0.0
                 k_f = run.fault_time * speed * spr / n_period
-                ax.axvline(k_f, color="k", ls="--", lw=0.9,
-                           label="fault" if (a == 0 and i == 0) else None)  # fmt: skip
+                ax.axvline(
+                    k_f, color="k", ls="--", lw=0.9, label="fault" if (a == 0 and i == 0) else None
+                )
         ax.grid(alpha=0.3)
     for ax in axes[-1]:
         ax.set_xlabel("control period index k (revolutions)")
@@ -216,11 +247,16 @@ def levels_figure(run: Run, path: Path) -> Figure:
     title = f"Wavelet coefficients per level, {run.label}"
     levels = run.data.levels
     if not levels:
-        return Figure(f"levels_{run.label}", title, None,
-                      "no detail coefficients on /amb/wavelet/coefficients")  # fmt: skip
+        return Figure(
+            f"levels_{run.label}",
+            title,
+            None,
+            "no detail coefficients on /amb/wavelet/coefficients",
+        )
     js = sorted(levels)
-    fig, axes = plt.subplots(len(js), 2, figsize=(11, 1.3 * len(js) + 1.2), sharex=True,
-                             squeeze=False)  # fmt: skip
+    fig, axes = plt.subplots(
+        len(js), 2, figsize=(11, 1.3 * len(js) + 1.2), sharex=True, squeeze=False
+    )
     speed = run.data.speed_hz() or 0.0
     for r, j in enumerate(js):
         lv = levels[j]
@@ -234,13 +270,18 @@ def levels_figure(run: Run, path: Path) -> Figure:
                 ax.axvline(run.fault_time, color="k", ls="--", lw=0.8)
             ax.grid(alpha=0.3)
             ax.tick_params(labelsize=7)
-            ax.set_title(f"level {j} ({lv.pseudo_frequency:.1f} Hz = {mult:.3g} x), "
-                         f"sensor {SENSOR_NAMES[c]}", fontsize=8, pad=2)  # fmt: skip
+            ax.set_title(
+                f"level {j} ({lv.pseudo_frequency:.1f} Hz = {mult:.3g} x), "
+                f"sensor {SENSOR_NAMES[c]}",
+                fontsize=8,
+                pad=2,
+            )
         axes[r, 0].set_ylabel("µm √samples", fontsize=7)
     for ax in axes[-1]:
         ax.set_xlabel("time (s)")
-    fig.suptitle(f"{title}: fixed frame, even channel, inner x sensors (thesis figs. 5.1-5.18)",
-                 fontsize=10)  # fmt: skip
+    fig.suptitle(
+        f"{title}: fixed frame, even channel, inner x sensors (thesis figs. 5.1-5.18)", fontsize=10
+    )
     fig.tight_layout()
     return Figure(f"levels_{run.label}", title, _save(fig, path))
 
@@ -250,8 +291,9 @@ def force_figure(runs: list[Run], path: Path) -> Figure:
     title = "Total AMB control force and wavelet control force per bearing axis"
     have = [r for r in runs if r.data.measurements is not None or r.data.commands is not None]
     if not have:
-        return Figure("forces", title, None,
-                      "neither /amb/measurement nor /amb/control/command in any bag")  # fmt: skip
+        return Figure(
+            "forces", title, None, "neither /amb/measurement nor /amb/control/command in any bag"
+        )
     fig, axes = plt.subplots(4, 2, figsize=(11, 9), sharex=True)
     notes = []
     for i, run in enumerate(runs):
@@ -273,8 +315,9 @@ def force_figure(runs: list[Run], path: Path) -> Figure:
     for a in range(4):
         b = a // 2 + 1
         end = "non-driven end" if b == 1 else "drive end"
-        for col, what in enumerate(("total control force (PID + wavelet)",
-                                    "wavelet control force")):  # fmt: skip
+        for col, what in enumerate(
+            ("total control force (PID + wavelet)", "wavelet control force")
+        ):
             ax = axes[a, col]
             ax.set_title(f"{what}, bearing {b} ({end}) {AXIS_NAMES[a][-1]}", fontsize=9)
             _mark_faults(ax, have, with_label=(a == 0 and col == 0))
@@ -300,17 +343,32 @@ def _orbit_windows(run: Run) -> list[tuple[str, np.ndarray, dict]]:
     wins = []
     if i_f is not None and i_f > 0:
         a = max(0, i_f - ORBIT_REVS_BEFORE * spr)
-        wins.append((f"before the fault ({(i_f - a) / spr:.0f} rev)", np.arange(a, i_f),
-                     {"color": "tab:blue", "lw": 1.4}))  # fmt: skip
+        wins.append(
+            (
+                f"before the fault ({(i_f - a) / spr:.0f} rev)",
+                np.arange(a, i_f),
+                {"color": "tab:blue", "lw": 1.4},
+            )
+        )
         b = min(n, i_f + ORBIT_REVS_TRANSIENT * spr)
-        wins.append((f"first {(b - i_f) / spr:.0f} rev after the fault", np.arange(i_f, b),
-                     {"color": "tab:red", "lw": 0.6, "alpha": 0.8}))  # fmt: skip
+        wins.append(
+            (
+                f"first {(b - i_f) / spr:.0f} rev after the fault",
+                np.arange(i_f, b),
+                {"color": "tab:red", "lw": 0.6, "alpha": 0.8},
+            )
+        )
         start_end = max(b, n - ORBIT_REVS_END * spr)
     else:
         start_end = max(0, n - ORBIT_REVS_END * spr)
     if start_end < n:
-        wins.append((f"end of run (last {(n - start_end) / spr:.0f} rev)",
-                     np.arange(start_end, n), {"color": "k", "lw": 1.4}))  # fmt: skip
+        wins.append(
+            (
+                f"end of run (last {(n - start_end) / spr:.0f} rev)",
+                np.arange(start_end, n),
+                {"color": "k", "lw": 1.4},
+            )
+        )
     return wins
 
 
@@ -346,8 +404,11 @@ def orbit_figure(runs: list[Run], path: Path) -> Figure:
             ax.set_xlabel(f"x{p + 1} (µm)", fontsize=8)
             ax.set_ylabel(f"y{p + 1} (µm)", fontsize=8)
         axes[r, 0].legend(fontsize=7, loc="upper left")
-    fig.suptitle(title + " before and after the fault (thesis fig. 5.27 style; equal axes, "
-                 "common scale per plane)", fontsize=10)  # fmt: skip
+    fig.suptitle(
+        title + " before and after the fault (thesis fig. 5.27 style; equal axes, "
+        "common scale per plane)",
+        fontsize=10,
+    )
     fig.tight_layout()
     return Figure("orbits", title, _save(fig, path))
 
@@ -369,18 +430,26 @@ def timeline_figure(runs: list[Run], path: Path) -> Figure:
     have = [r for r in runs if r.data.measurements is not None and r.data.samples_per_rev]
     if not have:
         return Figure("fault_timeline", title, None, "no /amb/measurement in any bag")
-    fig, axes = plt.subplots(len(have), 1, figsize=(11, 2.9 * len(have) + 0.9), squeeze=False,
-                             sharex=True)  # fmt: skip
+    fig, axes = plt.subplots(
+        len(have), 1, figsize=(11, 2.9 * len(have) + 0.9), squeeze=False, sharex=True
+    )
     plane_colours = ("tab:blue", "tab:orange", "tab:green", "tab:purple")
     for r, run in enumerate(have):
         ax = axes[r, 0]
         t, env = revolution_envelope(run.data)
         for p in range(4):
-            ax.step(t, env[:, p] * UM, where="post", color=plane_colours[p], lw=1.0,
-                    label=f"plane {p + 1}")  # fmt: skip
+            ax.step(
+                t,
+                env[:, p] * UM,
+                where="post",
+                color=plane_colours[p],
+                lw=1.0,
+                label=f"plane {p + 1}",
+            )
         if run.fault_time is not None:
-            ax.axvline(run.fault_time, color="k", ls="--", lw=1.0,
-                       label=f"fault time ({run.fault_source})")  # fmt: skip
+            ax.axvline(
+                run.fault_time, color="k", ls="--", lw=1.0, label=f"fault time ({run.fault_source})"
+            )
         events = run.data.fault_events
         top = float(env.max() * UM) if env.size else 1.0
         for e_i, e in enumerate(events):
@@ -388,30 +457,55 @@ def timeline_figure(runs: list[Run], path: Path) -> Figure:
             t_det = float(run.data.sample_time(e["detection_sample_index"]))
             dec = e.get("decision_sample_index")
             t_dec = float(run.data.sample_time(dec)) if dec is not None else t_det
-            ax.axvspan(t_on, t_dec, color="tab:red", alpha=0.12,
-                       label="onset to decision" if e_i == 0 else None)  # fmt: skip
-            ax.axvline(t_on, color="tab:red", lw=1.0, ls=":",
-                       label="estimated onset" if e_i == 0 else None)  # fmt: skip
-            ax.axvline(t_dec, color="tab:red", lw=1.2,
-                       label="classified (event published)" if e_i == 0 else None)  # fmt: skip
+            ax.axvspan(
+                t_on,
+                t_dec,
+                color="tab:red",
+                alpha=0.12,
+                label="onset to decision" if e_i == 0 else None,
+            )
+            ax.axvline(
+                t_on, color="tab:red", lw=1.0, ls=":", label="estimated onset" if e_i == 0 else None
+            )
+            ax.axvline(
+                t_dec,
+                color="tab:red",
+                lw=1.2,
+                label="classified (event published)" if e_i == 0 else None,
+            )
             ax.annotate(
-                f"{e['fault_type']}" + (f" plane {e['plane']}" if e["plane"] else "")
+                f"{e['fault_type']}"
+                + (f" plane {e['plane']}" if e["plane"] else "")
                 + f"\nonset {t_on:.3f} s, decided {t_dec:.3f} s",
-                (t_dec, top * (0.95 - 0.22 * (e_i % 4))), fontsize=7, color="tab:red",
-                xytext=(4, 0), textcoords="offset points", va="top",
-            )  # fmt: skip
+                (t_dec, top * (0.95 - 0.22 * (e_i % 4))),
+                fontsize=7,
+                color="tab:red",
+                xytext=(4, 0),
+                textcoords="offset points",
+                va="top",
+            )
         if not events:
             msg = "no FaultEvent in this bag"
             if "/amb/fault/events" in run.data.missing:
                 msg += " (/amb/fault/events empty or not recorded: fault monitor not running?)"
-            ax.text(0.01, 0.95, msg, transform=ax.transAxes, fontsize=8, va="top",
-                    bbox={"fc": "w", "ec": "0.7"})  # fmt: skip
+            ax.text(
+                0.01,
+                0.95,
+                msg,
+                transform=ax.transAxes,
+                fontsize=8,
+                va="top",
+                bbox={"fc": "w", "ec": "0.7"},
+            )
         ax.set_title(f"{run.label}: peak radial displacement per revolution", fontsize=9)
         ax.set_ylabel("peak |r| per rev (µm)")
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7, loc="center left", bbox_to_anchor=(1.0, 0.5))
     axes[-1, 0].set_xlabel("time (s)")
-    fig.suptitle(title + " (FaultEvent onset = first crossing back-dated by the wavelet "
-                 "support, thesis chapter 5)", fontsize=10)  # fmt: skip
+    fig.suptitle(
+        title + " (FaultEvent onset = first crossing back-dated by the wavelet "
+        "support, thesis chapter 5)",
+        fontsize=10,
+    )
     fig.tight_layout()
     return Figure("fault_timeline", title, _save(fig, path))

@@ -119,8 +119,9 @@ def choose_fault_time(
     for source in ("user", "scenario", "first_fault_event"):
         if source in candidates and math.isfinite(candidates[source]):
             return FaultTime(candidates[source], source, candidates)
-    return FaultTime(0.0, "none (no scenario, no FaultEvent, no --fault-time: whole run)",
-                     candidates)  # fmt: skip
+    return FaultTime(
+        0.0, "none (no scenario, no FaultEvent, no --fault-time: whole run)", candidates
+    )
 
 
 def bag_metrics(
@@ -153,23 +154,39 @@ def bag_metrics(
     one_x = data.one_x
     out: dict
     if (meas is None and one_x is None) or speed is None or not spr:
-        out = {"fault_time": fault.time, "fault_period": None, "revolutions": None,
-               "speed_hz": speed, "sensors": None, "bearings": None}  # fmt: skip
+        out = {
+            "fault_time": fault.time,
+            "fault_period": None,
+            "revolutions": None,
+            "speed_hz": speed,
+            "sensors": None,
+            "bearings": None,
+        }
     else:
         if meas is not None:
             time = meas.time.copy()
             time[meas.stamp_ns == round(fault.time * 1e9)] = fault.time
             x, wf, tf = meas.displacement, meas.wavelet_force, meas.bearing_force
-        else:
-            time = np.zeros(1)
-            x, wf, tf = np.zeros((1, 8)), np.zeros((1, 4)), np.zeros((1, 4))
+        else:  # placeholders of the right length; the values they give are nulled below
+            n = one_x.even.shape[0] * spr
+            time = data.sample_time(np.arange(n))
+            x, wf, tf = np.zeros((n, 8)), np.zeros((n, 4)), np.zeros((n, 4))
         if one_x is not None:
             phasor = one_x.phasor
         else:
             n_periods = max(1, len(time) // spr)
             phasor = np.zeros((n_periods, 8), dtype=complex)
-        result = _BagResult(time, x, wf, tf, np.zeros((len(time), 0), dtype=bool), phasor,
-                            fault.time, spr, list(data.fault_events))  # fmt: skip
+        result = _BagResult(
+            time,
+            x,
+            wf,
+            tf,
+            np.zeros((len(time), 0), dtype=bool),
+            phasor,
+            fault.time,
+            spr,
+            list(data.fault_events),
+        )
         out = compute_metrics(result, speed)
         if meas is None:
             out["bearings"] = None
@@ -185,7 +202,7 @@ def bag_metrics(
     out.update(
         {
             "bag": str(data.path),
-            "bag_counts": {t: n for t, n in data.counts.items() if t.startswith("/amb/")},
+            "bag_counts": {t: n for t, n in data.counts.items() if t.startswith("/amb/") and n},
             "controller": _controller(data),
             "fault_time_source": fault.source,
             "fault_time_candidates": fault.candidates,

@@ -1,0 +1,196 @@
+"""amb-report on amb-sim bags: every figure, metrics equal to amb-sim's, missing topics.
+
+References from outside the code under test: amb-sim's own ``metrics.json`` (computed from
+the in-memory run, not from the bag), PyWavelets for the 1 x Haar coefficients, the bag's own
+stamps for the fault-event times.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+import pywt
+from PIL import Image
+from rosbags.rosbag2 import Reader
+
+from amb_tools import report_cli
+from amb_tools.bag_read import COEFFICIENTS, MEASUREMENT, read_bag
+from amb_tools.bag_writer import BagWriter
+from amb_tools.report_metrics import NOT_IN_BAG, bag_metrics, choose_fault_time
+
+FIGURES = ("displacement", "coefficients_1x", "forces", "orbits", "fault_timeline")
+LABELS = ("PID only", "PID + wavelet")
+#: ControllerConfig keys the bag carries (ControllerStatus, ControlCommand, coefficients).
+CONTROLLER_KEYS = ("controller", "wavelet", "samples_per_rev", "delay_periods")
+
+
+@pytest.fixture(scope="module")
+def report(sim_pid, sim_wavelet, scenario, tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("report") / "out"
+    code = report_cli.main(
+        [str(sim_pid / "bag"), str(sim_wavelet / "bag"), "--labels", ",".join(LABELS),
+         "--scenario", str(scenario), "--out", str(out)]
+    )  # fmt: skip
+    assert code == 0
+    return out
+
+
+def _assert_same_metrics(ours: dict, ref: dict) -> None:
+    """Every amb-sim key is in ours and equal, except the documented not-in-bag fields."""
+    missing = set(ref) - set(ours)
+    assert missing <= set(NOT_IN_BAG), f"keys amb-sim writes but amb-report does not: {missing}"
+    for key, value in ref.items():
+        if key in NOT_IN_BAG or key == "contact_source":
+            continue
+        assert ours[key] == value, f"{key}: report {ours[key]!r} != amb-sim {value!r}"
+    assert ours["contact_count"] is None and ref["contact_count"] is not None
+    assert "not in the bag" in ours["contact_source"]
+    for key in CONTROLLER_KEYS:
+        assert ours["controller"][key] == ref["controller"][key], key
+
+
+def test_every_figure_is_written_and_linked(report) -> None:
+    md = (report / "report.md").read_text()
+    for name in FIGURES:
+        png = report / f"{name}.png"
+        with Image.open(png) as im:
+            assert im.format == "PNG" and im.size[0] >= 1000 and im.size[1] >= 500
+        assert png.stat().st_size < 400_000, f"{png.name} is {png.stat().st_size} bytes"
+        assert f"]({name}.png)" in md
+    for slug in ("PID_only", "PID_wavelet"):
+        assert (report / f"levels_{slug}.png").is_file()
+        assert f"({slug}/metrics.json)" in md
+    assert "Not drawn" not in md
+
+
+@pytest.mark.parametrize("label", LABELS)
+def test_metrics_equal_amb_sim(report, sim_pid, sim_wavelet, label) -> None:
+    run = sim_pid if label == "PID only" else sim_wavelet
+    slug = "PID_only" if label == "PID only" else "PID_wavelet"
+    ours = json.loads((report / slug / "metrics.json").read_text())
+    ref = json.loads((run / "metrics.json").read_text())
+    _assert_same_metrics(ours, ref)
+    assert ours["fault_time_source"] == "scenario"
+    assert ours["missing_topics"] == ([] if run is sim_wavelet else ["/amb/fault/events"])
+
+
+def test_fault_events_round_trip_the_monitor_fields(report, sim_wavelet) -> None:
+    ours = json.loads((report / "PID_wavelet" / "metrics.json").read_text())["fault_events"]
+    ref = json.loads((sim_wavelet / "metrics.json").read_text())["fault_events"]
+    assert len(ref) >= 1 and ref[0]["fault_type"] == "MASS_LOSS"
+    assert ours == ref  # including decision_sample_index, rebuilt from the header stamp
+
+
+def test_comparison_table_holds_the_metrics_side_by_side(report, sim_pid, sim_wavelet) -> None:
+    text = (report / "comparison.md").read_text()
+    a = json.loads((sim_pid / "metrics.json").read_text())
+    b = json.loads((sim_wavelet / "metrics.json").read_text())
+    row = next(ln for ln in text.splitlines() if ln.startswith("| steady 1 x amplitude at x2"))
+    cells = [c.strip() for c in row.strip("|").split("|")]
+    pid, wav = a["sensors"]["x2"]["steady_1x_amplitude"], b["sensors"]["x2"]["steady_1x_amplitude"]
+    assert float(cells[1]) == pytest.approx(pid * 1e6, abs=0.05)
+    assert float(cells[2]) == pytest.approx(wav * 1e6, abs=0.05)
+    assert float(cells[3]) == pytest.approx(wav / pid, abs=5e-4)
+    row = next(ln for ln in text.splitlines() if ln.startswith("| peak wavelet force, bearing 1"))
+    cells = [c.strip() for c in row.strip("|").split("|")]
+    assert float(cells[2]) == pytest.approx(b["bearings"]["1"]["peak_wavelet_force"], abs=0.05)
+    assert float(cells[1]) == 0.0  # PID only: no wavelet force
+
+
+def test_one_x_coefficients_match_pywavelets(sim_wavelet, spr) -> None:
+    """Even 1 x phasor of period k = Haar detail of that revolution (pywt.downcoef)."""
+    data = read_bag(sim_wavelet / "bag")
+    x = data.measurements.displacement
+    assert data.one_x.level == int(math.log2(spr))
+    n_periods = x.shape[0] // spr
+    assert data.one_x.even.shape == (n_periods, 8) and data.one_x.present.all()
+    ref = np.array(
+        [
+            pywt.downcoef("d", x[k * spr : (k + 1) * spr, c], "haar", level=data.one_x.level)[0]
+            for k in range(n_periods)
+            for c in range(8)
+        ]
+    ).reshape(n_periods, 8)
+    scale = np.abs(ref).max()
+    np.testing.assert_allclose(data.one_x.even, ref, rtol=0, atol=1e-9 * scale)
+
+
+def test_fault_time_comes_from_the_first_fault_event_without_a_scenario(sim_wavelet) -> None:
+    data = read_bag(sim_wavelet / "bag")
+    m = bag_metrics(data, choose_fault_time(data))
+    assert m["fault_time_source"] == "first_fault_event"
+    onset = m["fault_events"][0]["onset_sample_index"]
+    hit = np.flatnonzero(data.measurements.sample_index == onset)
+    assert m["fault_time"] == data.measurements.time[hit[0]]
+    assert m["fault_time_candidates"] == {"first_fault_event": m["fault_time"]}
+    # the user's value wins over the scenario's and the bag's
+    fault = choose_fault_time(data, user=1.5, scenario=2.0)
+    assert (fault.time, fault.source) == (1.5, "user")
+    fault = choose_fault_time(data, scenario=2.0)
+    assert (fault.time, fault.source) == (2.0, "scenario")
+
+
+def _copy_topics(src: Path, dst: Path, keep: set[str]) -> None:
+    with Reader(src) as reader, BagWriter(dst) as writer:
+        for conn in reader.connections:
+            if conn.topic in keep:
+                writer.add_topic(conn.topic, conn.msgtype)
+        for conn, t_ns, raw in reader.messages():
+            if conn.topic in keep:
+                writer.write_raw(conn.topic, t_ns, raw)
+
+
+def test_bag_without_coefficients_reports_what_is_there(sim_wavelet, scenario, tmp_path):
+    bag = tmp_path / "meas_only"
+    _copy_topics(sim_wavelet / "bag", bag, {MEASUREMENT})
+    out = tmp_path / "rep"
+    code = report_cli.main([str(bag), "--scenario", str(scenario), "--out", str(out)])
+    assert code == 0
+    for name in ("displacement", "forces", "orbits", "fault_timeline"):
+        assert (out / f"{name}.png").is_file(), name
+    assert not (out / "coefficients_1x.png").exists()
+    md = (out / "report.md").read_text()
+    assert "Not drawn: no 1 x level coefficients" in md
+    assert COEFFICIENTS in md and "/amb/control/command" in md  # listed as missing
+    ours = json.loads((out / "meas_only" / "metrics.json").read_text())
+    ref = json.loads((sim_wavelet / "metrics.json").read_text())
+    assert set(ours["missing_topics"]) == {
+        COEFFICIENTS,
+        "/amb/control/command",
+        "/amb/control/status",
+        "/amb/fault/events",
+    }
+    for name, s in ref["sensors"].items():
+        assert ours["sensors"][name]["peak_after_fault"] == s["peak_after_fault"]
+        assert ours["sensors"][name]["steady_1x_amplitude"] == s["steady_1x_amplitude"]
+        assert ours["sensors"][name]["settling_revolutions"] is None
+    assert ours["bearings"] == ref["bearings"]
+
+
+def test_bag_with_coefficients_only_still_gives_settling(sim_wavelet, scenario, tmp_path):
+    bag = tmp_path / "coef_only"
+    _copy_topics(sim_wavelet / "bag", bag, {COEFFICIENTS})
+    out = tmp_path / "rep"
+    result = report_cli.make_report([bag], out, scenario=scenario)
+    (m,) = result.values()
+    ref = json.loads((sim_wavelet / "metrics.json").read_text())
+    assert (out / "coefficients_1x.png").is_file()
+    assert not (out / "displacement.png").exists()
+    assert "Not drawn: no /amb/measurement" in (out / "report.md").read_text()
+    for name, s in ref["sensors"].items():
+        assert m["sensors"][name]["settling_revolutions"] == s["settling_revolutions"]
+        assert m["sensors"][name]["peak_after_fault"] is None
+    assert m["bearings"] is None
+
+
+def test_invalid_arguments_exit_2_with_a_reason(sim_pid, tmp_path, capsys) -> None:
+    code = report_cli.main([str(sim_pid / "bag"), "--labels", "a,b", "--out", str(tmp_path)])
+    assert code == 2
+    assert "2 label(s) for 1 bag(s)" in capsys.readouterr().err
+    code = report_cli.main([str(tmp_path), "--out", str(tmp_path / "o")])
+    assert code == 2
+    assert "not a rosbag2 folder" in capsys.readouterr().err
