@@ -1,0 +1,671 @@
+"""
+Baseline controllers a rotordynamics user would pick instead of the wavelet controller.
+
+Both act once per revolution on the 1 x Fourier coefficients of the measured sensors (the
+same inner sensors ``B^(m)`` as the wavelet controller), apply a sinusoidal 1 x force per
+bearing axis through the same :class:`~amb_controller.synthesis.ForceLimiter` (same per-axis
+peak force limit) and the same :class:`~amb_controller.supervisor.WaveletControlSupervisor`
+(delay ``i``, anti-windup hold, fault actions), so that only the control law differs.
+
+Fourier basis (sampled harmonics)
+---------------------------------
+Over control period k (samples ``n = 0 .. N-1`` of the period, ``theta_n = 2 pi n / N``)::
+
+    q_cos = sqrt(2/N) sum_n x[n] cos(theta_n),   q_sin = sqrt(2/N) sum_n x[n] sin(theta_n)
+    f[n]  = sqrt(2/N) (u_cos cos(theta_n) + u_sin sin(theta_n))
+
+The weights are orthonormal over the period, so the coefficient units are those of the
+Haar coefficients (m sqrt(samples), N sqrt(samples)); a sinusoid of amplitude ``F`` N has
+``|u| = F sqrt(N/2)``. The Haar square wave of the same peak force carries ``4/pi`` (1.27)
+times more 1 x force: at equal peak limits the wavelet controller has this advantage, which
+the comparison report states.
+
+Complex form: ``Y = q_cos - i q_sin`` so that ``x[n] = sqrt(2/N) Re(Y e^{i theta_n})``; for a
+linear time-invariant plant the steady-state map ``Y = T U`` is complex, and the real
+``(cos, sin)`` block matrix is ``[[Tr, Ti], [-Ti, Tr]]`` (``T = Tr + i Ti``).
+
+(a) Adaptive open-loop synchronous control (``controller = "synchronous"``)
+---------------------------------------------------------------------------
+Influence-coefficient (convergent) control of Burrows & Sahinkaya [1]_ as used on magnetic
+bearings by Knospe et al. [2]_: a 1 x force, open loop with respect to the fast dynamics,
+updated once per window of ``window`` periods from the window mean ``Y_j``::
+
+    U_{j+1} = U_j - a (T^H T + R)^-1 T^H Y_j                                    (B.1)
+
+with ``T`` the steady-state influence coefficients (complex, sensors x axes) identified
+by trial injections (:func:`influence_by_trials`: each axis in turn driven with a known
+1 x force, the change of the steady 1 x response measured), ``a`` the convergence gain
+(``ControllerConfig.gain``) and ``R = rho ||T||_F^2 / n_u I`` a Tikhonov weight.
+With ``T`` exact, ``a = 1`` and ``R = 0`` one update cancels a steady disturbance.
+
+(b) Sampled-harmonic transient control (``controller = "harmonic"``)
+--------------------------------------------------------------------
+Keogh, Cole & Burrows [3]_: the plant's transient dynamics in the sampled harmonic
+coefficients, ``Q(z) = G_h(z) U(z) + D(z)``, a truncated (pseudo-)inverse of ``G_h`` and the
+prescribed closed-loop decay ``alpha(z)`` of a step disturbance::
+
+    U(z) = -z^-i G_h^*(z) (1 / (alpha(z)(z - 1)) - 1) Q(z)                      (B.2)
+
+which is the thesis's eq. 8.10 with the Haar coefficients replaced by Fourier ones (the
+thesis, section 8.1, presents its controller as the wavelet generalisation of [3]). It is
+realised with :class:`~amb_controller.transient.TransientController` on the Markov
+parameters of ``G_h`` (:func:`harmonic_model`, exact sampled projection of the FE model's
+PID closed loop, :func:`~amb_controller.wavelet_dynamics.wavelet_markov`).
+
+The equations above are written as we know them; they were not checked against the
+original papers in this environment (no access to them).
+
+References
+----------
+.. [1] C. R. Burrows, M. N. Sahinkaya, "Vibration control of multi-mode rotor-bearing
+   systems", Proc. R. Soc. Lond. A 386 (1983) 77-94.
+.. [2] C. R. Knospe, R. W. Hope, S. J. Fedigan, R. D. Williams, "Experiments in the control
+   of unbalance response using magnetic bearings", Mechatronics 5(4) (1995) 385-400.
+.. [3] P. S. Keogh, M. O. T. Cole, C. R. Burrows, "Multi-state transient rotor vibration
+   control using sampled harmonics", ASME J. Vib. Acoust. 124(2) (2002) 186-197.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from amb_controller.basis import BasisSet
+from amb_controller.errors import ControllerValueError, PeriodSequenceError
+from amb_controller.guard import DivergenceGuard, GuardConfig
+from amb_controller.inverse import dc_gain, pseudo_inverse_series
+from amb_controller.model_file import WaveletModel
+from amb_controller.supervisor import Command, Mode, WaveletControlSupervisor
+from amb_controller.synthesis import ForceLimiter
+from amb_controller.transient import ControlStep, TransientController
+
+__all__ = [
+    "BASELINES",
+    "BaselineSettings",
+    "HarmonicPipeline",
+    "InfluenceCoefficientController",
+    "complex_from_real",
+    "fourier_control_basis",
+    "fourier_measurement_basis",
+    "harmonic_model",
+    "influence_by_trials",
+    "real_from_complex",
+]
+
+BASELINES = ("synchronous", "harmonic")
+N_AXES = 4
+N_SENSORS = 8
+
+
+@dataclass(frozen=True)
+class BaselineSettings:
+    """
+    Settings of the baselines not in :class:`~amb_controller.pipeline.ControllerConfig`.
+
+    Attributes
+    ----------
+    window : int
+        Periods per update of the synchronous controller (eq. B.1), >= 1.
+    rho : float
+        Relative Tikhonov weight ``R = rho ||T||_F^2 / n_u I`` of eq. B.1, >= 0.
+    trial_force : float
+        Amplitude of the 1 x trial force per axis in N for :func:`influence_by_trials`.
+    trial_settle : int
+        Periods waited after each trial change before averaging.
+    trial_average : int
+        Periods averaged per trial.
+
+    """
+
+    window: int = 2
+    rho: float = 0.0
+    trial_force: float = 50.0
+    trial_settle: int = 30
+    trial_average: int = 20
+
+    def __post_init__(self) -> None:
+        if int(self.window) != self.window or self.window < 1:
+            raise ControllerValueError(f"window must be an integer >= 1 period, got {self.window}")
+        if not (math.isfinite(self.rho) and self.rho >= 0):
+            raise ControllerValueError(f"rho must be finite and >= 0, got {self.rho}")
+        if not (math.isfinite(self.trial_force) and self.trial_force > 0):
+            raise ControllerValueError(f"trial_force must be > 0 N, got {self.trial_force}")
+        if self.trial_settle < 1 or self.trial_average < 1:
+            raise ControllerValueError(
+                f"trial_settle and trial_average must be >= 1 period, got "
+                f"{self.trial_settle}, {self.trial_average}"
+            )
+
+
+# ---------------------------------------------------------------------------------------------
+# Fourier bases and the complex <-> real (cos, sin) layout
+# ---------------------------------------------------------------------------------------------
+
+
+def _harmonic(samples_per_rev: int) -> tuple[np.ndarray, np.ndarray]:
+    theta = 2 * np.pi * np.arange(samples_per_rev) / samples_per_rev
+    scale = math.sqrt(2.0 / samples_per_rev)
+    return scale * np.cos(theta), scale * np.sin(theta)
+
+
+def fourier_control_basis(samples_per_rev: int, n_axes: int = N_AXES) -> BasisSet:
+    """
+    Return the 1 x force waveforms ``sqrt(2/N) cos``, ``sqrt(2/N) sin`` per axis.
+
+    Parameters
+    ----------
+    samples_per_rev : int
+        Samples per period N.
+    n_axes : int
+        Bearing axes.
+
+    Returns
+    -------
+    BasisSet
+        ``2 n_axes`` coefficients, cos block then sin block (labels ``h1/cos/c{axis}``),
+        ``offset = 0``; N per N sqrt(samples).
+
+    """
+    cos, sin = _harmonic(samples_per_rev)
+    weights = np.zeros((2 * n_axes, n_axes, samples_per_rev))
+    labels = []
+    for b, (name, wave) in enumerate((("cos", cos), ("sin", sin))):
+        for axis in range(n_axes):
+            weights[b * n_axes + axis, axis] = wave
+            labels.append(f"h1/{name}/c{axis}")
+    return BasisSet(weights, 0, tuple(labels))
+
+
+def fourier_measurement_basis(samples_per_rev: int, sensors) -> BasisSet:
+    """
+    Return the 1 x analysis weights of the measured sensors (same layout as the control).
+
+    Parameters
+    ----------
+    samples_per_rev : int
+        Samples per period N.
+    sensors : sequence of int
+        Sensor channels 0..7 ([x1, y1, ..., x4, y4]) measured.
+
+    Returns
+    -------
+    BasisSet
+        ``2 len(sensors)`` coefficients over the 8 channels, cos block then sin block,
+        ``offset = 0`` (the window is the period itself).
+
+    """
+    cos, sin = _harmonic(samples_per_rev)
+    sensors = [int(s) for s in sensors]
+    weights = np.zeros((2 * len(sensors), N_SENSORS, samples_per_rev))
+    labels = []
+    for b, (name, wave) in enumerate((("cos", cos), ("sin", sin))):
+        for i, s in enumerate(sensors):
+            weights[b * len(sensors) + i, s] = wave
+            labels.append(f"h1/{name}/c{s}")
+    return BasisSet(weights, 0, tuple(labels))
+
+
+def complex_from_real(vector: np.ndarray) -> np.ndarray:
+    """Return ``Y = q_cos - i q_sin`` from the real layout ``[q_cos..., q_sin...]``."""
+    vector = np.asarray(vector, dtype=float)
+    n = vector.shape[0] // 2
+    return vector[:n] - 1j * vector[n:]
+
+
+def real_from_complex(phasor: np.ndarray) -> np.ndarray:
+    """Return the real layout ``[Re Y..., -Im Y...]`` of complex phasors (inverse of above)."""
+    phasor = np.asarray(phasor, dtype=complex)
+    return np.concatenate([phasor.real, -phasor.imag])
+
+
+def complex_gain(real_gain: np.ndarray) -> np.ndarray:
+    """
+    Return the complex ``T`` of a real ``(cos, sin)`` block gain (module docstring).
+
+    ``Tr = (M_cc + M_ss)/2``, ``Ti = (M_cs - M_sc)/2``: exact when the real gain has the
+    complex structure (a linear time-invariant plant at one frequency), the closest
+    complex map in the Frobenius norm otherwise.
+    """
+    m = np.asarray(real_gain, dtype=float)
+    ny, nu = m.shape[0] // 2, m.shape[1] // 2
+    cc, cs = m[:ny, :nu], m[:ny, nu:]
+    sc, ss = m[ny:, :nu], m[ny:, nu:]
+    return 0.5 * (cc + ss) + 0.5j * (cs - sc)
+
+
+def real_gain(complex_t: np.ndarray) -> np.ndarray:
+    """Return the real block gain ``[[Tr, Ti], [-Ti, Tr]]`` of a complex ``T``."""
+    t = np.asarray(complex_t, dtype=complex)
+    return np.block([[t.real, t.imag], [-t.imag, t.real]])
+
+
+# ---------------------------------------------------------------------------------------------
+# models
+# ---------------------------------------------------------------------------------------------
+
+
+def harmonic_model(rig, omega: float, config, n_terms: int = 60) -> WaveletModel:
+    """
+    Sampled-harmonic model ``G_h`` of the FE PID closed loop (Markov parameters, eq. B.2).
+
+    Parameters
+    ----------
+    rig : amb_plant_sim.rig.Rig
+        Rig description.
+    omega : float
+        Running speed in rad/s.
+    config : ControllerConfig
+        ``samples_per_rev``, ``sensors``, ``inverse_order``, ``inverse_regularisation``,
+        ``delay_periods`` are used.
+    n_terms : int
+        Markov parameters kept (periods).
+
+    Returns
+    -------
+    WaveletModel
+        ``wavelet = "fourier"``, ``source = "fe-harmonic"``; Fourier labels.
+
+    """
+    from amb_controller.wavelet_dynamics import wavelet_markov
+    from amb_plant_sim.closed_loop import build_closed_loop
+
+    cl = build_closed_loop(rig, omega)
+    n = config.period_samples
+    cb = fourier_control_basis(n)
+    mb = fourier_measurement_basis(n, config.sensors)
+    markov = wavelet_markov(
+        cl.A, cl.B_u, cl.output(cl.plant.C_s), 2 * math.pi / omega, cb, mb, n_terms
+    )
+    return _model(markov, config, omega, "fe-harmonic", cb, mb)
+
+
+def _model(markov, config, omega, source, cb, mb) -> WaveletModel:
+    inverse = pseudo_inverse_series(
+        markov, config.inverse_order, regularisation=config.inverse_regularisation
+    )
+    return WaveletModel(
+        markov=markov,
+        inverse=inverse,
+        wavelet="fourier",
+        samples_per_rev=config.period_samples,
+        omega=float(omega),
+        levels=(1,),
+        quadratures=("cos", "sin"),
+        delay=config.delay_periods,
+        source=source,
+        control_labels=cb.labels,
+        measured_labels=mb.labels,
+    )
+
+
+def influence_by_trials(
+    rig, scenario, config, settings: BaselineSettings | None = None, seed: int = 0
+) -> WaveletModel:
+    """
+    Identify the steady 1 x influence coefficients ``T`` by trial injections (eq. B.1).
+
+    The simulated rig runs PID only at the scenario speed with the scenario's residual
+    unbalance (every other event dropped). After ``trial_settle`` periods the 1 x response
+    is averaged over ``trial_average`` periods (reference); then each axis in turn carries a
+    cosine force of ``trial_force`` N (the others none) and the averaged response change,
+    divided by the trial's complex coefficient, is the column of ``T`` (the sine injection
+    is redundant for a linear time-invariant plant). Noise averages down as
+    ``1/sqrt(trial_average N)``.
+
+    Parameters
+    ----------
+    rig : amb_plant_sim.rig.Rig
+    scenario : amb_plant_sim.scenario.Scenario
+        Resolved scenario.
+    config : ControllerConfig
+        ``samples_per_rev``, ``sensors``, ``delay_periods``.
+    settings : BaselineSettings, optional
+    seed : int
+        Measurement-noise seed.
+
+    Returns
+    -------
+    WaveletModel
+        One Markov term: ``markov[0]`` is the real block form of ``T``
+        (``source = "trial-injection"``); ``inverse`` its least-squares inverse.
+
+    """
+    from amb_plant_sim.simulator import PlantSimulator
+
+    s = settings or BaselineSettings()
+    quiet = replace(
+        scenario, events=tuple(e for e in scenario.events if e.kind == "unbalance"), duration=1e6
+    )
+    n = config.period_samples
+    plant = PlantSimulator(rig, quiet, config.samples_per_rev, seed)
+    cb = fourier_control_basis(n)
+    mb = fourier_measurement_basis(n, config.sensors)
+    weights = mb.weights  # (n_y, 8, N)
+
+    def response(force: np.ndarray) -> np.ndarray:
+        for _ in range(s.trial_settle):
+            plant.advance(n, force)
+        acc = np.zeros(mb.n_coefficients)
+        for _ in range(s.trial_average):
+            block = plant.advance(n, force)
+            acc += np.einsum("icn,nc->i", weights, block.displacement)
+        return complex_from_real(acc / s.trial_average)
+
+    reference = response(np.zeros((n, N_AXES)))
+    u = s.trial_force * math.sqrt(n / 2.0)  # cos coefficient of a trial_force N sinusoid
+    columns = []
+    for axis in range(N_AXES):
+        coeffs = np.zeros(cb.n_coefficients)
+        coeffs[axis] = u
+        force = np.einsum("i,icn->nc", coeffs, cb.weights)
+        columns.append((response(force) - reference) / u)  # U = u (real cos) -> complex u
+    t = np.stack(columns, axis=1)
+    markov = real_gain(t)[None]
+    return _model(markov, replace(config, inverse_order=0), 2 * math.pi * scenario.speed_hz,
+                  "trial-injection", cb, mb)  # fmt: skip
+
+
+# ---------------------------------------------------------------------------------------------
+# controllers
+# ---------------------------------------------------------------------------------------------
+
+
+@dataclass
+class _SyncState:
+    u: np.ndarray
+    acc: np.ndarray
+    count: int
+    last_period: int | None
+
+    def copy(self) -> _SyncState:
+        return _SyncState(self.u.copy(), self.acc.copy(), self.count, self.last_period)
+
+
+class InfluenceCoefficientController:
+    """
+    Adaptive open-loop synchronous control, eq. B.1 (module docstring, refs [1], [2]).
+
+    Parameters
+    ----------
+    influence : numpy.ndarray
+        Complex steady-state influence coefficients ``T``, ``(n_sensors, n_axes)``, in
+        measured coefficient per control coefficient (m/N).
+    gain : float
+        Convergence gain ``a`` in (0, 2).
+    delay : int
+        Evaluation delay ``i`` >= 1 (commands are for period ``k + i``).
+    window : int
+        Periods averaged per update.
+    rho : float
+        Relative Tikhonov weight.
+
+    """
+
+    def __init__(
+        self, influence: np.ndarray, gain: float, delay: int, window: int = 1, rho: float = 0.0
+    ) -> None:
+        t = np.asarray(influence, dtype=complex)
+        if t.ndim != 2 or not np.all(np.isfinite(t)):
+            raise ControllerValueError(f"influence must be a finite 2-D matrix, got {t.shape}")
+        if not (math.isfinite(gain) and 0 < gain < 2):
+            raise ControllerValueError(f"gain a must lie in (0, 2), got {gain}")
+        if int(delay) != delay or delay < 1:
+            raise ControllerValueError(f"delay must be an integer >= 1 period, got {delay}")
+        if int(window) != window or window < 1:
+            raise ControllerValueError(f"window must be an integer >= 1, got {window}")
+        self.influence = t
+        self.gain = float(gain)
+        self.delay = int(delay)
+        self.window = int(window)
+        n_y, n_u = t.shape
+        th = t.conj().T
+        reg = rho * float(np.sum(np.abs(t) ** 2)) / n_u
+        #: ``a (T^H T + R)^-1 T^H`` (complex, n_u x n_y), precomputed once
+        self.update_matrix = self.gain * np.linalg.solve(th @ t + reg * np.eye(n_u), th)
+        self.n_inputs = 2 * n_y
+        self.n_outputs = 2 * n_u
+        self._state = self._initial()
+
+    def _initial(self) -> _SyncState:
+        n_u = self.n_outputs // 2
+        return _SyncState(np.zeros(n_u, complex), np.zeros(self.n_inputs // 2, complex), 0, None)
+
+    def reset(self) -> None:
+        """Zero the synchronous force and the window."""
+        self._state = self._initial()
+
+    def get_state(self) -> _SyncState:
+        """Return a copy of the state (force phasors, window accumulator)."""
+        return self._state.copy()
+
+    def set_state(self, state: _SyncState) -> None:
+        """Restore a state from :meth:`get_state`."""
+        self._state = state.copy()
+
+    def skip(self, period_index: int) -> None:
+        """Consume a period without updating (hold / anti-windup)."""
+        self._state.last_period = int(period_index)
+
+    def step(self, period_index: int, measured: np.ndarray) -> ControlStep:
+        """
+        Add period k's 1 x coefficients to the window; update at its end; command for k+i.
+
+        Parameters
+        ----------
+        period_index : int
+            Measured period k (consecutive).
+        measured : numpy.ndarray
+            Real layout ``[q_cos..., q_sin...]`` of the measured sensors (m sqrt(samples)).
+
+        Returns
+        -------
+        ControlStep
+            Real layout of the 1 x force coefficients for period ``k + delay``.
+
+        """
+        st = self._state
+        if st.last_period is not None and period_index != st.last_period + 1:
+            raise PeriodSequenceError(
+                f"period_index must be {st.last_period + 1}, got {period_index}; reset() first"
+            )
+        st.acc += complex_from_real(measured)
+        st.count += 1
+        if st.count >= self.window:
+            st.u = st.u - self.update_matrix @ (st.acc / st.count)
+            st.acc[:] = 0
+            st.count = 0
+        st.last_period = int(period_index)
+        return ControlStep(
+            int(period_index) + self.delay, int(period_index), real_from_complex(st.u)
+        )
+
+
+# ---------------------------------------------------------------------------------------------
+# pipeline (same interface as ControllerPipeline, as the closed loop and the node use it)
+# ---------------------------------------------------------------------------------------------
+
+
+class HarmonicPipeline:
+    """
+    Samples in, one command per period out, for the 1 x Fourier baselines.
+
+    Same contract as :class:`~amb_controller.pipeline.ControllerPipeline` (``on_sample``,
+    ``on_fault``, ``set_mode``, ``status``, ``reset``): the measured vector of period m is
+    the 1 x Fourier projection of its N displacement samples (the filterbank records are
+    not used); a gap, a step back or a joined period gives a zero, ``hold`` command and
+    resets the controller.
+
+    Parameters
+    ----------
+    config : ControllerConfig
+        ``controller`` in :data:`BASELINES`; delay, sensors, force limits, gain (eq. B.1),
+        prescribed response (eq. B.2), guard and fault actions are used.
+    capacity : float
+        Bearing capacity in N.
+    model : WaveletModel
+        :func:`harmonic_model` (harmonic) or :func:`influence_by_trials` /
+        :func:`harmonic_model` (synchronous: its steady-state gain is used).
+    settings : BaselineSettings, optional
+
+    """
+
+    def __init__(self, config, capacity: float, model: WaveletModel, settings=None) -> None:
+        from amb_controller.pipeline import prescribed_response
+
+        if config.controller not in BASELINES:
+            raise ControllerValueError(
+                f"HarmonicPipeline runs {BASELINES}, got controller {config.controller!r}"
+            )
+        if model is None:
+            raise ControllerValueError(
+                "the baselines need a model: harmonic_model() or influence_by_trials()"
+            )
+        config.check_capacity(capacity)
+        self.config = config
+        self.settings = settings or BaselineSettings()
+        n = config.period_samples
+        self.samples_per_period = n
+        self.control = fourier_control_basis(n)
+        self.measured = fourier_measurement_basis(n, config.sensors)
+        expected = (self.measured.n_coefficients, self.control.n_coefficients)
+        if model.markov.shape[1:] != expected or model.wavelet != "fourier":
+            raise ControllerValueError(
+                f"model must be a Fourier model of shape (M+1, {expected[0]}, {expected[1]}), "
+                f"got {model.wavelet!r} {model.markov.shape}; build it with harmonic_model() "
+                "or influence_by_trials() for these sensors"
+            )
+        self.model = model
+        self._weights = np.ascontiguousarray(self.measured.weights.transpose(0, 2, 1))
+        self.limiter = ForceLimiter(self.control, np.array(config.force_limit), capacity)
+        guard = DivergenceGuard(
+            GuardConfig(
+                coefficient_bound=config.coefficient_bound,
+                displacement_bound=config.displacement_bound,
+                growth_factor=config.growth_factor,
+                growth_periods=config.growth_periods,
+            )
+        )
+        self.supervisor = WaveletControlSupervisor(
+            self.limiter, config.delay_periods, guard=guard, fault_actions=config.fault_actions
+        )
+        if config.controller == "harmonic":
+            controller = TransientController(
+                model.inverse, prescribed_response(config), config.delay_periods
+            )
+        else:
+            controller = InfluenceCoefficientController(
+                complex_gain(dc_gain(model.markov)),
+                config.gain,
+                config.delay_periods,
+                self.settings.window,
+                self.settings.rho,
+            )
+        self.supervisor.set_controller(controller)
+        self._buffer = np.zeros((n, N_SENSORS))
+        self._stats = {"commands_sent": 0, "commands_late": 0, "inputs_rejected": 0}
+        self._compute_time = 0.0
+        self.reset()
+
+    def reset(self) -> None:
+        """OFF, guard re-armed, period assembly cleared (model kept)."""
+        self.supervisor.reset()
+        self._period: int | None = None
+        self._expected: int | None = None
+        self._ok = False
+        self._peak = 0.0
+        self._last_period = -1
+        self._last_command: Command | None = None
+        self.last_measured: np.ndarray | None = None
+
+    def set_mode(self, mode) -> tuple[bool, str]:
+        """Request OFF, ACTIVE or HOLD (as :meth:`ControllerPipeline.set_mode`)."""
+        try:
+            mode = Mode(int(mode))
+        except ValueError:
+            return False, f"unknown mode {mode}; expected 0..3"
+        return self.supervisor.set_mode(mode)
+
+    def on_fault(self, fault_type: int) -> str:
+        """Apply the configured action for a FaultEvent type; return it."""
+        return self.supervisor.on_fault(int(fault_type))
+
+    def on_sample(self, sample_index: int, records, displacement, omega=None) -> Command | None:
+        """
+        Feed one sample's displacements (8, m); return the command at a period's end.
+
+        ``records`` (filterbank output) is accepted for interface compatibility and unused.
+        """
+        n = int(sample_index)
+        N = self.samples_per_period
+        m, pos = divmod(n, N)
+        if self._period != m:
+            self._period = m
+            self._ok = pos == 0
+            self._peak = 0.0
+        if self._expected is not None and n != self._expected:
+            self._ok = False
+        self._expected = n + 1
+        x = np.asarray(displacement, dtype=float)
+        if x.shape != (N_SENSORS,) or not np.all(np.isfinite(x)):
+            self._stats["inputs_rejected"] += 1
+            self._ok = False
+        else:
+            self._buffer[pos] = x
+            self._peak = max(self._peak, float(np.max(np.abs(x))))
+        if pos != N - 1:
+            return None
+        return self._end_period(m)
+
+    def _end_period(self, m: int) -> Command:
+        t0 = time.perf_counter()
+        sup = self.supervisor
+        complete = self._ok and (self._last_period < 0 or self._last_period == m - 1)
+        if complete:
+            q = np.einsum("inc,nc->i", self._weights, self._buffer)
+            self.last_measured = q
+            command = sup.step(m, q, self._peak)
+        else:
+            self.last_measured = None
+            sup.controller.reset()
+            zeros = np.zeros(self.control.n_coefficients)
+            result = self.limiter.apply(zeros)
+            sup._sent[m + sup.delay] = zeros
+            command = Command(
+                m + sup.delay, m, zeros, result.force, sup.mode, True, result.saturated,
+                bool(sup.guard is not None and sup.guard.tripped), f"period {m} incomplete",
+            )  # fmt: skip
+        self._last_period = m
+        self._last_command = command
+        self._stats["commands_sent"] += 1
+        self._compute_time = time.perf_counter() - t0
+        self._period = None
+        return command
+
+    def status(self) -> dict:
+        """Return the ``ControllerStatus`` fields (as :meth:`ControllerPipeline.status`)."""
+        sup = self.supervisor
+        cmd = self._last_command
+        peak = np.zeros(N_AXES) if cmd is None else np.max(np.abs(cmd.force), axis=1)
+        return {
+            "mode": int(sup.mode),
+            "controller": self.config.controller,
+            "period_index": int(self._last_period),
+            "delay_periods": int(self.config.delay_periods),
+            "compute_time": float(self._compute_time),
+            "peak_wavelet_force": peak.astype(float),
+            "saturated": bool(cmd is not None and np.any(cmd.saturated)),
+            "guard_tripped": bool(sup.guard is not None and sup.guard.tripped),
+            "identification_progress": 1.0,
+            "commands_sent": int(self._stats["commands_sent"]),
+            "commands_late": int(self._stats["commands_late"]),
+            "inputs_rejected": int(self._stats["inputs_rejected"]),
+            "model_file": "",
+            "message": (cmd.message if cmd is not None and cmd.message else sup.message),
+        }
+
+    def count_late(self) -> None:
+        """Count a command that reached the plant after its target period had started."""
+        self._stats["commands_late"] += 1

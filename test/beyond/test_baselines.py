@@ -1,0 +1,155 @@
+"""
+Baselines of :mod:`amb_controller.baselines`: Fourier projection, influence coefficients,
+the adaptive synchronous update (eq. B.1) and both baselines in the simulated closed loop.
+
+References: ``numpy.fft`` for the 1 x coefficient, the closed-form fixed point of eq. B.1 on
+a static plant, the FE-route harmonic model (independent of the simulator) for the trial
+injections, the steady 1 x amplitude of the PID-only run for the closed loop.
+"""
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from amb_controller.baselines import (
+    BaselineSettings,
+    HarmonicPipeline,
+    InfluenceCoefficientController,
+    complex_from_real,
+    complex_gain,
+    fourier_control_basis,
+    fourier_measurement_basis,
+    harmonic_model,
+    influence_by_trials,
+    real_from_complex,
+    real_gain,
+)
+from amb_controller.errors import ControllerValueError
+from amb_controller.inverse import dc_gain
+from amb_controller.pipeline import ConfigError, ControllerConfig, ControllerPipeline
+
+N = 32
+
+
+def test_fourier_projection_matches_numpy_fft():
+    rng = np.random.default_rng(1)
+    x = rng.normal(size=(N, 8))
+    mb = fourier_measurement_basis(N, range(8))
+    q = np.einsum("icn,nc->i", mb.weights, x)
+    y = complex_from_real(q)
+    ref = math.sqrt(2.0 / N) * np.fft.fft(x, axis=0)[1]
+    np.testing.assert_allclose(y, ref, rtol=1e-12, atol=1e-12)
+
+
+def test_control_basis_synthesises_the_sinusoid_of_a_phasor():
+    cb = fourier_control_basis(N)
+    amplitude, phase = 120.0, 0.7  # N, rad
+    u = np.zeros(4, complex)
+    u[2] = amplitude * math.sqrt(N / 2) * np.exp(1j * phase)
+    force = np.einsum("i,icn->cn", real_from_complex(u), cb.weights)
+    theta = 2 * np.pi * np.arange(N) / N
+    np.testing.assert_allclose(force[2], amplitude * np.cos(theta + phase), atol=1e-9)
+    assert np.all(force[[0, 1, 3]] == 0)
+    gram = cb.weights.reshape(8, -1) @ cb.weights.reshape(8, -1).T
+    np.testing.assert_allclose(gram, np.eye(8), atol=1e-12)
+
+
+def test_linear_time_invariant_harmonic_gain_has_complex_structure(rig, first_critical):
+    cfg = ControllerConfig(samples_per_rev=N, controller="harmonic")
+    model = harmonic_model(rig, 2 * math.pi * first_critical.speed_hz, cfg)
+    m = dc_gain(model.markov)
+    rebuilt = real_gain(complex_gain(m))
+    assert np.linalg.norm(m - rebuilt) < 1e-3 * np.linalg.norm(m)
+
+
+def test_trial_injections_agree_with_the_fe_harmonic_model(rig, first_critical):
+    cfg = ControllerConfig(samples_per_rev=N, controller="synchronous")
+    fe = complex_gain(
+        dc_gain(harmonic_model(rig, 2 * math.pi * first_critical.speed_hz, cfg).markov)
+    )
+    trials = influence_by_trials(
+        rig, first_critical, cfg, BaselineSettings(trial_force=100.0, trial_settle=40)
+    )
+    t = complex_gain(trials.markov[0])
+    err = np.abs(t - fe) / np.abs(fe).max()
+    assert err.max() < 0.05, err
+
+
+def test_influence_update_converges_to_the_closed_form_cancelling_force():
+    rng = np.random.default_rng(3)
+    t = rng.normal(size=(4, 4)) + 1j * rng.normal(size=(4, 4))
+    d = rng.normal(size=4) + 1j * rng.normal(size=4)
+    delay = 2
+    ctl = InfluenceCoefficientController(t, gain=0.4, delay=delay, window=1)
+    applied = {}
+    for k in range(400):
+        u = applied.get(k, np.zeros(4, complex))
+        y = t @ u + d  # static plant, command k applied i periods after it was computed
+        step = ctl.step(k, real_from_complex(y))
+        applied[step.target_period] = complex_from_real(step.coefficients)
+    np.testing.assert_allclose(complex_from_real(step.coefficients), -np.linalg.solve(t, d),
+                               rtol=1e-8)  # fmt: skip
+    assert np.abs(y).max() < 1e-8 * np.abs(d).max()
+
+
+def test_influence_controller_refuses_bad_settings():
+    with pytest.raises(ControllerValueError, match=r"gain a must lie in \(0, 2\)"):
+        InfluenceCoefficientController(np.eye(2), gain=2.5, delay=1)
+    with pytest.raises(ControllerValueError, match="delay"):
+        InfluenceCoefficientController(np.eye(2), gain=0.5, delay=0)
+    with pytest.raises(ControllerValueError, match="window"):
+        BaselineSettings(window=0)
+
+
+def test_wavelet_pipeline_refuses_a_baseline_and_baseline_pipeline_needs_fourier_model(
+    rig, first_critical
+):
+    cfg = ControllerConfig(samples_per_rev=N, controller="harmonic")
+    from amb_controller.closed_loop import fe_model
+
+    haar = fe_model(rig, 2 * math.pi * first_critical.speed_hz, replace(cfg, controller="none"))
+    with pytest.raises(ConfigError, match="HarmonicPipeline"):
+        ControllerPipeline(cfg, rig.amb.force_limit, haar)
+    with pytest.raises(ControllerValueError, match="Fourier model"):
+        HarmonicPipeline(cfg, rig.amb.force_limit, haar)
+
+
+@pytest.fixture(scope="module")
+def loops(rig, first_critical):
+    from amb_controller.closed_loop import run_closed_loop
+    from amb_controller.metrics import compute_metrics, inner_summary
+
+    scenario = replace(first_critical, duration=5.0)
+    omega = 2 * math.pi * scenario.speed_hz
+    out = {}
+    base = ControllerConfig(samples_per_rev=N, delay_periods=1, gain=0.5)
+    model = harmonic_model(rig, omega, base)
+    for name in ("none", "harmonic", "synchronous"):
+        cfg = replace(base, controller=name)
+        res = run_closed_loop(rig, scenario, cfg, None if name == "none" else model)
+        out[name] = (res, inner_summary(compute_metrics(res, scenario.speed_hz)))
+    return out
+
+
+def test_both_baselines_cancel_the_steady_synchronous_vibration(loops):
+    pid = loops["none"][1]["steady_1x"]
+    assert pid > 50e-6
+    for name in ("harmonic", "synchronous"):
+        assert loops[name][1]["steady_1x"] < 0.02 * pid, name
+
+
+def test_baseline_forces_are_sinusoids_within_the_force_limit(loops, rig):
+    res = loops["harmonic"][0]
+    f = res.wavelet_force[-N:, 0]  # last period, axis b1x
+    spectrum = np.fft.rfft(f)
+    assert np.abs(spectrum[1]) > 0
+    assert np.abs(spectrum[2:]).max() < 1e-9 * np.abs(spectrum[1])
+    assert np.abs(res.wavelet_force).max() <= rig.amb.force_limit + 1e-9
+
+
+def test_one_command_per_period_for_the_next_period(loops):
+    res = loops["synchronous"][0]
+    n_periods = len(res.phasor)
+    assert [c.target_period for c in res.commands] == [k + 1 for k in range(n_periods)]
