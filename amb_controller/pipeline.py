@@ -72,7 +72,9 @@ __all__ = [
     "ControllerPipeline",
 ]
 
-CONTROLLERS = ("none", "proportional", "moderated", "transient")
+CONTROLLERS = ("none", "proportional", "moderated", "transient", "synchronous", "harmonic")
+#: 1 x Fourier baselines, run by :class:`amb_controller.baselines.HarmonicPipeline`.
+BASELINE_CONTROLLERS = ("synchronous", "harmonic")
 RESPONSES = ("exponential", "linear", "series")
 FAULT_ACTIONS = ("hold", "off", "ignore")
 SENSOR_NAMES = ("x1", "y1", "x2", "y2", "x3", "y3", "x4", "y4")
@@ -122,7 +124,8 @@ class ControllerConfig:
         Evaluation delay i >= 1 (thesis: 2 in chapter 8, 3 in section 7.4.2).
     controller : str
         ``none``, ``proportional`` (eq. 7.7), ``moderated`` (eq. 7.9) or ``transient``
-        (eq. 8.10).
+        (eq. 8.10); ``synchronous`` and ``harmonic`` are the 1 x Fourier baselines of
+        :mod:`amb_controller.baselines` (run by its ``HarmonicPipeline``, not by this one).
     response : str
         Prescribed response of the transient controller: ``exponential`` (eq. 8.6, ``w``,
         ``v``), ``linear`` (``rate`` per period) or ``series`` (``series`` = c_1..c_K,
@@ -543,6 +546,11 @@ class ControllerPipeline:
         i = cfg.delay_periods
         if cfg.controller == "none":
             return None
+        if cfg.controller in BASELINE_CONTROLLERS:
+            raise ConfigError(
+                f"controller {cfg.controller!r} is a 1 x Fourier baseline: run it with "
+                "amb_controller.baselines.HarmonicPipeline (amb-sim --controller selects it)"
+            )
         if cfg.controller == "transient":
             return TransientController(model.inverse, prescribed_response(cfg), i)
         gain = cfg.gain * np.linalg.pinv(dc_gain(model.markov))
