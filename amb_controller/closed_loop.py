@@ -49,6 +49,7 @@ from amb_controller.basis import control_basis
 from amb_controller.inverse import pseudo_inverse_series
 from amb_controller.model_file import WaveletModel
 from amb_controller.pipeline import (
+    BASELINE_CONTROLLERS,
     ControllerConfig,
     ControllerPipeline,
     selected_measurement_basis,
@@ -250,7 +251,7 @@ class _Loop:
     """Plant + front end + filterbank + pipeline, advanced one control period at a time."""
 
     def __init__(self, rig, scenario, config: ControllerConfig, model, seed, recorder=None,
-                 monitor=None):  # fmt: skip
+                 monitor=None, baseline=None):  # fmt: skip
         from amb_plant_sim.simulator import PlantSimulator
 
         self.rig = rig
@@ -261,9 +262,14 @@ class _Loop:
         self.front = ChannelFrontEnd(spr, FRAMES, QUADRATURES)
         self.levels = spr.bit_length()  # log2(spr) + 1, the filterbank node's default
         self.bank = AnalysisFilterbank(config.wavelet, self.levels, self.front.n_channels)
-        self.pipeline = ControllerPipeline(
-            config, rig.amb.force_limit, model, channel_labels=self.front.labels
-        )
+        if config.controller in BASELINE_CONTROLLERS:
+            from amb_controller.baselines import HarmonicPipeline
+
+            self.pipeline = HarmonicPipeline(config, rig.amb.force_limit, model, baseline)
+        else:
+            self.pipeline = ControllerPipeline(
+                config, rig.amb.force_limit, model, channel_labels=self.front.labels
+            )
         self.recorder = recorder
         self.monitor = monitor
         self.commands: dict[int, Command] = {}
@@ -366,6 +372,7 @@ def run_closed_loop(
     recorder: BagRecorder | None = None,
     fault_monitor: bool = False,
     progress=None,
+    baseline=None,
 ) -> RunResult:
     """
     Run one scenario in lock step with the wavelet controller ACTIVE from period 0.
@@ -389,6 +396,10 @@ def run_closed_loop(
         pipeline (``on_fault``) and the bag.
     progress : callable, optional
         ``progress(done, total)`` after each period.
+    baseline : amb_controller.baselines.BaselineSettings, optional
+        Settings of the ``synchronous`` / ``harmonic`` baselines (their model: a Fourier
+        model from :func:`amb_controller.baselines.harmonic_model` or
+        :func:`~amb_controller.baselines.influence_by_trials`).
 
     Returns
     -------
@@ -398,7 +409,7 @@ def run_closed_loop(
     monitor = None
     if fault_monitor:
         monitor = _Monitor(config.samples_per_rev, None)
-    loop = _Loop(rig, scenario, config, model, seed, recorder, monitor)
+    loop = _Loop(rig, scenario, config, model, seed, recorder, monitor, baseline)
     if config.controller != "none":
         ok, message = loop.pipeline.set_mode(Mode.ACTIVE)
         if not ok:
