@@ -41,8 +41,10 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument(
         "--controller",
         default="transient",
-        choices=("none", "proportional", "moderated", "transient"),
-        help="none = PID only (default: transient, chapter 8)",
+        choices=("none", "proportional", "moderated", "transient", "synchronous", "harmonic"),
+        help="none = PID only (default: transient, chapter 8); synchronous = adaptive "
+        "influence-coefficient 1 x control, harmonic = sampled-harmonic transient control "
+        "(amb_controller.baselines; --k is their convergence gain a, --w/--v the decay)",
     )
     ap.add_argument("--w", type=float, default=0.75, help="exponential response gain (eq. 8.6)")
     ap.add_argument("--v", type=float, default=0.75, help="exponential decay ratio (eq. 8.6)")
@@ -59,6 +61,9 @@ def build_parser() -> argparse.ArgumentParser:
     )
     ap.add_argument("--force-limit", type=float, default=None, help="N per axis (default rig)")
     ap.add_argument("--model", default="fe", help="identify | fe | FILE (.npz)")
+    ap.add_argument(
+        "--window", type=int, default=2, help="synchronous: periods per influence update"
+    )
     ap.add_argument("--duration", type=float, default=None, help="override scenario duration, s")
     ap.add_argument("--seed", type=int, default=0, help="noise seed")
     ap.add_argument("--rig", default=None, help="rig YAML (default config/rig.yaml)")
@@ -138,7 +143,29 @@ def run(args) -> dict:
     omega = 2 * np.pi * scenario.speed_hz
     model = None
     source = "none"
-    if config.controller != "none" or args.model == "identify":
+    baseline = None
+    if config.controller in ("synchronous", "harmonic"):
+        from amb_controller.baselines import (
+            BaselineSettings,
+            harmonic_model,
+            influence_by_trials,
+        )
+
+        baseline = BaselineSettings(window=args.window)
+        if args.model == "fe":
+            model, source = harmonic_model(rig, omega, config), "fe-harmonic"
+        elif args.model == "identify":
+            if config.controller == "harmonic":
+                raise ValueError(
+                    "--model identify is available for the synchronous baseline only (trial "
+                    "injections); use --model fe or a Fourier model file for harmonic"
+                )
+            model = influence_by_trials(rig, scenario, config, baseline, args.seed)
+            source = "trial-injection"
+        else:
+            model, source = WaveletModel.load(args.model), str(args.model)
+        model.save(out / "model.npz")
+    elif config.controller != "none" or args.model == "identify":
         if args.model == "fe":
             model = fe_model(rig, omega, config)
             source = "fe"
@@ -164,6 +191,7 @@ def run(args) -> dict:
             recorder,
             fault_monitor=args.fault_monitor,
             progress=_Progress("run", args.progress),
+            baseline=baseline,
         )
     finally:
         if recorder is not None:
