@@ -1,57 +1,189 @@
 """
-Trip levels with hysteresis on the displacement per sensor plane (e.g. 2/3 of the clearance).
+Trip levels with hysteresis per sensor plane: radial displacement and 1 x (synchronous) amplitude.
 
-A plane trips when its radial displacement ``hypot(x, y)`` exceeds ``level`` and clears when
-it falls below ``level * (1 - hysteresis)``.
+A plane trips when its quantity exceeds its ``level`` and clears when it falls below
+``level * (1 - hysteresis)``. Two quantities, as vibration protection equipment reports:
+
+- displacement: the instantaneous radial displacement ``hypot(x, y)`` of the plane, m;
+- 1 x amplitude: the semi-major axis of the synchronous orbit over the last revolution,
+  ``a = (|X + iY| + |X - iY|) / 2`` with ``X = (2 / N) sum x_n exp(-i theta_n)`` (and ``Y``
+  likewise) the one-revolution DFT at the running speed of the ``N = samples_per_rev`` latest
+  samples, ``theta_n`` the rotor angle from the keyphasor. ``|X + iY| / 2`` and ``|X - iY| / 2``
+  are the forward and backward whirl radii, so ``a`` is the largest 1 x excursion whatever
+  the orbit's shape (a circle of radius A and a line of half-length A both give ``a = A``).
+
+Default levels come from the clearances in ``config/rig.yaml`` (:func:`clearance_levels`): each
+sensor plane takes the radial clearance of the clearance bearing nearest it along the shaft,
+times a fraction (one source for the rig's numbers).
 """
 
 from __future__ import annotations
+
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from amb_fault_monitor.errors import FaultMonitorError
 
-__all__ = ["TripMonitor"]
+__all__ = ["SynchronousAmplitude", "TripMonitor", "clearance_levels"]
+
+
+def clearance_levels(rig: Any, fraction: float) -> np.ndarray:
+    """
+    Trip level per sensor plane: ``fraction`` of the nearest clearance bearing's clearance.
+
+    Parameters
+    ----------
+    rig : amb_plant_sim.rig.Rig
+        Uses ``sensor_planes[].z`` and ``clearance_bearings[].z, radial_clearance`` (m).
+    fraction : float
+        Share of the radial clearance, in (0, 1].
+
+    Returns
+    -------
+    numpy.ndarray
+        (4,) levels, m, planes 1..4 in the order of ``rig.sensor_planes``.
+
+    Raises
+    ------
+    FaultMonitorError
+        If ``fraction`` is outside (0, 1] or the rig has no clearance bearing.
+    """
+    if not 0 < fraction <= 1:
+        raise FaultMonitorError(f"clearance fraction must be in (0, 1], got {fraction}")
+    clear = rig.clearance_bearings
+    if not clear:
+        raise FaultMonitorError(
+            "the rig file has no clearance_bearings; set the trip levels explicitly"
+        )
+    zc = np.array([c.z for c in clear])
+    rc = np.array([c.radial_clearance for c in clear])
+    zs = np.array([p.z for p in rig.sensor_planes])
+    nearest = np.argmin(np.abs(zs[:, None] - zc[None, :]), axis=1)
+    return fraction * rc[nearest]
+
+
+def _levels(level: float | ArrayLike) -> np.ndarray:
+    lv = np.broadcast_to(np.asarray(level, dtype=float), (4,)).copy()
+    if np.any(~np.isfinite(lv)) or np.any(lv < 0):
+        raise FaultMonitorError(f"trip levels must be finite and >= 0 m (0 = off), got {lv}")
+    return lv
 
 
 class TripMonitor:
     """
-    Displacement trip per plane with hysteresis.
+    Trip per plane with hysteresis on any non-negative per-plane quantity.
 
     Parameters
     ----------
-    level : float
-        m, radial displacement trip level (0 disables).
+    level : float or array_like
+        m, trip level, scalar or one per plane (4,); 0 disables a plane.
     hysteresis : float
         Fraction in [0, 1) below ``level`` at which a trip clears.
     """
 
-    def __init__(self, level: float, hysteresis: float = 0.1) -> None:
-        if level < 0 or not 0 <= hysteresis < 1:
-            raise FaultMonitorError(
-                f"trip level must be >= 0 m and hysteresis in [0, 1), got {level}, {hysteresis}"
-            )
-        self.level = float(level)
+    def __init__(self, level: float | ArrayLike, hysteresis: float = 0.1) -> None:
+        if not 0 <= hysteresis < 1:
+            raise FaultMonitorError(f"hysteresis must be in [0, 1), got {hysteresis}")
+        self.level = _levels(level)
         self.hysteresis = float(hysteresis)
         self.tripped = np.zeros(4, dtype=bool)
         self.peak = np.zeros(4)
+        self.value = np.zeros(4)
+
+    def set_level(self, level: float | ArrayLike) -> None:
+        """Change the trip levels (m); validated as in the constructor."""
+        self.level = _levels(level)
 
     def reset(self) -> None:
         """Clear trips and peaks."""
         self.tripped[:] = False
         self.peak[:] = 0.0
+        self.value[:] = 0.0
+
+    def update(self, value: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+        """
+        Update with the per-plane quantity ``(4,)`` m.
+
+        Returns
+        -------
+        tripped_now, cleared_now : numpy.ndarray
+            0-based planes that tripped / cleared at this update.
+        """
+        r = np.asarray(value, dtype=float)
+        self.value = r
+        self.peak = np.maximum(self.peak, r)
+        on = self.level > 0
+        new = (r > self.level) & ~self.tripped & on
+        clear = self.tripped & ((r < self.level * (1.0 - self.hysteresis)) | ~on)
+        self.tripped = (self.tripped | new) & ~clear
+        return np.flatnonzero(new), np.flatnonzero(clear)
 
     def step(self, displacement: ArrayLike) -> np.ndarray:
+        """Update with one displacement sample ``(8,)`` m; return the planes that tripped now."""
+        d = np.asarray(displacement, dtype=float)
+        return self.update(np.hypot(d[0::2], d[1::2]))[0]
+
+
+class SynchronousAmplitude:
+    """
+    1 x orbit semi-major axis per plane over the last revolution (module docstring).
+
+    Parameters
+    ----------
+    samples_per_rev : int
+        ``N``, samples per revolution (the DFT window).
+
+    Notes
+    -----
+    A running sum over a ring buffer of ``x_n exp(-i theta_n)``; O(8) per sample, the sum is
+    recomputed from the buffer once per revolution so round-off does not accumulate.
+    :attr:`ready` is False until a full revolution is in the window.
+    """
+
+    def __init__(self, samples_per_rev: int) -> None:
+        spr = int(samples_per_rev)
+        if spr < 4:
+            raise FaultMonitorError(f"samples_per_rev must be >= 4, got {samples_per_rev}")
+        self.samples_per_rev = spr
+        self.reset()
+
+    def reset(self) -> None:
+        """Empty the window."""
+        self._buf = np.zeros((self.samples_per_rev, 8), dtype=complex)
+        self._sum = np.zeros(8, dtype=complex)
+        self._pos = 0
+        self._count = 0
+
+    @property
+    def ready(self) -> bool:
+        """True once a whole revolution is in the window."""
+        return self._count >= self.samples_per_rev
+
+    def step(self, displacement: ArrayLike, angle: float) -> np.ndarray:
         """
-        Update with one sample ``(8,)`` m; return the planes (0-based) that tripped now.
+        Add one sample; return the 1 x semi-major axis per plane (4,), m (zeros until ready).
+
+        Parameters
+        ----------
+        displacement : array_like
+            (8,) m, ``[x1, y1, ..., x4, y4]``.
+        angle : float
+            Rotor angle from the keyphasor, rad.
         """
         d = np.asarray(displacement, dtype=float)
-        r = np.hypot(d[0::2], d[1::2])
-        self.peak = np.maximum(self.peak, r)
-        if self.level <= 0:
-            return np.zeros(0, dtype=int)
-        new = (r > self.level) & ~self.tripped
-        self.tripped |= new
-        self.tripped &= ~(r < self.level * (1.0 - self.hysteresis))
-        return np.flatnonzero(new)
+        if d.shape != (8,):
+            raise FaultMonitorError(f"displacement must have shape (8,), got {d.shape}")
+        v = d * np.exp(-1j * float(angle))
+        self._sum += v - self._buf[self._pos]
+        self._buf[self._pos] = v
+        self._pos = (self._pos + 1) % self.samples_per_rev
+        self._count += 1
+        if self._pos == 0:
+            self._sum = self._buf.sum(axis=0)
+        if not self.ready:
+            return np.zeros(4)
+        ph = 2.0 / self.samples_per_rev * self._sum
+        x, y = ph[0::2], ph[1::2]
+        return 0.5 * (np.abs(x + 1j * y) + np.abs(x - 1j * y))
