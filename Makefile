@@ -3,7 +3,7 @@ SHELL := /bin/bash
 ENV := source tools/env.sh
 PYTEST_ARGS ?=
 
-.PHONY: bootstrap demo test lint clean
+.PHONY: bootstrap demo test lint reproduce clean
 
 bootstrap:
 	@tools/bootstrap.sh
@@ -13,6 +13,9 @@ demo: bootstrap
 
 test: bootstrap
 	@$(ENV) && ROS_PYTHON_CHECK_FIELDS=1 python -m pytest $(PYTEST_ARGS)
+
+reproduce: bootstrap
+	@$(ENV) && python -m amb_tools.reproduce --out out/reproduce
 
 lint: bootstrap
 	@$(ENV) && ruff check . && ruff format --check .
