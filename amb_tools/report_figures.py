@@ -312,6 +312,16 @@ def force_figure(runs: list[Run], path: Path) -> Figure:
             if total is not None:
                 axes[a, 0].plot(t, total[:, a], color=_colour(i), lw=0.6, label=run.label)
             axes[a, 1].plot(t, wavelet[:, a], color=_colour(i), lw=0.8, label=run.label)
+    if all(r.data.measurements is None for r in have):
+        for a in range(4):
+            axes[a, 0].text(
+                0.5,
+                0.5,
+                "not in the bag(s): no /amb/measurement",
+                transform=axes[a, 0].transAxes,
+                ha="center",
+                va="center",
+            )
     for a in range(4):
         b = a // 2 + 1
         end = "non-driven end" if b == 1 else "drive end"

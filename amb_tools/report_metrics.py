@@ -190,6 +190,15 @@ def bag_metrics(
         out = compute_metrics(result, speed)
         if meas is None:
             out["bearings"] = None
+            if data.commands is not None:  # the wavelet force is what the commands applied
+                wf = _applied_command_force(data, len(time))
+                out["bearings"] = {
+                    str(b + 1): {
+                        "peak_wavelet_force": float(np.hypot(wf[:, 2 * b], wf[:, 2 * b + 1]).max()),
+                        "peak_total_force": None,
+                    }
+                    for b in range(2)
+                }
             for name in SENSOR_NAMES:
                 out["sensors"][name]["peak_after_fault"] = None
                 out["sensors"][name]["steady_1x_amplitude"] = None
@@ -212,6 +221,19 @@ def bag_metrics(
         }
     )
     return out
+
+
+def _applied_command_force(data: BagData, n_samples: int) -> np.ndarray:
+    """Return ``(n_samples, 4)`` N: the force of the command for each period, as the plant
+    applies it (zero in a period without a command), for a bag without ``/amb/measurement``."""
+    cmd = data.commands
+    n = cmd.force.shape[2]
+    wf = np.zeros((n_samples, 4))
+    for start, force in zip(cmd.start_sample_index, cmd.force, strict=True):
+        if start < n_samples:
+            stop = min(n_samples, start + n)
+            wf[start:stop] = force.T[: stop - start]
+    return wf
 
 
 def _controller(data: BagData) -> dict:
@@ -246,11 +268,15 @@ def inner_summary(metrics: dict) -> dict:
         vals = [s[SENSOR_NAMES[c]][key] for c in INNER]
         return None if any(v is None for v in vals) else max(vals)
 
-    b = metrics.get("bearings")
+    def largest_force(key):
+        b = metrics.get("bearings")
+        vals = [] if not b else [v[key] for v in b.values()]
+        return None if not vals or any(v is None for v in vals) else max(vals)
+
     return {
         "steady_1x": worst("steady_1x_amplitude"),
         "peak": worst("peak_after_fault"),
         "settling": worst("settling_revolutions"),
-        "peak_wavelet_force": None if not b else max(v["peak_wavelet_force"] for v in b.values()),
-        "peak_total_force": None if not b else max(v["peak_total_force"] for v in b.values()),
+        "peak_wavelet_force": largest_force("peak_wavelet_force"),
+        "peak_total_force": largest_force("peak_total_force"),
     }

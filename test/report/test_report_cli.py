@@ -194,3 +194,16 @@ def test_invalid_arguments_exit_2_with_a_reason(sim_pid, tmp_path, capsys) -> No
     code = report_cli.main([str(tmp_path), "--out", str(tmp_path / "o")])
     assert code == 2
     assert "not a rosbag2 folder" in capsys.readouterr().err
+
+
+def test_bag_with_commands_only_gives_the_applied_wavelet_force(sim_wavelet, scenario, tmp_path):
+    bag = tmp_path / "cmd_only"
+    _copy_topics(sim_wavelet / "bag", bag, {COEFFICIENTS, "/amb/control/command"})
+    result = report_cli.make_report([bag], tmp_path / "rep", scenario=scenario)
+    (m,) = result.values()
+    ref = json.loads((sim_wavelet / "metrics.json").read_text())
+    for b in ("1", "2"):
+        peak = m["bearings"][b]["peak_wavelet_force"]
+        assert peak == ref["bearings"][b]["peak_wavelet_force"] and peak > 1.0
+        assert m["bearings"][b]["peak_total_force"] is None
+    assert (tmp_path / "rep" / "forces.png").is_file()
