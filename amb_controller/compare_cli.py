@@ -1,0 +1,485 @@
+"""
+``amb-compare``: controllers x scenarios on the simulated rig, one table, figures.
+
+::
+
+    amb-compare --out runs/compare [--robustness] [--quick]
+
+Controllers (all at the same per-axis force limit, the rig's bearing capacity unless
+``--force-limit``; the wavelet ones on the Haar x_{1,1} coefficients of the inner sensors):
+
+* ``pid``: PID only (no added force);
+* ``wavelet_i1`` / ``wavelet_i2``: the chapter-8 transient controller (eq. 8.10), w = v =
+  0.75, 5th-order inverse of the FE-route model, delay i = 1 and the thesis's i = 2;
+* ``harmonic_i1``: sampled-harmonic transient control (Keogh et al. 2002), same w, v, order;
+* ``synchronous_i1``: adaptive influence-coefficient control (Burrows & Sahinkaya 1983,
+  Knospe et al. 1995), T identified by trial injections, gain a = 0.5, 2-period window.
+
+Scenarios: 430 g cm mass loss at the model's first and second critical speeds, 150 N step
+synchronous force at the third, and the figure-5.27 case-2 mass loss that leads to contacts
+(19 Hz; with ``wavelet_reconf``: transient controller OFF until the fault monitor reports
+MASS_LOSS, HOLD on AUX_BEARING_CONTACT, section 3.3.2).
+
+Metrics (per run; inner sensors x2, y2, x3, y3 unless said)
+-----------------------------------------------------------
+* ``peak``: largest |x| after the fault (m).
+* ``revs_to_10``: revolutions after the fault period until the per-revolution peak |x|
+  stays below 10 % of ``peak`` (``None``: not within the run).
+* ``attenuation_db``: ``20 log10`` of the steady 1 x amplitude (last 10 revolutions,
+  largest inner sensor) over the PID-only one (negative = reduction).
+* ``peak_force`` / ``rms_force``: largest ``hypot(f_x, f_y)`` of the added force over the
+  run, and its RMS over all axes after the fault (N).
+* ``contacts``: contact onsets (simulator truth).
+
+Also written: figure 8.3 redrawn for i = 1..4 (``fig8_3_stability_i1-4.png``), and the time
+for one command (controller step + synthesis + limit) against the period (``timing``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from amb_controller.metrics import INNER, steady_sync_amplitude
+
+SCENARIOS = {
+    "mass_loss_1st": "mass_loss_first_critical.yaml",
+    "mass_loss_2nd": "mass_loss_second_critical.yaml",
+    "sync_150N_3rd": "sync_force_150N_third_critical.yaml",
+    "contact_case2": "mass_loss_contact_case2.yaml",
+}
+CONTROLLERS = ("pid", "wavelet_i1", "wavelet_i2", "harmonic_i1", "synchronous_i1")
+MASS_LOSS = 1
+AUX_BEARING_CONTACT = 2
+
+
+@dataclass(frozen=True)
+class Spec:
+    """One controller of the matrix: ControllerConfig fields and the model route."""
+
+    name: str
+    controller: str
+    delay: int = 1
+    model: str = "fe"  # fe | harmonic | trials | none
+
+
+SPECS = {
+    "pid": Spec("pid", "none", 1, "none"),
+    "wavelet_i1": Spec("wavelet_i1", "transient", 1, "fe"),
+    "wavelet_i2": Spec("wavelet_i2", "transient", 2, "fe"),
+    "harmonic_i1": Spec("harmonic_i1", "harmonic", 1, "harmonic"),
+    "synchronous_i1": Spec("synchronous_i1", "synchronous", 1, "trials"),
+}
+
+
+def run_metrics(result, speed_hz: float, pid_steady: float | None = None) -> dict:
+    """
+    Return the comparison metrics of one :class:`~amb_controller.closed_loop.RunResult`.
+
+    Parameters
+    ----------
+    result : RunResult
+    speed_hz : float
+        Running speed in Hz.
+    pid_steady : float, optional
+        PID-only steady 1 x amplitude (m) for ``attenuation_db``.
+
+    Returns
+    -------
+    dict
+        Module docstring, "Metrics".
+
+    """
+    spr = result.samples_per_rev
+    x = result.displacement[:, list(INNER)]
+    k_f = min(math.floor(result.fault_time * speed_hz + 1e-9), len(x) // spr - 1)
+    per_rev = np.abs(x[: (len(x) // spr) * spr]).reshape(-1, spr, x.shape[1]).max(axis=(1, 2))
+    after = per_rev[k_f:]
+    peak = float(after.max())
+    above = np.flatnonzero(after > 0.1 * peak)
+    revs = int(above[-1]) + 1 if above.size else 0
+    revs_to_10 = None if revs >= len(after) else revs
+    steady = float(steady_sync_amplitude(x, spr).max())
+    wf = result.wavelet_force
+    hyp = np.hypot(wf[:, 0::2], wf[:, 1::2])
+    post = wf[k_f * spr :]
+    contact_any = result.contact.any(axis=1) if result.contact.size else np.zeros(0, bool)
+    contacts = int(np.count_nonzero(np.diff(contact_any.astype(int), prepend=0) == 1))
+    att = None
+    if pid_steady is not None and pid_steady > 0 and steady > 0:
+        att = 20 * math.log10(steady / pid_steady)
+    return {
+        "peak": peak,
+        "peak_all_sensors": float(np.abs(result.displacement[k_f * spr :]).max()),
+        "revs_to_10": revs_to_10,
+        "steady_1x": steady,
+        "attenuation_db": att,
+        "peak_force": float(hyp.max()),
+        "rms_force": float(np.sqrt(np.mean(post**2))) if post.size else 0.0,
+        "contacts": contacts,
+    }
+
+
+class Matrix:
+    """Rig, scenarios and models shared by the runs (models computed once per speed)."""
+
+    def __init__(self, scenario_dir: Path, samples_per_rev: int | None, force_limit, quick):
+        from amb_plant_sim.rig import load_rig
+        from amb_plant_sim.scenario import load_scenario
+
+        self.rig = load_rig()
+        self.force_limit = float(force_limit or self.rig.amb.force_limit)
+        self.scenarios = {}
+        for key, name in SCENARIOS.items():
+            sc = load_scenario(scenario_dir / name, self.rig)
+            if quick:
+                sc = replace(sc, duration=min(sc.duration, 4.0))
+            self.scenarios[key] = sc
+        self.spr = samples_per_rev
+        self._models: dict = {}
+
+    def config(self, spec: Spec, scenario, **overrides):
+        """Return the ControllerConfig of ``spec`` for ``scenario``."""
+        from amb_controller.pipeline import ControllerConfig
+
+        return ControllerConfig(
+            samples_per_rev=self.spr or scenario.samples_per_rev or 64,
+            controller=spec.controller,
+            delay_periods=spec.delay,
+            w=0.75,
+            v=0.75,
+            gain=0.5,
+            inverse_order=5,
+            force_limit=(self.force_limit,) * 4,
+            **overrides,
+        )
+
+    def model(self, spec: Spec, scenario, config, speed_hz: float | None = None):
+        """Return (and cache) the model of ``spec`` identified at ``speed_hz``."""
+        from amb_controller.baselines import harmonic_model, influence_by_trials
+        from amb_controller.closed_loop import fe_model
+
+        if spec.model == "none":
+            return None
+        hz = scenario.speed_hz if speed_hz is None else speed_hz
+        key = (spec.model, round(hz, 6), config.samples_per_rev, config.delay_periods)
+        if key not in self._models:
+            omega = 2 * math.pi * hz
+            if spec.model == "fe":
+                self._models[key] = fe_model(self.rig, omega, config)
+            elif spec.model == "harmonic":
+                self._models[key] = harmonic_model(self.rig, omega, config)
+            else:
+                self._models[key] = influence_by_trials(
+                    self.rig, replace(scenario, speed_hz=hz), config
+                )
+        return self._models[key]
+
+    def run(self, spec: Spec, key: str, model=None, speed_hz=None, **kw):
+        """Run ``spec`` on scenario ``key``; return the RunResult."""
+        from amb_controller.closed_loop import run_closed_loop
+
+        scenario = self.scenarios[key]
+        config = self.config(spec, scenario)
+        if model is None:
+            model = self.model(spec, scenario, config)
+        if speed_hz is not None:
+            scenario = replace(scenario, speed_hz=speed_hz)
+        return run_closed_loop(self.rig, scenario, config, model, **kw)
+
+
+def comparison(matrix: Matrix, controllers=CONTROLLERS, progress=None) -> dict:
+    """Run every controller on every scenario; return ``{scenario: {controller: metrics}}``."""
+    table: dict = {}
+    traces: dict = {}
+    for key, scenario in matrix.scenarios.items():
+        table[key] = {}
+        traces[key] = {}
+        pid_steady = None
+        names = list(controllers) + (["wavelet_reconf"] if key == "contact_case2" else [])
+        for name in names:
+            t0 = time.perf_counter()
+            if name == "wavelet_reconf":
+                result = matrix.run(
+                    SPECS["wavelet_i1"], key, fault_monitor=True, engage_on=(MASS_LOSS,)
+                )
+            else:
+                result = matrix.run(SPECS[name], key)
+            m = run_metrics(result, scenario.speed_hz, pid_steady)
+            if name == "pid":
+                pid_steady = m["steady_1x"]
+            m["wall_time"] = time.perf_counter() - t0
+            if name == "wavelet_reconf":
+                spr = result.samples_per_rev
+                m["fault_events"] = [
+                    [e["fault_type"], e["detection_sample_index"] / spr / scenario.speed_hz]
+                    for e in result.fault_events
+                ]
+            table[key][name] = m
+            traces[key][name] = (result.time, result.displacement[:, 2], result.fault_time)
+            if progress is not None:
+                progress(f"{key} {name}: peak {m['peak'] * 1e6:.1f} um")
+    return {"table": table, "traces": traces}
+
+
+def robustness(matrix: Matrix, progress=None) -> dict:
+    """
+    Every controller with its model off by +-30 % gain, +-30 deg phase, and at +-10 % speed.
+
+    On the first-critical mass loss; the model stays the one of the nominal speed.
+    """
+    from amb_controller.baselines import perturb_model
+
+    key = "mass_loss_1st"
+    scenario = matrix.scenarios[key]
+    cases = {
+        "nominal": {},
+        "gain +30%": {"gain": 1.3},
+        "gain -30%": {"gain": 0.7},
+        "phase +30deg": {"phase": math.radians(30)},
+        "phase -30deg": {"phase": math.radians(-30)},
+        "speed +10%": {"speed": 1.1},
+        "speed -10%": {"speed": 0.9},
+    }
+    out: dict = {}
+    for name in ("wavelet_i1", "wavelet_i2", "harmonic_i1", "synchronous_i1"):
+        spec = SPECS[name]
+        config = matrix.config(spec, scenario)
+        nominal = matrix.model(spec, scenario, config)
+        out[name] = {}
+        for case, p in cases.items():
+            model = perturb_model(
+                nominal, p.get("gain", 1.0), p.get("phase", 0.0), config.inverse_order
+            )
+            hz = scenario.speed_hz * p.get("speed", 1.0)
+            result = matrix.run(spec, key, model=model, speed_hz=hz)
+            pid = matrix.run(SPECS["pid"], key, speed_hz=hz) if "speed" in p else None
+            pid_steady = None if pid is None else run_metrics(pid, hz)["steady_1x"]
+            m = run_metrics(result, hz, pid_steady)
+            if pid is not None:
+                m["pid_peak"] = run_metrics(pid, hz)["peak"]
+            out[name][case] = m
+            if progress is not None:
+                progress(f"robustness {name} {case}: peak {m['peak'] * 1e6:.1f} um")
+    return out
+
+
+def command_timing(samples_per_rev: int = 64, repeats: int = 2000) -> dict:
+    """
+    Median time of one command (controller step + synthesis + force limit), s.
+
+    The work done at the end of a period, after its last sample, before the command for
+    the next period can be sent: what must fit in a small fraction of a period for i = 1.
+    """
+    from amb_controller.baselines import InfluenceCoefficientController
+    from amb_controller.basis import control_basis
+    from amb_controller.response import PrescribedResponse
+    from amb_controller.synthesis import ForceLimiter
+    from amb_controller.transient import TransientController
+
+    rng = np.random.default_rng(0)
+    cb = control_basis("haar", samples_per_rev, (1,), 4)
+    limiter = ForceLimiter(cb, 1000.0, 1000.0)
+    ctl = {
+        "transient": TransientController(
+            rng.normal(size=(6, 8, 8)), PrescribedResponse.exponential(0.75, 0.75), 1
+        ),
+        "synchronous": InfluenceCoefficientController(
+            rng.normal(size=(4, 4)) + 1j * rng.normal(size=(4, 4)), 0.5, 1
+        ),
+    }
+    out = {}
+    q = rng.normal(size=(repeats, 8)) * 1e-9
+    for name, c in ctl.items():
+        times = np.empty(repeats)
+        for k in range(repeats):
+            t0 = time.perf_counter()
+            limiter.apply(c.step(k, q[k]).coefficients)
+            times[k] = time.perf_counter() - t0
+        out[name] = {"median_s": float(np.median(times)), "p99_s": float(np.quantile(times, 0.99))}
+    return out
+
+
+# ---------------------------------------------------------------------------------------------
+# output
+# ---------------------------------------------------------------------------------------------
+
+
+def _fmt(value, scale=1.0, digits=1):
+    if value is None:
+        return "not reached"
+    return f"{value * scale:.{digits}f}"
+
+
+def markdown(result: dict, timing: dict, speeds: dict) -> str:
+    """Return the comparison as a markdown report."""
+    lines = ["# amb-compare: controllers x scenarios (simulated rig)", ""]
+    lines.append(
+        "Inner sensors (x2, y2, x3, y3). peak: largest |x| after the fault; revs to 10 %: "
+        "revolutions until the per-revolution peak stays below 10 % of it; attenuation: "
+        "steady 1 x vs PID only; forces: added (wavelet / baseline) force, same per-axis "
+        "limit for all; contacts: simulator truth."
+    )
+    for key, rows in result["table"].items():
+        lines += ["", f"## {key} ({speeds[key]:.2f} Hz)", ""]
+        lines.append(
+            "| controller | peak um | revs to 10 % | steady 1x um | attenuation dB | "
+            "peak force N | RMS force N | contacts |"
+        )
+        lines.append("|---|---|---|---|---|---|---|---|")
+        for name, m in rows.items():
+            lines.append(
+                f"| {name} | {_fmt(m['peak'], 1e6)} | {_fmt(m['revs_to_10'], 1, 0)} | "
+                f"{_fmt(m['steady_1x'], 1e6, 2)} | {_fmt(m['attenuation_db'], 1, 1)} | "
+                f"{m['peak_force']:.0f} | {m['rms_force']:.1f} | {m['contacts']} |"
+            )
+    if "robustness" in result:
+        lines += ["", "## Robustness (mass loss, first critical speed)", ""]
+        cases = list(next(iter(result["robustness"].values())))
+        lines.append("| controller | " + " | ".join(cases) + " |")
+        lines.append("|---|" + "---|" * len(cases))
+        for name, rows in result["robustness"].items():
+            cells = [
+                f"{_fmt(rows[c]['peak'], 1e6)} um / {_fmt(rows[c]['revs_to_10'], 1, 0)}"
+                for c in cases
+            ]
+            lines.append(f"| {name} | " + " | ".join(cells) + " |")
+        lines.append("")
+        lines.append("Cells: peak after the fault / revolutions to 10 %.")
+    lines += ["", "## Command evaluation time", ""]
+    for name, t in timing.items():
+        lines.append(
+            f"- {name}: median {t['median_s'] * 1e6:.1f} us, 99 % {t['p99_s'] * 1e6:.1f} us "
+            f"per command"
+        )
+    return "\n".join(lines) + "\n"
+
+
+def figures(result: dict, out: Path) -> list[Path]:
+    """Write the bar charts, the x2 traces per scenario and figure 8.3 for i = 1..4."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from amb_controller.stability import exponential_stability_map
+
+    paths = []
+    table = result["table"]
+    keys = list(table)
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4))
+    names = list(CONTROLLERS)
+    width = 0.8 / len(names)
+    for j, name in enumerate(names):
+        peaks = [table[k][name]["peak"] * 1e6 for k in keys]
+        revs = [table[k][name]["revs_to_10"] for k in keys]
+        pos = np.arange(len(keys)) + j * width
+        axes[0].bar(pos, peaks, width, label=name)
+        axes[1].bar(pos, [np.nan if r is None else r for r in revs], width, label=name)
+    for ax, title in zip(axes, ("peak |x| after fault (um)", "revolutions to 10 %"), strict=True):
+        ax.set_xticks(np.arange(len(keys)) + 0.4 - width / 2)
+        ax.set_xticklabels(keys, rotation=15)
+        ax.set_title(title)
+        ax.set_yscale("log")
+    axes[0].legend(fontsize=7)
+    fig.tight_layout()
+    paths.append(out / "compare_bars.png")
+    fig.savefig(paths[-1], dpi=110)
+    plt.close(fig)
+    for key, traces in result["traces"].items():
+        fig, ax = plt.subplots(len(traces), 1, figsize=(8, 1.6 * len(traces)), sharex=True)
+        ymax = max(np.abs(x).max() for _, x, _ in traces.values()) * 1e6
+        for a, (name, (t, x, tf)) in zip(ax, traces.items(), strict=True):
+            a.plot(t, x * 1e6, lw=0.5)
+            a.axvline(tf, color="r", lw=0.6)
+            a.set_ylabel("x2 (um)", fontsize=7)
+            a.set_ylim(-min(ymax, 1000), min(ymax, 1000))
+            a.set_title(name, fontsize=8, loc="left")
+        ax[-1].set_xlabel("time (s)")
+        fig.tight_layout()
+        paths.append(out / f"trace_{key}.png")
+        fig.savefig(paths[-1], dpi=110)
+        plt.close(fig)
+    w = np.linspace(0.01, 0.99, 99)
+    v = np.linspace(0.0, 0.99, 100)
+    fig, axes = plt.subplots(1, 4, figsize=(13, 3.4), sharey=True)
+    for i, ax in enumerate(axes, start=1):
+        stable = exponential_stability_map(w, v, i)
+        ax.contourf(w, v, stable.astype(float), levels=[-0.5, 0.5, 1.5], colors=["w", "0.7"])
+        ax.set_title(f"({'abcd'[i - 1]}) i = {i}: stable (grey)", fontsize=9)
+        ax.set_xlabel("w")
+        ax.plot([0.75], [0.75], "kx")
+    axes[0].set_ylabel("v")
+    fig.suptitle("Figure 8.3 redrawn: nominal stability of alpha = w/(z - v), delay i")
+    fig.tight_layout()
+    paths.append(out / "fig8_3_stability_i1-4.png")
+    fig.savefig(paths[-1], dpi=110)
+    plt.close(fig)
+    return paths
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """Return the parser of ``amb-compare``."""
+    ap = argparse.ArgumentParser(
+        prog="amb-compare",
+        description="Controllers x scenarios on the simulated rig: table (markdown, JSON) "
+        "and figures.",
+    )
+    ap.add_argument("--out", required=True, type=Path, help="output folder (created)")
+    ap.add_argument("--scenario-dir", type=Path, default=None, help="default config/scenarios")
+    ap.add_argument("--samples-per-rev", type=int, default=None, help="default: per scenario")
+    ap.add_argument("--force-limit", type=float, default=None, help="N per axis (default rig)")
+    ap.add_argument("--robustness", action="store_true", help="add the robustness matrix")
+    ap.add_argument("--quick", action="store_true", help="scenarios cut to 4 s")
+    ap.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    return ap
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of ``amb-compare``; exit 0, or 2 on invalid arguments."""
+    args = build_parser().parse_args(argv)
+    from amb_tools.paths import config_file
+
+    scenario_dir = args.scenario_dir or config_file("scenarios")
+
+    def progress(text: str) -> None:
+        if not args.quiet:
+            print(text, file=sys.stderr, flush=True)
+
+    try:
+        matrix = Matrix(scenario_dir, args.samples_per_rev, args.force_limit, args.quick)
+        t0 = time.perf_counter()
+        result = comparison(matrix, progress=progress)
+        if args.robustness:
+            result["robustness"] = robustness(matrix, progress)
+    except (ValueError, TypeError, FileNotFoundError) as exc:
+        print(f"amb-compare: {exc}", file=sys.stderr)
+        return 2
+    timing = command_timing()
+    args.out.mkdir(parents=True, exist_ok=True)
+    speeds = {k: s.speed_hz for k, s in matrix.scenarios.items()}
+    paths = figures(result, args.out)
+    doc = {
+        "speeds_hz": speeds,
+        "force_limit": matrix.force_limit,
+        "table": result["table"],
+        "robustness": result.get("robustness"),
+        "timing": timing,
+        "wall_time": time.perf_counter() - t0,
+        "figures": [p.name for p in paths],
+    }
+    (args.out / "comparison.json").write_text(json.dumps(doc, indent=2))
+    (args.out / "comparison.md").write_text(markdown(result, timing, speeds))
+    print(f"amb-compare: wrote {args.out / 'comparison.md'} and {len(paths)} figures")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
