@@ -92,6 +92,7 @@ __all__ = [
     "fourier_measurement_basis",
     "harmonic_model",
     "influence_by_trials",
+    "perturb_model",
     "real_from_complex",
 ]
 
@@ -366,6 +367,65 @@ def influence_by_trials(
     markov = real_gain(t)[None]
     return _model(markov, replace(config, inverse_order=0), 2 * math.pi * scenario.speed_hz,
                   "trial-injection", cb, mb)  # fmt: skip
+
+
+def perturb_model(
+    model: WaveletModel, gain: float = 1.0, phase: float = 0.0, inverse_order: int | None = None
+) -> WaveletModel:
+    """
+    Return ``model`` with a gain and phase error on every measured quadrature pair.
+
+    For each measured pair (Haar ``even``/``odd`` or Fourier ``cos``/``sin`` of one level,
+    translation and sensor) the phasor ``Y = q_even - i q_odd`` of every Markov parameter
+    becomes ``gain e^{i phase} Y``::
+
+        q_even' = gain (cos(phase) q_even + sin(phase) q_odd)
+        q_odd'  = gain (-sin(phase) q_even + cos(phase) q_odd)
+
+    i.e. the model's response to every control coefficient is scaled and rotated in
+    phase (a model error a user meets: calibration gain, sensor or amplifier phase lag).
+    The inverse is recomputed from the perturbed Markov parameters.
+
+    Parameters
+    ----------
+    model : WaveletModel
+    gain : float
+        Gain factor (> 0), e.g. 1.3 for +30 %.
+    phase : float
+        Phase error in rad.
+    inverse_order : int, optional
+        Inverse truncation order (default: the model's).
+
+    Returns
+    -------
+    WaveletModel
+        ``source`` tagged with the perturbation.
+
+    """
+    if not (math.isfinite(gain) and gain > 0 and math.isfinite(phase)):
+        raise ControllerValueError(f"gain must be > 0 and phase finite, got {gain}, {phase}")
+    labels = list(model.measured_labels)
+    if not labels:
+        raise ControllerValueError("model has no measured labels: cannot pair quadratures")
+    pairs = []
+    for i, lab in enumerate(labels):
+        for a, b in (("/even/", "/odd/"), ("/cos/", "/sin/")):
+            if a in lab:
+                pairs.append((i, labels.index(lab.replace(a, b))))
+    c, s = math.cos(phase), math.sin(phase)
+    markov = model.markov.copy()
+    e = np.array([p[0] for p in pairs])
+    o = np.array([p[1] for p in pairs])
+    markov[:, e] = gain * (c * model.markov[:, e] + s * model.markov[:, o])
+    markov[:, o] = gain * (-s * model.markov[:, e] + c * model.markov[:, o])
+    order = model.inverse.shape[0] - 1 if inverse_order is None else int(inverse_order)
+    inverse = pseudo_inverse_series(markov, order)
+    return replace(
+        model,
+        markov=markov,
+        inverse=inverse,
+        source=f"{model.source} x{gain:g} {math.degrees(phase):+g}deg",
+    )
 
 
 # ---------------------------------------------------------------------------------------------
