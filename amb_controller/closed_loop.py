@@ -272,6 +272,7 @@ class _Loop:
             )
         self.recorder = recorder
         self.monitor = monitor
+        self.engage_on: tuple[int, ...] = ()
         self.commands: dict[int, Command] = {}
         self.k = 0
         self.blocks: list = []
@@ -307,7 +308,11 @@ class _Loop:
                     self.fault_events.append(event)
                     if recorder is not None:
                         recorder.fault_event(event, meas[s].header.stamp)
-                    self.pipeline.on_fault(event["fault_type_code"])
+                    code = event["fault_type_code"]
+                    if code in self.engage_on and self.pipeline.supervisor.mode == Mode.OFF:
+                        self.pipeline.set_mode(Mode.ACTIVE)  # fault-triggered engagement
+                    else:
+                        self.pipeline.on_fault(code)
             out = self.pipeline.on_sample(n, records, x, float(block.omega[s]))
             if out is not None:
                 self.commands[out.target_period] = out
@@ -373,6 +378,7 @@ def run_closed_loop(
     fault_monitor: bool = False,
     progress=None,
     baseline=None,
+    engage_on: tuple[int, ...] = (),
 ) -> RunResult:
     """
     Run one scenario in lock step with the wavelet controller ACTIVE from period 0.
@@ -400,6 +406,11 @@ def run_closed_loop(
         Settings of the ``synchronous`` / ``harmonic`` baselines (their model: a Fourier
         model from :func:`amb_controller.baselines.harmonic_model` or
         :func:`~amb_controller.baselines.influence_by_trials`).
+    engage_on : tuple of int
+        Fault-triggered reconfiguration (thesis section 3.3.2): when given (e.g. ``(1,)``,
+        ``FaultEvent.MASS_LOSS``) the controller starts OFF (PID only) and is set ACTIVE
+        when the fault monitor (``fault_monitor=True``) reports one of these fault types;
+        other events take the configured ``fault_actions`` (hold on contact).
 
     Returns
     -------
@@ -410,7 +421,12 @@ def run_closed_loop(
     if fault_monitor:
         monitor = _Monitor(config.samples_per_rev, None)
     loop = _Loop(rig, scenario, config, model, seed, recorder, monitor, baseline)
-    if config.controller != "none":
+    loop.engage_on = tuple(int(c) for c in engage_on)
+    if engage_on and not fault_monitor:
+        from amb_controller.errors import ControllerValueError
+
+        raise ControllerValueError("engage_on needs fault_monitor=True (events engage control)")
+    if config.controller != "none" and not engage_on:
         ok, message = loop.pipeline.set_mode(Mode.ACTIVE)
         if not ok:
             from amb_controller.errors import ControllerValueError
