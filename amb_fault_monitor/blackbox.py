@@ -2,12 +2,17 @@
 Black box: a ring buffer of the latest serialised messages, written to its own bag per event.
 
 The node hands every received message (serialised CDR bytes, its topic as recorded and its
-type) to :meth:`BlackBox.add`, with its header stamp in ns. The buffer keeps ``pre_s``
-seconds (by stamp) before the newest message. :meth:`trigger` (at an event) marks the event
-time; messages keep being added until their stamps pass ``trigger + post_s``, then the bag is
-written (pre- and post-trigger together) with :class:`amb_tools.bag_writer.BagWriter` into
-``folder/<name>`` and :meth:`add` returns its path. A trigger while a capture is open extends
-nothing: the second event falls inside the first bag (its name is recorded in the result).
+type) to :meth:`BlackBox.add`, with its header stamp in ns. Every topic keeps the messages
+from ``pre_s`` seconds (by stamp) before the newest stamp of the most lagging topic: streams
+arrive with different lags (the coefficients of a sample come after its measurement, and an
+event decided on the lagging stream must still find the leading stream's pre-trigger part).
+:meth:`trigger` (at an event) marks the event time; messages keep being added until every
+topic's stamps have reached ``trigger + post_s`` (or one topic is ``pre_s + post_s + 1`` s
+beyond that: a stalled stream does not hold the bag back), then the messages stamped in
+``[trigger - pre_s, trigger + post_s]`` are written in stamp order with
+:class:`amb_tools.bag_writer.BagWriter` into ``folder/<name>`` and :meth:`add` returns its
+path. A trigger while a capture is open extends nothing: the second event falls inside the
+first bag.
 """
 
 from __future__ import annotations
@@ -43,7 +48,7 @@ class BlackBox:
         self.pre_ns = round(pre_s * 1e9)
         self.post_ns = round(post_s * 1e9)
         self.storage = storage
-        self._buf: deque[tuple[str, str, int, bytes]] = deque()
+        self._bufs: dict[str, deque[tuple[str, int, bytes]]] = {}
         self._capture: dict | None = None
         self.written: list[Path] = []
 
@@ -68,15 +73,23 @@ class BlackBox:
             CDR bytes (``rclpy.serialization.serialize_message``).
         """
         t_ns = int(t_ns)
-        self._buf.append((topic, msgtype, t_ns, bytes(raw)))
+        q = self._bufs.setdefault(topic, deque())
+        q.append((msgtype, t_ns, bytes(raw)))
         cap = self._capture
         if cap is not None:
-            if t_ns >= cap["end"]:
+            newest = [b[-1][1] for b in self._bufs.values() if b]
+            stalled = max(newest) >= cap["end"] + self.pre_ns + self.post_ns + 1_000_000_000
+            if min(newest) >= cap["end"] or stalled:
                 return self._write()
             return None
-        while self._buf and self._buf[0][2] < t_ns - self.pre_ns:
-            self._buf.popleft()
+        self._prune()
         return None
+
+    def _prune(self) -> None:
+        horizon = min(q[-1][1] for q in self._bufs.values() if q) - self.pre_ns
+        for q in self._bufs.values():
+            while q and q[0][1] < horizon:
+                q.popleft()
 
     def trigger(self, t_ns: int, name: str) -> bool:
         """
@@ -107,15 +120,17 @@ class BlackBox:
         while path.exists():
             path = self.folder / f"{cap['names'][0]}_{k}"
             k += 1
-        lo = cap["start"] - self.pre_ns
+        lo, hi = cap["start"] - self.pre_ns, cap["end"]
+        rows = sorted(
+            (t_ns, topic, msgtype, raw)
+            for topic, q in self._bufs.items()
+            for msgtype, t_ns, raw in q
+            if lo <= t_ns <= hi
+        )
         with BagWriter(path, self.storage) as bag:
-            for topic, msgtype, t_ns, raw in self._buf:
-                if t_ns >= lo:
-                    bag.add_topic(topic, msgtype)
-                    bag.write_raw(topic, t_ns, raw)
+            for t_ns, topic, msgtype, raw in rows:
+                bag.add_topic(topic, msgtype)
+                bag.write_raw(topic, t_ns, raw)
         self.written.append(path)
-        # keep the pre-trigger window for the next event
-        newest = self._buf[-1][2] if self._buf else 0
-        while self._buf and self._buf[0][2] < newest - self.pre_ns:
-            self._buf.popleft()
+        self._prune()  # keep the pre-trigger window for the next event
         return path

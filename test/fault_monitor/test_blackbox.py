@@ -43,9 +43,28 @@ def test_buffer_only_holds_pre_window():
     box = BlackBox("/nonexistent", pre_s=0.1, post_s=0.1)
     for i in range(1000):
         box.add(TOPIC, TYPE, i * 1_000_000, b"\x00\x01\x00\x00")
-    assert len(box._buf) == 101
+    assert len(box._bufs[TOPIC]) == 101
 
 
 def test_negative_lengths_refused():
     with pytest.raises(FaultMonitorError, match=">= 0 s"):
         BlackBox("x", -1.0, 1.0)
+
+
+def test_lagging_stream_keeps_its_own_pre_window(tmp_path):
+    # the measurement stream runs 0.5 s ahead of the coefficients; the event comes from the
+    # lagging stream: the bag still holds both over [t - pre, t + post]
+    box = BlackBox(tmp_path, pre_s=0.2, post_s=0.1)
+    dt = 10_000_000
+    path = None
+    for i in range(300):
+        out = box.add("/m", TYPE, i * dt, b"\x00\x01\x00\x00")
+        path = path or out
+        if i >= 50:
+            j = i - 50
+            if j == 150:
+                box.trigger(j * dt, "ev")
+            path = path or box.add("/c", TYPE, j * dt, b"\x00\x01\x00\x00")
+    with AnyReader([path], default_typestore=typestore()) as reader:
+        counts = {c.topic: c.msgcount for c in reader.connections}
+    assert counts == {"/m": 31, "/c": 31}  # stamps 1.30 .. 1.60 s on both
