@@ -16,6 +16,31 @@ delivered them in, so the commands equal the in-process runner's (``amb-sim``) b
 coefficient message is lost (a later one arrived first: each topic is delivered in order), the
 sample is processed without it and the pipeline answers that period with zero force.
 
+Bad input and dead peers
+------------------------
+Measurements are validated (:func:`amb_tools.conversions.check_measurement`) and sequenced
+(:class:`amb_tools.conversions.SampleSequencer`: repeats, stray indices and impossible stamps
+are dropped; a confirmed gap or restart makes the pipeline answer the broken period with a
+held zero command). Coefficient messages are rejected if their wavelet or ``samples_per_rev``
+is not the controller's, their sample index lies before the stream or more than eight periods
+ahead of it, their stamp differs from their measurement's, or a set is malformed. If the
+coefficients of a sample have not arrived ``coefficient_timeout`` wall seconds after its
+measurement (a dead filterbank), the sample is processed without them: the period is answered
+with zero force, and the lock-step loop keeps running on the PID. If no measurement arrives for
+``measurement_timeout`` s, the controller reports it and forgets its history, so that it holds
+zero until the stream returns; it then resumes without a restart. A command the pipeline made
+with a non-finite value (never expected) is replaced by a zero command. All of it is counted on
+``/diagnostics``.
+
+Parameters
+----------
+Structural parameters are read-only. ``w``, ``v``, ``rate``, ``gain`` and ``force_limit`` may be
+set at run time: the on-set callback validates the new set with ``ControllerConfig`` (the same
+validation as at start-up, including the bearing capacity) and refuses it with the reason; an
+accepted change is applied at the next period boundary (the controller is rebuilt from the model
+in use and restarts its history, as on a mode change). ``measurement_timeout``,
+``coefficient_timeout`` and ``status_period`` are node settings, also settable.
+
 Services: ``/amb/control/set_mode`` (``SetControllerMode``),
 ``/amb/control/start_identification`` (``StartIdentification``; the identified model is written
 to ``model_file_out`` or the request's ``model_file``). ``FaultEvent`` messages on
@@ -26,10 +51,13 @@ stops the node with exit status 2 and a message naming the parameter, the value 
 
 from __future__ import annotations
 
+import dataclasses
 import math
+import time
 from collections import deque
 from pathlib import Path
 
+import numpy as np
 from amb_msgs.msg import (
     ControlCommand,
     ControllerStatus,
@@ -38,20 +66,25 @@ from amb_msgs.msg import (
     WaveletCoefficients,
 )
 from amb_msgs.srv import SetControllerMode, StartIdentification
-from rcl_interfaces.msg import ParameterDescriptor
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from amb_controller.errors import ControllerValueError
 from amb_controller.pipeline import ControllerConfig, ControllerPipeline
 from amb_controller.supervisor import Mode
+from amb_controller.synthesis import ForceLimiter
 from amb_plant_sim.errors import RigError
 from amb_plant_sim.rig import load_rig
 from amb_tools.conversions import (
     MessageError,
+    SampleSequencer,
+    check_measurement,
     coefficient_records,
     command_msg,
     controller_status_msg,
+    stamp_seconds,
 )
 from amb_tools.node_main import ConfigurationError, run_node
 from amb_tools.paths import config_file
@@ -62,6 +95,26 @@ COMMAND_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST, depth=16, reliability=ReliabilityPolicy.RELIABLE
 )
 START_MODES = ("off", "active", "identify")
+#: Controller parameters that may change at run time (applied at a period boundary).
+TUNABLES = ("w", "v", "rate", "gain", "force_limit")
+#: Node settings (s): (default, description, lowest, highest).
+SETTINGS = {
+    "measurement_timeout": (
+        2.0,
+        "watchdog: wall s without a measurement before holding zero and reporting",
+        0.05,
+        600.0,
+    ),
+    "coefficient_timeout": (
+        1.0,
+        "wall s to wait for a sample's coefficients before processing it without them",
+        0.01,
+        600.0,
+    ),
+    "status_period": (1.0, "period of the /diagnostics report, wall s", 0.05, 60.0),
+}
+#: Coefficient messages more than this many periods ahead of the measurements are refused.
+COEFFICIENT_HORIZON_PERIODS = 8
 
 # ROS parameter -> (default, description). Defaults equal ControllerConfig's; bounds of 0.0
 # mean "off" for the guards (ROS parameters cannot hold inf).
@@ -124,7 +177,18 @@ class WaveletControllerNode(Node):
         super().__init__("wavelet_controller")
         for name, (default, description) in PARAMETERS.items():
             self.declare_parameter(
-                name, default, ParameterDescriptor(description=description, read_only=True)
+                name,
+                default,
+                ParameterDescriptor(description=description, read_only=name not in TUNABLES),
+            )
+        for name, (default, description, lo, hi) in SETTINGS.items():
+            self.declare_parameter(
+                name,
+                default,
+                ParameterDescriptor(
+                    description=description,
+                    floating_point_range=[FloatingPointRange(from_value=lo, to_value=hi)],
+                ),
             )
         self.declare_parameter(
             "rig_file",
@@ -158,9 +222,31 @@ class WaveletControllerNode(Node):
         self.create_service(
             StartIdentification, "/amb/control/start_identification", self._on_identify
         )
-        self._measurements: dict[int, Measurement] = {}
-        self._coefficients: deque[WaveletCoefficients] = deque()
-        self._next: int | None = None
+        self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        self._pending: deque[tuple[Measurement, float]] = deque()  # (message, wall s received)
+        self._coefficients: dict[int, WaveletCoefficients] = {}
+        self._sequencer = SampleSequencer(self._pipe.config.samples_per_rev)
+        self._last_processed: int | None = None
+        self._last_wall: float | None = None
+        self._stale = False
+        self._pending_config: ControllerConfig | None = None
+        self.counts = dict.fromkeys(
+            (
+                "measurements_rejected",
+                "coefficients_rejected",
+                "coefficients_missing",
+                "nonfinite_commands",
+                "stalls",
+                "config_changes",
+            ),
+            0,
+        )
+        self._last_reason = ""
+        self.create_timer(0.05, self._watchdog)
+        self._status_timer = self.create_timer(
+            self.get_parameter("status_period").value, self._publish_diagnostics
+        )
+        self.add_on_set_parameters_callback(self._on_set_parameters)
 
     def _configure(self) -> None:
         values = {name: self.get_parameter(name).value for name in PARAMETERS}
@@ -169,6 +255,7 @@ class WaveletControllerNode(Node):
             capacity = load_rig(rig_file).amb.force_limit
         except RigError as exc:
             raise ConfigurationError(f"parameter 'rig_file' = {rig_file!r}: {exc}") from exc
+        self._capacity = capacity
         try:
             config = ControllerConfig.from_dict(config_from_parameters(values), capacity)
             front = ChannelFrontEnd(config.samples_per_rev)
@@ -198,34 +285,159 @@ class WaveletControllerNode(Node):
             f"model {'none' if model is None else model.source}"
         )
 
+    # ------------------------------------------------------------------ run-time parameters
+    def _on_set_parameters(self, params) -> SetParametersResult:
+        """Validate a run-time change with the start-up validation; keep the old on refusal."""
+        changes = {p.name: p.value for p in params}
+        for name in SETTINGS:
+            if name in changes:
+                value = changes[name]
+                lo, hi = SETTINGS[name][2:]
+                if not (isinstance(value, float) and lo <= value <= hi):
+                    return SetParametersResult(
+                        successful=False,
+                        reason=f"parameter '{name}' = {value!r}: expected {lo}..{hi} s",
+                    )
+        tunable = {k: v for k, v in changes.items() if k in TUNABLES}
+        if tunable:
+            values = {name: self.get_parameter(name).value for name in PARAMETERS}
+            values.update(tunable)
+            try:
+                config = ControllerConfig.from_dict(config_from_parameters(values), self._capacity)
+            except (ControllerValueError, ValueError, TypeError) as exc:
+                return SetParametersResult(
+                    successful=False, reason=f"parameters {tunable!r} refused: {exc}"
+                )
+            self._pending_config = config
+            self.get_logger().info(f"{tunable}: applied at the next period boundary")
+        if "status_period" in changes:
+            self._status_timer.cancel()
+            self._status_timer = self.create_timer(
+                changes["status_period"], self._publish_diagnostics
+            )
+        return SetParametersResult(successful=True)
+
+    def _apply_pending_config(self) -> None:
+        """At a period boundary: new limits and a controller rebuilt from the model in use."""
+        config, self._pending_config = self._pending_config, None
+        pipe = self._pipe
+        pipe.config = config
+        pipe.limiter = ForceLimiter(pipe.control, np.array(config.force_limit), pipe.capacity)
+        pipe.supervisor.limiter = pipe.limiter
+        if pipe.model is not None:
+            pipe.set_model(pipe.model)
+        self.counts["config_changes"] += 1
+
     # ------------------------------------------------------------------ streams
+    def _reject(self, counter: str, reason: str) -> None:
+        self.counts[counter] += 1
+        self._last_reason = reason
+        self.get_logger().warning(reason, throttle_duration_sec=5.0)
+
     def _on_measurement(self, msg: Measurement) -> None:
-        n = msg.sample_index
-        if self._next is None or n < self._next:  # first sample, or the plant restarted
-            if self._next is not None:
-                self.get_logger().warning(f"sample {n} after {self._next - 1}: restart")
-                self._measurements.clear()
-                self._coefficients.clear()
-            self._next = n
-        self._measurements[n] = msg
+        try:
+            check_measurement(msg, self._pipe.config.samples_per_rev)
+        except MessageError as exc:
+            self._reject("measurements_rejected", f"sample {msg.sample_index}: {exc}; dropped")
+            return
+        now = time.monotonic()
+        self._last_wall = now
+        if self._stale:
+            self._stale = False
+            self.get_logger().info(f"measurements resumed at sample {msg.sample_index}")
+        before = dict(self._sequencer.counts)
+        accepted = self._sequencer.push(
+            int(msg.sample_index), stamp_seconds(msg.header.stamp), msg.rotor_speed, msg
+        )
+        if self._sequencer.counts != before:
+            self._last_reason = self._sequencer.last_reason
+            self.get_logger().warning(self._last_reason, throttle_duration_sec=5.0)
+        for reset, m in accepted:
+            if reset and self._last_processed is not None:
+                # restart or gap: everything queued belongs to the old stream's tail
+                self._drain(force=True)
+            self._pending.append((m, now))
         self._drain()
 
     def _on_coefficients(self, msg: WaveletCoefficients) -> None:
-        self._coefficients.append(msg)
+        cfg = self._pipe.config
+        n = int(msg.sample_index)
+        horizon = COEFFICIENT_HORIZON_PERIODS * self._pipe.samples_per_period
+        newest = self._pending[-1][0].sample_index if self._pending else self._last_processed
+        reason = None
+        if msg.wavelet != cfg.wavelet or msg.samples_per_rev != cfg.samples_per_rev:
+            reason = (
+                f"coefficients of sample {n}: {msg.wavelet!r} at {msg.samples_per_rev} "
+                f"samples/rev, expected {cfg.wavelet!r} at {cfg.samples_per_rev}"
+            )
+        elif newest is not None and n > newest + horizon:
+            reason = (
+                f"coefficients of sample {n}: measurements only reach {newest}, from the future"
+            )
+        elif n in self._coefficients:
+            reason = f"coefficients of sample {n} repeated"
+        elif (
+            self._last_processed is not None
+            and n <= self._last_processed
+            and not (
+                self._sequencer.pending_index is not None and n >= self._sequencer.pending_index
+            )
+        ):
+            reason = f"coefficients of sample {n}: sample {self._last_processed} already processed"
+        if reason is not None:
+            self._reject("coefficients_rejected", reason + "; dropped")
+            return
+        self._coefficients[n] = msg
+        while len(self._coefficients) > 2 * horizon:  # bounded, whatever arrives
+            del self._coefficients[min(self._coefficients)]
         self._drain()
 
-    def _drain(self) -> None:
-        while self._next is not None and self._next in self._measurements:
-            n = self._next
-            coeffs = None
-            while self._coefficients and self._coefficients[0].sample_index < n:
-                self._coefficients.popleft()  # belongs to samples before a restart
-            if self._coefficients and self._coefficients[0].sample_index == n:
-                coeffs = self._coefficients.popleft()
-            elif n % 2 == 1 and not self._coefficients:
-                return  # wait for the coefficients of this sample
-            self._process(self._measurements.pop(n), coeffs)
-            self._next = n + 1
+    def _drain(self, force: bool = False) -> None:
+        """Process queued samples in order; ``force`` stops waiting for coefficients."""
+        timeout = self.get_parameter("coefficient_timeout").value
+        now = time.monotonic()
+        while self._pending:
+            m, received = self._pending[0]
+            n = int(m.sample_index)
+            coeffs = self._coefficients.pop(n, None)
+            if coeffs is None and n % 2 == 1:
+                later = any(
+                    n < k <= n + 2 * self._pipe.samples_per_period for k in self._coefficients
+                )
+                if not (force or later or now - received > timeout):
+                    return  # wait for the coefficients of this sample
+                self.counts["coefficients_missing"] += 1
+            self._pending.popleft()
+            for old in [k for k in self._coefficients if k <= n]:
+                del self._coefficients[old]  # belong to samples before a restart, or lost
+            if coeffs is not None and coeffs.header.stamp != m.header.stamp:
+                self._reject(
+                    "coefficients_rejected",
+                    f"coefficients of sample {n}: stamp differs from the measurement's; dropped",
+                )
+                coeffs = None
+            self._process(m, coeffs)
+            self._last_processed = n
+
+    def _watchdog(self) -> None:
+        if self._pending:
+            self._drain()  # a dead filterbank: stop waiting after coefficient_timeout
+        if self._last_wall is None or self._stale:
+            return
+        silent = time.monotonic() - self._last_wall
+        if silent > self.get_parameter("measurement_timeout").value:
+            self._stale = True
+            self.counts["stalls"] += 1
+            self._drain(force=True)
+            sup = self._pipe.supervisor
+            if sup.controller is not None:
+                sup.controller.reset()  # hold zero: no history carried across the silence
+            self._last_reason = (
+                f"no measurement for {silent:.2f} s after sample {self._last_processed}: "
+                "holding zero until the stream returns"
+            )
+            self.get_logger().warning(self._last_reason)
+            self._publish_diagnostics()
 
     def _process(self, m: Measurement, coeffs: WaveletCoefficients | None) -> None:
         records = []
@@ -234,25 +446,68 @@ class WaveletControllerNode(Node):
                 records = coefficient_records(coeffs, self._slots)
             except MessageError as exc:
                 self._pipe._stats["inputs_rejected"] += 1
-                self.get_logger().warning(str(exc), throttle_duration_sec=5.0)
+                self._reject(
+                    "coefficients_rejected", f"coefficients of sample {m.sample_index}: {exc}"
+                )
         command = self._pipe.on_sample(m.sample_index, records, m.displacement, m.rotor_speed)
         if command is None:
             return
         cfg = self._pipe.config
-        self._cmd_pub.publish(
-            command_msg(
+        labels = self._pipe.control.labels
+        n = self._pipe.samples_per_period
+        try:
+            out = command_msg(command, m.header, labels, n, cfg.delay_periods, cfg.wavelet)
+        except MessageError as exc:
+            self.counts["nonfinite_commands"] += 1
+            self._last_reason = f"command for period {command.target_period}: {exc}; sent zero"
+            self.get_logger().error(self._last_reason)
+            zero = dataclasses.replace(
                 command,
-                m.header,
-                self._pipe.control.labels,
-                self._pipe.samples_per_period,
-                cfg.delay_periods,
-                cfg.wavelet,
+                coefficients=np.zeros_like(command.coefficients),
+                force=np.zeros((4, n)),
+                hold=True,
             )
-        )
-        self._status_pub.publish(controller_status_msg(self._pipe.status(), m.header))
+            out = command_msg(zero, m.header, labels, n, cfg.delay_periods, cfg.wavelet)
+        self._cmd_pub.publish(out)
+        try:
+            self._status_pub.publish(controller_status_msg(self._pipe.status(), m.header))
+        except MessageError as exc:
+            self._last_reason = f"status not published: {exc}"
+        if self._pending_config is not None:
+            self._apply_pending_config()
         if self._identifying and self._pipe.supervisor.mode != Mode.IDENTIFYING:
             self._identifying = False
             self._write_model()
+
+    def _publish_diagnostics(self) -> None:
+        status = self._pipe.status()
+        seq = self._sequencer.counts
+        problems = any(self.counts[k] for k in self.counts if k != "config_changes") or any(
+            seq[k] for k in ("stray", "stamp", "repeat")
+        )
+        level = DiagnosticStatus.WARN if (problems or self._stale) else DiagnosticStatus.OK
+        values = {
+            "mode": Mode(status["mode"]).name,
+            "measurements_stale": self._stale,
+            "last_sample": self._last_processed,
+            "commands_sent": status["commands_sent"],
+            "callback_errors": getattr(self, "callback_errors", 0),
+            "inputs_rejected": status["inputs_rejected"],
+            **self.counts,
+            **{f"samples_{k}": v for k, v in seq.items()},
+        }
+        array = DiagnosticArray(
+            status=[
+                DiagnosticStatus(
+                    level=level,
+                    name="wavelet_controller",
+                    message=self._last_reason or status["message"] or "ok",
+                    values=[KeyValue(key=k, value=str(v)) for k, v in values.items()],
+                )
+            ]
+        )
+        array.header.stamp = self.get_clock().now().to_msg()
+        self._diag_pub.publish(array)
 
     def _write_model(self) -> None:
         path = self._model_out or self.get_parameter("model_file_out").value

@@ -23,9 +23,30 @@ Run modes (ARCHITECTURE.md, "Time")
     arrived before its period starts, else the period runs with zero force and the command is
     counted late. This is how a rig behaves.
 
-A command is rejected (counted, reported, never applied) if its period has already started,
-its arrays have the wrong length, or it holds a non-finite value; forces beyond
+A command is rejected (counted, reported, never applied) if its period has already started
+(``late``), if it is malformed (:func:`amb_tools.conversions.check_command`: sizes, indices,
+non-finite force), if it repeats a period already commanded (the first is kept), if it is
+stamped after the last published sample or based on a period not yet measured (from the
+future), or if it targets a period more than ``delay_periods + 16`` periods ahead (nothing
+sane computes that far ahead; it would only fill memory). Forces beyond
 ``wavelet_force_limit`` are clipped to it and counted.
+
+Command watchdog
+----------------
+A period with no command runs with zero wavelet force (the rotor stays on the PID) and its
+samples carry ``STATUS_COMMAND_MISSING``. In lockstep the first missing command costs
+``command_timeout`` wall seconds; the plant then declares the controller lost
+(``STATUS_WATCHDOG`` on every sample, ``controller_lost`` on ``/diagnostics``) and, until a
+valid command arrives again, waits at most one period of real time for each command, i.e. it
+runs on PID at the real-time pace. The first valid command ends the watchdog: lockstep resumes
+from its target period without a restart of either node.
+
+Run-time parameters
+-------------------
+``command_timeout``, ``wavelet_force_limit`` (0 < limit <= the rig's bearing capacity),
+``time_scale`` and ``status_period`` may be set at run time; the on-set callback refuses an
+invalid value with the reason (the old value stays) and an accepted one is applied at the next
+period boundary. Every other parameter is read-only (rclpy's refusal names it).
 
 The run lasts a whole number of control periods, ``round(duration * fs / N)`` (the in-process
 runner ``amb-sim`` runs the same). When it is over the node waits until every subscriber has
@@ -44,7 +65,12 @@ import yaml
 from amb_msgs.msg import ControlCommand, Measurement
 from amb_msgs.srv import InjectFault
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+from rcl_interfaces.msg import (
+    FloatingPointRange,
+    IntegerRange,
+    ParameterDescriptor,
+    SetParametersResult,
+)
 from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -54,12 +80,22 @@ from amb_plant_sim.errors import RigError, ScenarioError, SimulationError
 from amb_plant_sim.rig import load_rig
 from amb_plant_sim.scenario import load_scenario
 from amb_plant_sim.simulator import MeasurementBlock, PlantSimulator
-from amb_tools.conversions import NUM_AXES, from_float_array, measurement_msgs
+from amb_tools.conversions import (
+    NUM_AXES,
+    MessageError,
+    check_command,
+    measurement_msgs,
+    stamp_seconds,
+)
 from amb_tools.node_main import ConfigurationError, run_node
 from amb_tools.paths import config_file
 from amb_wavelet.node import stream_qos
 
 MODES = ("lockstep", "realtime")
+#: Commands may target at most this many periods beyond ``next period + delay_periods``.
+COMMAND_HORIZON_PERIODS = 16
+#: Parameters settable at run time (applied at the next period boundary).
+RUNTIME_PARAMETERS = ("command_timeout", "wavelet_force_limit", "time_scale", "status_period")
 COMMAND_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST, depth=16, reliability=ReliabilityPolicy.RELIABLE
 )
@@ -104,6 +140,7 @@ class PlantSimNode(Node):
             5.0,
             _descriptor(
                 "lockstep: wall s to wait for a command before running the period without it",
+                read_only=False,
                 floats=(0.01, 600.0),
             ),
         )
@@ -115,11 +152,17 @@ class PlantSimNode(Node):
             ),
         )
         d("startup_timeout", 30.0, _descriptor("wall s to wait for them", floats=(0.0, 600.0)))
-        d("time_scale", 1.0, _descriptor("realtime: simulated s per wall s", floats=(0.01, 100.0)))
+        d(
+            "time_scale",
+            1.0,
+            _descriptor("realtime: simulated s per wall s", read_only=False, floats=(0.01, 100.0)),
+        )
         d(
             "wavelet_force_limit",
             0.0,
-            _descriptor("N per axis (0 = the rig's bearing capacity)", floats=(0.0, 1.0e5)),
+            _descriptor(
+                "N per axis (0 = the rig's bearing capacity)", read_only=False, floats=(0.0, 1.0e5)
+            ),
         )
         d("seed", 0, _descriptor("noise seed", ints=(0, 2**31 - 1)))
         d("exit_at_end", True, _descriptor("exit when the scenario duration is reached"))
@@ -139,14 +182,31 @@ class PlantSimNode(Node):
             ControlCommand, "/amb/control/command", self._on_command, COMMAND_QOS
         )
         self.create_service(InjectFault, "/amb/plant/inject_fault", self._on_inject)
-        self.create_timer(self.get_parameter("status_period").value, self._publish_status)
+        self._status_timer = self.create_timer(
+            self.get_parameter("status_period").value, self._publish_status
+        )
         self._timer = self.create_timer(0.002, self._tick)
         self._commands: dict[int, np.ndarray] = {}
         self._period_end_wall: dict[int, float] = {}
         self._latency: deque[float] = deque(maxlen=100_000)
         self.counts = dict.fromkeys(
-            ("applied", "missing", "late", "rejected", "clipped", "saturated_samples"), 0
+            (
+                "applied",
+                "missing",
+                "late",
+                "rejected",
+                "clipped",
+                "saturated_samples",
+                "watchdog_trips",
+                "parameter_changes",
+            ),
+            0,
         )
+        self._controller_lost = False
+        self._resume_from = 0
+        self._last_stamp = -1.0
+        self._pending_parameters: dict[str, float] = {}
+        self.add_on_set_parameters_callback(self._on_set_parameters)
         self._last_reason = ""
         self._started = False
         self._startup_deadline = time.monotonic() + self.get_parameter("startup_timeout").value
@@ -223,37 +283,90 @@ class PlantSimNode(Node):
         k = msg.period_index
         next_period = self._sim.sample_index // self._N
         reason = None
+        f = None
         if k < next_period:
             self.counts["late"] += 1
             reason = f"command for period {k} arrived after it started (now {next_period})"
-        elif msg.samples_per_period != self._N or msg.start_sample_index != k * self._N:
-            reason = (
-                f"command for period {k}: samples_per_period {msg.samples_per_period} / start "
-                f"{msg.start_sample_index}, expected {self._N} / {k * self._N}"
-            )
         else:
-            force = from_float_array(msg.force)
-            if force.size != NUM_AXES * self._N:
-                expected = NUM_AXES * self._N
-                reason = f"command for period {k}: {force.size} force values, expected {expected}"
-            elif not np.all(np.isfinite(force)):
-                reason = f"command for period {k}: non-finite force"
+            try:
+                f = check_command(msg, self._N)  # (N, 4) N
+            except MessageError as exc:
+                reason = str(exc)
+            if reason is None:
+                horizon = next_period + self._delay + COMMAND_HORIZON_PERIODS
+                measured = next_period - 1  # the plant publishes whole periods
+                t = stamp_seconds(msg.header.stamp)
+                if k in self._commands:
+                    reason = f"command for period {k} repeated: the first one is kept"
+                elif k > horizon:
+                    reason = f"command for period {k}: more than {horizon} is not plausible"
+                elif msg.based_on_period > measured:
+                    reason = (
+                        f"command for period {k} based on period {msg.based_on_period}, "
+                        f"only {measured} measured: from the future"
+                    )
+                elif t > self._last_stamp + 1e-9:
+                    reason = (
+                        f"command for period {k} stamped {t:.6f} s, after the last sample "
+                        f"({self._last_stamp:.6f} s): from the future"
+                    )
         if reason is not None:
             if k >= next_period:
                 self.counts["rejected"] += 1
             self._last_reason = reason
             self.get_logger().warning(reason, throttle_duration_sec=2.0)
             return
-        f = force.reshape(NUM_AXES, self._N).T  # (N, 4), axis-major in the message
         if np.any(np.abs(f) > self._force_limit):
             self.counts["clipped"] += 1
             f = np.clip(f, -self._force_limit, self._force_limit)
         self._commands[k] = f
+        if self._controller_lost:
+            self._controller_lost = False
+            self._resume_from = k
+            self._last_reason = f"commands resumed with period {k}: lockstep from there"
+            self.get_logger().info(self._last_reason)
         sent = self._period_end_wall.get(msg.based_on_period)
         if sent is not None:
             self._latency.append(time.monotonic() - sent)
         if self._mode == "lockstep":
             self._tick()
+
+    # ------------------------------------------------------------------ run-time parameters
+    def _on_set_parameters(self, params) -> SetParametersResult:
+        """Validate run-time changes (the old value stays on refusal); apply at a boundary."""
+        changes = {}
+        for param in params:
+            if param.name not in RUNTIME_PARAMETERS:
+                continue  # read-only ones never get here (rclpy refuses them, naming them)
+            value = param.value
+            if param.name == "wavelet_force_limit":
+                capacity = self._sim.rig.amb.force_limit
+                if not (isinstance(value, float) and 0.0 <= value <= capacity):
+                    return SetParametersResult(
+                        successful=False,
+                        reason=f"parameter 'wavelet_force_limit' = {value!r} N: expected "
+                        f"0 (= capacity) .. {capacity} N, the bearing capacity (rig file "
+                        "amb.force_limit)",
+                    )
+                value = value or capacity
+            changes[param.name] = value
+        if "status_period" in changes:
+            self._status_timer.cancel()
+            self._status_timer = self.create_timer(
+                changes.pop("status_period"), self._publish_status
+            )
+        self._pending_parameters.update(changes)
+        return SetParametersResult(successful=True)
+
+    def _apply_parameters(self) -> None:
+        changes, self._pending_parameters = self._pending_parameters, {}
+        if "command_timeout" in changes:
+            self._timeout = changes["command_timeout"]
+        if "wavelet_force_limit" in changes:
+            self._force_limit = changes["wavelet_force_limit"]
+        self.counts["parameter_changes"] += len(changes)
+        if changes:
+            self.get_logger().info(f"applied at sample {self._sim.sample_index}: {changes}")
 
     # ------------------------------------------------------------------ stepping
     def _tick(self) -> None:
@@ -289,17 +402,25 @@ class PlantSimNode(Node):
                 self._finish()
                 return
             k = self._sim.sample_index // self._N
-            if k >= self._delay and k not in self._commands:
+            if k >= max(self._delay, self._resume_from) and k not in self._commands:
                 now = time.monotonic()
                 if self._waiting_since is None:
                     self._waiting_since = now
-                if now - self._waiting_since < self._timeout:
+                wait = self._timeout
+                if self._controller_lost:  # PID at the real-time pace until commands return
+                    wait = min(wait, self._N / self._sim.fs)
+                if now - self._waiting_since < wait:
                     return
                 self.counts["missing"] += 1
-                self._last_reason = (
-                    f"no command for period {k} within {self._timeout} s: zero force"
-                )
-                self.get_logger().warning(self._last_reason, throttle_duration_sec=2.0)
+                if not self._controller_lost:
+                    self._controller_lost = True
+                    self.counts["watchdog_trips"] += 1
+                    self._last_reason = (
+                        f"no command for period {k} within {self._timeout} s: controller lost, "
+                        "zero wavelet force (PID only) until commands return"
+                    )
+                    self.get_logger().warning(self._last_reason)
+                    self._publish_status()
             self._waiting_since = None
             self._run_period(k)
 
@@ -311,6 +432,8 @@ class PlantSimNode(Node):
             self._finish()
 
     def _run_period(self, k: int) -> None:
+        if self._pending_parameters and self._sim.sample_index % self._N == 0:
+            self._apply_parameters()
         n0 = self._sim.sample_index
         n = min(self._N - n0 % self._N, max(self._remaining(), 1))
         force = self._commands.pop(k, None)
@@ -321,6 +444,11 @@ class PlantSimNode(Node):
                 status |= Measurement.STATUS_COMMAND_MISSING
                 if self._mode == "realtime":
                     self.counts["missing"] += 1
+                    if not self._controller_lost:
+                        self._controller_lost = True
+                        self.counts["watchdog_trips"] += 1
+            if self._controller_lost:
+                status |= Measurement.STATUS_WATCHDOG
         else:
             wf = force[n0 % self._N : n0 % self._N + n]
             self.counts["applied"] += 1
@@ -338,6 +466,7 @@ class PlantSimNode(Node):
             if m.sample_index % self._clock_every == 0:
                 self._clock_pub.publish(Clock(clock=m.header.stamp))
         last = int(block.sample_index[-1])
+        self._last_stamp = float(block.time[-1])
         if last % self._N == self._N - 1:  # a period's last sample is out: latency starts
             self._period_end_wall[last // self._N] = time.monotonic()
             self._period_end_wall.pop(last // self._N - 64, None)
@@ -408,11 +537,15 @@ class PlantSimNode(Node):
         level = DiagnosticStatus.OK
         if self.counts["missing"] or self.counts["late"] or self.counts["rejected"]:
             level = DiagnosticStatus.WARN
+        if self._controller_lost:
+            level = DiagnosticStatus.ERROR
         values = {
             "time": f"{self._sim.time:.6f}",
             "sample_index": self._sim.sample_index,
             "speed_hz": f"{self._sim.omega / (2 * math.pi):.4f}",
             "done": self.done or self._remaining() <= 0,
+            "controller_lost": self._controller_lost,
+            "callback_errors": getattr(self, "callback_errors", 0),
             **self.counts,
         }
         status = DiagnosticStatus(

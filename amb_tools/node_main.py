@@ -8,12 +8,19 @@ A node that has finished its work (a simulator at the end of its scenario) sets 
 and the process exits with status 0.
 A node whose constructor raises :class:`ConfigurationError` (invalid parameter or file) makes the
 process exit with status 2 and the reason on stderr.
+
+Once running, a node never dies of one bad callback: an exception escaping a callback (a bug, or
+an input no check foresaw) is logged with its traceback (throttled), counted in the node's
+``callback_errors`` attribute (the nodes report it on ``/diagnostics``) and spinning goes on.
+Every input the nodes know to be invalid is rejected before it gets that far; this is the last
+line, so that a peer's garbage never takes the rotor's control loop down.
 """
 
 from __future__ import annotations
 
 import signal
 import sys
+import traceback
 from collections.abc import Callable, Sequence
 from types import FrameType
 
@@ -65,8 +72,19 @@ def run_node(
             return EXIT_CONFIGURATION_ERROR
         executor = SingleThreadedExecutor()
         executor.add_node(node)
+        node.callback_errors = 0
         while not stop and rclpy.ok() and not getattr(node, "done", False):
-            executor.spin_once(timeout_sec=spin_timeout)
+            try:
+                executor.spin_once(timeout_sec=spin_timeout)
+            except (KeyboardInterrupt, ExternalShutdownException):
+                raise
+            except Exception:
+                node.callback_errors += 1
+                node.get_logger().error(
+                    f"callback error #{node.callback_errors} (node keeps running):\n"
+                    + traceback.format_exc(),
+                    throttle_duration_sec=5.0,
+                )
         return 0
     except (KeyboardInterrupt, ExternalShutdownException):
         return 0

@@ -7,13 +7,19 @@ eq. 4.12-4.28). Each ``Measurement`` is pushed through both; every coefficient t
 completes is published at once, all of them in one ``WaveletCoefficients`` message with one
 ``CoefficientSet`` per (level, kind, frame, quadrature).
 
-Sample indices must arrive consecutively. A repeated index is dropped; a gap or a step back
-(a lost sample, a restarted plant) resets the filterbank at the new index, so no coefficient
-ever mixes samples from both sides of a discontinuity (start-up coefficients after a reset are
-flagged ``settled = false``). A measurement with a non-finite displacement, angle or speed is
-rejected. All three are counted and reported on ``/diagnostics``.
+Every measurement is validated first (:func:`amb_tools.conversions.check_measurement`: array
+lengths, finite values, ``rotor_speed`` > 0, ``rotor_angle`` in [0, 2 pi), the configured
+``samples_per_rev``) and then sequenced (:class:`amb_tools.conversions.SampleSequencer`):
+a repeated index is dropped; a stamp that goes back or lies impossibly far ahead of the
+sample interval is rejected; a jump or a step back is held until the next sample confirms
+it. A confirmed gap or restart (a lost sample, a restarted plant) resets the filterbank at
+the new index, so no coefficient ever mixes samples from both sides of a discontinuity
+(start-up coefficients after a reset are flagged ``settled = false``); an unconfirmed one
+is a stray message and is dropped. Everything rejected is counted by reason and reported on
+``/diagnostics``; nothing rejected reaches the filterbank.
 
-Parameters are read-only (they fix the structure of the filterbank); see ``declare``.
+Structural parameters are read-only (they fix the filterbank); only ``status_period`` may be
+set at run time (it is validated by the on-set callback and applied to the report timer).
 """
 
 from __future__ import annotations
@@ -23,11 +29,22 @@ import math
 import numpy as np
 from amb_msgs.msg import CoefficientSet, Measurement, WaveletCoefficients
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+from rcl_interfaces.msg import (
+    FloatingPointRange,
+    IntegerRange,
+    ParameterDescriptor,
+    SetParametersResult,
+)
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-from amb_tools.conversions import coefficients_msg
+from amb_tools.conversions import (
+    MessageError,
+    SampleSequencer,
+    check_measurement,
+    coefficients_msg,
+    stamp_seconds,
+)
 from amb_tools.node_main import ConfigurationError, run_node
 from amb_wavelet.analysis import AnalysisFilterbank
 from amb_wavelet.errors import LevelError, WaveletNameError
@@ -112,9 +129,12 @@ class WaveletFilterbankNode(Node):
         self._pub = self.create_publisher(WaveletCoefficients, "/amb/wavelet/coefficients", qos)
         self._diag = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self.create_subscription(Measurement, "/amb/measurement", self._on_measurement, qos)
-        self.create_timer(self.get_parameter("status_period").value, self._publish_status)
-        self.samples = self.published = self.gaps = self.repeats = self.rejected = 0
+        self._status_timer = self.create_timer(
+            self.get_parameter("status_period").value, self._publish_status
+        )
+        self.samples = self.published = self.rejected = 0
         self._last_reason = ""
+        self.add_on_set_parameters_callback(self._on_set_parameters)
         self.get_logger().info(
             f"{self._wavelet}, {self._levels} levels, frames {self._frames}, "
             f"quadrature {self._quad}, {self._spr} samples/rev"
@@ -153,7 +173,33 @@ class WaveletFilterbankNode(Node):
         self._quad = tuple(q for q in QUADRATURES if q in self._quad)
         self._bank = AnalysisFilterbank(self._wavelet, self._levels, self._front.n_channels)
         self._slots = [(FRAME_CODES[f], QUAD_CODES[q]) for f in self._frames for q in self._quad]
-        self._expected: int | None = None
+        self._sequencer = SampleSequencer(self._spr)
+
+    def _on_set_parameters(self, params) -> SetParametersResult:
+        """Run-time changes: only ``status_period`` (read-only ones are refused by rclpy)."""
+        for param in params:
+            if param.name == "status_period":
+                value = param.value
+                if not (isinstance(value, float) and math.isfinite(value) and 0.05 <= value):
+                    return SetParametersResult(
+                        successful=False,
+                        reason=f"parameter 'status_period' = {value!r}: expected 0.05..60.0 s",
+                    )
+        for param in params:
+            if param.name == "status_period":
+                self._status_timer.cancel()
+                self._status_timer = self.create_timer(param.value, self._publish_status)
+        return SetParametersResult(successful=True)
+
+    @property
+    def gaps(self) -> int:
+        """Confirmed discontinuities (gaps and restarts) that reset the filterbank."""
+        return self._sequencer.counts["gap"] + self._sequencer.counts["restart"]
+
+    @property
+    def repeats(self) -> int:
+        """Repeated sample indices dropped."""
+        return self._sequencer.counts["repeat"]
 
     def _reject(self, reason: str) -> None:
         self.rejected += 1
@@ -161,29 +207,36 @@ class WaveletFilterbankNode(Node):
         self.get_logger().warning(reason, throttle_duration_sec=5.0)
 
     def _on_measurement(self, msg: Measurement) -> None:
-        xy = msg.displacement
-        if not (np.all(np.isfinite(xy)) and math.isfinite(msg.rotor_angle)):
-            self._reject(f"sample {msg.sample_index}: non-finite displacement or angle, dropped")
+        try:
+            check_measurement(msg, self._spr)
+        except MessageError as exc:
+            self._reject(f"sample {msg.sample_index}: {exc}; dropped")
             return
-        index = msg.sample_index
-        if self._expected is not None and index != self._expected:
-            if index == self._expected - 1:
-                self.repeats += 1
-                self._last_reason = f"sample {index} repeated, dropped"
-                return
-            self.gaps += 1
-            self._last_reason = (
-                f"sample {index} after {self._expected - 1}: filterbank reset at {index}"
-            )
-            self.get_logger().warning(self._last_reason, throttle_duration_sec=5.0)
-            self._expected = None
-        if self._expected is None:
+        before = dict(self._sequencer.counts)
+        accepted = self._sequencer.push(
+            int(msg.sample_index), stamp_seconds(msg.header.stamp), msg.rotor_speed, msg
+        )
+        if self._sequencer.counts != before:
+            self._last_reason = self._sequencer.last_reason
+            if any(self._sequencer.counts[k] != before[k] for k in ("stray", "stamp")):
+                self.get_logger().warning(self._last_reason, throttle_duration_sec=5.0)
+        for reset, m in accepted:
+            self._step(m, reset)
+
+    def _step(self, msg: Measurement, reset: bool) -> None:
+        index = int(msg.sample_index)
+        xy = msg.displacement
+        if reset:
             self._front.reset()
             self._bank.reset(start_sample_index=index)
-        self._expected = index + 1
         self.samples += 1
         coefficients = self._bank.step(self._front.step(xy, msg.rotor_angle), index)
         if not coefficients:
+            return
+        if not all(np.all(np.isfinite(c.values)) for c in coefficients):
+            # cannot happen for bounded, finite inputs; never publish it, restart the filters
+            self._reject(f"sample {index}: non-finite coefficient computed; filterbank reset")
+            self._sequencer.reset()
             return
         out = coefficients_msg(
             msg.header,
@@ -200,7 +253,8 @@ class WaveletFilterbankNode(Node):
 
     def _publish_status(self) -> None:
         level = DiagnosticStatus.OK
-        if self.rejected or self.gaps:
+        counts = self._sequencer.counts
+        if self.rejected or self.gaps or counts["stray"] or counts["stamp"]:
             level = DiagnosticStatus.WARN
         values = {
             "samples": self.samples,
@@ -208,6 +262,10 @@ class WaveletFilterbankNode(Node):
             "gaps_reset": self.gaps,
             "repeats_dropped": self.repeats,
             "rejected": self.rejected,
+            "stray_dropped": counts["stray"],
+            "stamp_rejected": counts["stamp"],
+            "restarts": counts["restart"],
+            "callback_errors": getattr(self, "callback_errors", 0),
             "wavelet": self._wavelet,
             "levels": self._levels,
         }

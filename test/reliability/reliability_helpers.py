@@ -1,0 +1,56 @@
+"""Shared pieces of the reliability tests: diagnostics collection, parameter calls."""
+
+from __future__ import annotations
+
+from diagnostic_msgs.msg import DiagnosticArray
+
+
+class Diagnostics:
+    """Latest ``/diagnostics`` key/values and message per status name."""
+
+    def __init__(self, node) -> None:
+        self.values: dict[str, dict[str, str]] = {}
+        self.messages: dict[str, str] = {}
+        self.levels: dict[str, int] = {}
+        node.create_subscription(DiagnosticArray, "/diagnostics", self._on, 50)
+
+    def _on(self, msg: DiagnosticArray) -> None:
+        for s in msg.status:
+            self.values[s.name] = {kv.key: kv.value for kv in s.values}
+            self.messages[s.name] = s.message
+            self.levels[s.name] = int.from_bytes(s.level) if isinstance(s.level, bytes) else s.level
+
+    def get(self, name: str, key: str, default: str = "") -> str:
+        return self.values.get(name, {}).get(key, default)
+
+    def number(self, name: str, key: str) -> int:
+        return int(self.get(name, key, "0"))
+
+
+
+
+def set_parameters(ros, node, target: str, params: dict):
+    """Call ``/<target>/set_parameters``; return the list of ``SetParametersResult``."""
+    from rcl_interfaces.srv import SetParameters
+    from rclpy.parameter import Parameter
+
+    client = node.create_client(SetParameters, f"/{target}/set_parameters")
+    assert client.wait_for_service(timeout_sec=20.0), f"/{target}/set_parameters not available"
+    request = SetParameters.Request(
+        parameters=[Parameter(k, value=v).to_parameter_msg() for k, v in params.items()]
+    )
+    future = client.call_async(request)
+    assert ros.spin_until(future.done, 20.0)
+    return future.result().results
+
+
+def get_parameter(ros, node, target: str, name: str):
+    """Call ``/<target>/get_parameters`` for one name; return its Python value."""
+    from rcl_interfaces.srv import GetParameters
+    from rclpy.parameter import parameter_value_to_python
+
+    client = node.create_client(GetParameters, f"/{target}/get_parameters")
+    assert client.wait_for_service(timeout_sec=20.0)
+    future = client.call_async(GetParameters.Request(names=[name]))
+    assert ros.spin_until(future.done, 20.0)
+    return parameter_value_to_python(future.result().values[0])

@@ -1,0 +1,297 @@
+"""Property tests over real DDS: random and garbled messages never stop a node or leak a NaN.
+
+Each test starts the node as its own process (as ``ros2 run``), throws hypothesis-generated
+messages at it (typed messages with random indices, stamps, sizes, NaN/inf/huge values, and
+raw CDR bytes truncated or corrupted, published with ``publish(bytes)``), then checks that the
+process is still running, that every message it published is finite (and, for forces, within
+the force limit), that ``/diagnostics`` counts the rejections with no callback error, and that
+a valid stream afterwards is processed normally (the node recovered without a restart).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import yaml
+from amb_msgs.msg import ControlCommand, Measurement, WaveletCoefficients
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.serialization import serialize_message
+from reliability_helpers import Diagnostics
+
+from amb_tools.conversions import coefficients_msg, from_float_array, to_float_array
+from amb_wavelet.analysis import AnalysisFilterbank
+from amb_wavelet.frontend import FRAMES, QUADRATURES, ChannelFrontEnd
+from amb_wavelet.node import FRAME_CODES, QUAD_CODES, stream_qos
+
+pytestmark = pytest.mark.ros
+
+SPR = 16
+HZ = 20.0
+OMEGA = 2 * math.pi * HZ
+COMMAND_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST, depth=16, reliability=ReliabilityPolicy.RELIABLE
+)
+EXAMPLES = 25
+FUZZ = settings(
+    max_examples=EXAMPLES,
+    deadline=None,
+    suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow],
+    database=None,
+)
+
+any_float = st.floats(allow_nan=True, allow_infinity=True)
+small_float = st.floats(-1e-3, 1e-3)
+index = st.one_of(st.integers(0, 2**63 - 1), st.integers(0, 4 * SPR))
+
+
+@st.composite
+def measurements(draw) -> Measurement:
+    m = Measurement(sample_index=draw(index))
+    m.samples_per_rev = draw(st.sampled_from([SPR, SPR, 0, 7, 2**32 - 1]))
+    m.rotor_angle = draw(st.one_of(st.floats(0.0, 6.28), any_float))
+    m.rotor_speed = draw(st.one_of(st.just(OMEGA), any_float))
+    m.displacement = np.array(
+        draw(st.lists(st.one_of(small_float, any_float), min_size=8, max_size=8))
+    )
+    m.current = np.array(draw(st.lists(st.one_of(small_float, any_float), min_size=4, max_size=4)))
+    m.header.stamp.sec = draw(st.integers(0, 2**31 - 1))
+    m.header.stamp.nanosec = draw(st.integers(0, 999_999_999))
+    return m
+
+
+def garble(data: bytes, how: int, where: int, byte: int) -> bytes:
+    """Truncate, corrupt one byte, or append garbage to serialized bytes."""
+    where %= max(len(data), 1)
+    if how == 0:
+        return data[:where]
+    if how == 1:
+        return data[:where] + bytes([byte]) + data[where + 1 :]
+    return data + bytes([byte]) * where
+
+
+garbling = st.tuples(st.integers(0, 2), st.integers(0, 10_000), st.integers(0, 255))
+
+
+def valid_stream(first: int, n: int, wavelet: str = "haar", levels: int = 5):
+    """Measurements (with stamps n / fs) and the filterbank's coefficient messages."""
+    front = ChannelFrontEnd(SPR)
+    bank = AnalysisFilterbank(wavelet, levels, front.n_channels)
+    bank.reset(start_sample_index=first)
+    slots = [(FRAME_CODES[f], QUAD_CODES[q]) for f in FRAMES for q in QUADRATURES]
+    fs = SPR * HZ
+    out = []
+    for i in range(first, first + n):
+        angle = 2 * np.pi * (i % SPR) / SPR
+        m = Measurement(sample_index=i, samples_per_rev=SPR, rotor_angle=angle, rotor_speed=OMEGA)
+        m.displacement = 1e-5 * np.array([np.cos(angle + c) for c in range(8)])
+        ns = round(i / fs * 1e9)
+        m.header.stamp.sec, m.header.stamp.nanosec = divmod(ns, 1_000_000_000)
+        records = bank.step(front.step(m.displacement, angle), i)
+        c = None
+        if records:
+            c = coefficients_msg(m.header, wavelet, SPR, SPR, i, m.rotor_speed, records, slots)
+        out.append((m, c))
+    return out
+
+
+def _all_finite_coefficients(msgs) -> bool:
+    return all(np.all(np.isfinite(from_float_array(s.values))) for c in msgs for s in c.sets)
+
+
+def test_filterbank_survives_random_and_garbled_measurements(ros, node_process) -> None:
+    fb = node_process(
+        "wavelet_filterbank", params={"samples_per_rev": SPR, "levels": 5, "status_period": 0.1}
+    )
+    node = ros.node("amb_fuzz_fb")
+    qos = stream_qos(SPR)
+    pub = node.create_publisher(Measurement, "/amb/measurement", qos)
+    got: list[WaveletCoefficients] = []
+    node.create_subscription(WaveletCoefficients, "/amb/wavelet/coefficients", got.append, qos)
+    diag = Diagnostics(node)
+    assert ros.spin_until(lambda: pub.get_subscription_count() > 0, 30.0), fb.log()
+    sent = {"typed": 0, "raw": 0}
+
+    @FUZZ
+    @given(
+        batch=st.lists(measurements(), min_size=1, max_size=8), raw=st.lists(garbling, max_size=3)
+    )
+    def throw(batch, raw) -> None:
+        for m in batch:
+            pub.publish(m)
+            sent["typed"] += 1
+        for how, where, byte in raw:
+            pub.publish(garble(serialize_message(batch[0]), how, where, byte))
+            sent["raw"] += 1
+        ros.spin_for(0.02)
+
+    throw()
+    stream = valid_stream(10_000, 4 * SPR)
+    for m, _ in stream:
+        pub.publish(m)
+    last = stream[-1][0].sample_index
+    assert ros.spin_until(lambda: any(c.sample_index == last for c in got), 20.0), (
+        diag.values,
+        fb.returncode,
+        fb.log(),
+    )
+    ros.spin_for(0.3)
+    assert fb.returncode is None, fb.log()
+    assert _all_finite_coefficients(got)
+    rejected = sum(
+        diag.number("wavelet_filterbank", k)
+        for k in ("rejected", "stray_dropped", "stamp_rejected", "repeats_dropped")
+    )
+    assert rejected > 0, diag.values
+    assert diag.get("wavelet_filterbank", "callback_errors") == "0", fb.log()
+    # the valid stream after the garbage: coefficients for its odd samples, from a reset
+    mine = [c for c in got if 10_000 <= c.sample_index <= last]
+    assert [c.sample_index for c in mine] == list(range(10_001, last + 1, 2))
+
+
+@st.composite
+def commands(draw) -> ControlCommand:
+    k = draw(st.one_of(st.integers(-5, 60), st.integers(-(2**63), 2**63 - 1)))
+    c = ControlCommand(period_index=k)
+    c.samples_per_period = draw(st.sampled_from([SPR, SPR, SPR, 0, 3]))
+    start = k * SPR if -(2**63) <= k * SPR < 2**64 and k >= 0 else 0
+    c.start_sample_index = draw(st.sampled_from([start, start, 0, 5]))
+    c.based_on_period = draw(st.integers(0, 2**64 - 1) | st.integers(0, 60))
+    size = draw(st.sampled_from([4 * SPR, 4 * SPR, 0, 4 * SPR - 1, 4 * SPR + 3]))
+    values = draw(
+        st.lists(st.one_of(st.floats(-5e3, 5e3), any_float), min_size=size, max_size=size)
+    )
+    c.force = to_float_array(np.array(values, dtype=float))
+    c.header.stamp.sec = draw(st.integers(0, 2) | st.integers(0, 2**31 - 1))
+    return c
+
+
+def test_plant_survives_random_and_garbled_commands(ros, node_process, tmp_path) -> None:
+    scenario = tmp_path / "scenario.yaml"
+    scenario.write_text(
+        yaml.safe_dump(
+            {
+                "name": "fuzz",
+                "speed": {"hz": HZ},
+                "duration": 3.0,
+                "events": [{"kind": "unbalance", "time": 0.0, "disk": "D1", "me": 1.0e-3}],
+            }
+        )
+    )
+    plant = node_process(
+        "plant_sim",
+        params={
+            "scenario_file": str(scenario),
+            "samples_per_rev": SPR,
+            "command_timeout": 0.05,
+            "status_period": 0.1,
+        },
+    )
+    node = ros.node("amb_fuzz_plant")
+    pub = node.create_publisher(ControlCommand, "/amb/control/command", COMMAND_QOS)
+    samples: list[Measurement] = []
+    node.create_subscription(Measurement, "/amb/measurement", samples.append, stream_qos(SPR))
+    diag = Diagnostics(node)
+    assert ros.spin_until(lambda: len(samples) > 0, 30.0), plant.log()
+
+    @FUZZ
+    @given(batch=st.lists(commands(), min_size=1, max_size=6), raw=st.lists(garbling, max_size=3))
+    def throw(batch, raw) -> None:
+        for c in batch:
+            pub.publish(c)
+        for how, where, byte in raw:
+            pub.publish(garble(serialize_message(batch[0]), how, where, byte))
+        ros.spin_for(0.02)
+
+    throw()
+    assert plant.wait(60) == 0, plant.log()
+    ros.spin_for(0.3)
+    n = round(3.0 * HZ) * SPR
+    assert [m.sample_index for m in samples] == list(range(n)), "samples lost or repeated"
+    limit = 1000.0  # rig amb.force_limit (the default wavelet_force_limit)
+    for m in samples:
+        assert np.all(np.isfinite(m.displacement)) and np.all(np.isfinite(m.wavelet_force))
+        assert np.all(np.abs(m.wavelet_force) <= limit)
+    assert np.max(np.abs([m.displacement for m in samples])) < 0.5e-3
+    assert diag.number("plant_sim", "rejected") + diag.number("plant_sim", "late") > 0
+    assert diag.get("plant_sim", "callback_errors") == "0", plant.log()
+
+
+@st.composite
+def coefficient_messages(draw) -> WaveletCoefficients:
+    (_m, c) = valid_stream(draw(st.integers(0, 3)) * 2 + 1, 1)[0]
+    c = c or WaveletCoefficients()
+    c.sample_index = draw(index)
+    c.wavelet = draw(st.sampled_from(["haar", "haar", "db2", ""]))
+    c.samples_per_rev = draw(st.sampled_from([SPR, SPR, 8]))
+    for s in c.sets:
+        size = draw(st.sampled_from([8, 8, 8, 0, 9]))
+        s.values = to_float_array(
+            np.array(
+                draw(st.lists(st.one_of(small_float, any_float), min_size=size, max_size=size))
+            )
+        )
+        s.level = draw(st.sampled_from([s.level, s.level, 0, 9, 255]))
+        s.translation_index = draw(st.sampled_from([s.translation_index, 2**62, -3]))
+    return c
+
+
+def test_controller_survives_random_measurements_and_coefficients(ros, node_process) -> None:
+    ctrl = node_process(
+        "wavelet_controller",
+        params={"samples_per_rev": SPR, "coefficient_timeout": 0.2, "status_period": 0.1},
+    )
+    node = ros.node("amb_fuzz_ctrl")
+    qos = stream_qos(SPR)
+    pm = node.create_publisher(Measurement, "/amb/measurement", qos)
+    pc = node.create_publisher(WaveletCoefficients, "/amb/wavelet/coefficients", qos)
+    got: list[ControlCommand] = []
+    node.create_subscription(ControlCommand, "/amb/control/command", got.append, COMMAND_QOS)
+    diag = Diagnostics(node)
+    assert ros.spin_until(
+        lambda: pm.get_subscription_count() and pc.get_subscription_count(), 30.0
+    ), ctrl.log()
+
+    @FUZZ
+    @given(
+        ms=st.lists(measurements(), max_size=6),
+        cs=st.lists(coefficient_messages(), max_size=4),
+        raw=st.lists(garbling, max_size=2),
+    )
+    def throw(ms, cs, raw) -> None:
+        for m in ms:
+            pm.publish(m)
+        for c in cs:
+            pc.publish(c)
+        for how, where, byte in raw:
+            pc.publish(
+                garble(serialize_message(WaveletCoefficients(wavelet="haar")), how, where, byte)
+            )
+        ros.spin_for(0.02)
+
+    throw()
+    ros.spin_for(0.5)
+    before = len(got)
+    first = 1_000_000 * SPR
+    for m, c in valid_stream(first, 6 * SPR):
+        if c is not None:
+            pc.publish(c)
+        pm.publish(m)
+    assert ros.spin_until(
+        lambda: any(c.based_on_period == first // SPR + 5 for c in got[before:]), 20.0
+    ), (diag.values, ctrl.log())
+    ros.spin_for(0.3)
+    assert ctrl.returncode is None, ctrl.log()
+    for c in got:
+        f = from_float_array(c.force)
+        assert np.all(np.isfinite(f)) and np.all(np.abs(f) <= 1000.0)
+    based = [c.based_on_period for c in got[before:] if c.based_on_period >= first // SPR]
+    assert based == list(range(first // SPR, first // SPR + 6)), based
+    rejected = diag.number("wavelet_controller", "measurements_rejected") + diag.number(
+        "wavelet_controller", "coefficients_rejected"
+    )
+    assert rejected > 0, diag.values
+    assert diag.get("wavelet_controller", "callback_errors") == "0", ctrl.log()
