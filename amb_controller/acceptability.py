@@ -120,7 +120,8 @@ def envelope_growth(phasor: np.ndarray) -> tuple[float, bool]:
     1 x phasors (zero for a steady state and for a prescribed linear ramp, so a slow but
     intended decay is not taken for growth), the response has converged if the largest
     ``s`` of the last ``WINDOW`` periods is at most ``NOISE_FRACTION`` of the largest ``s``;
-    otherwise ``log s_k`` is fitted by a straight line from the largest ``s`` to the end and
+    otherwise ``log s_k`` is fitted by a straight line from the largest ``s`` before the last
+    window to the end and
     ``exp(slope)`` is the envelope ratio per period (a pole modulus estimate).
 
     Parameters
@@ -141,7 +142,7 @@ def envelope_growth(phasor: np.ndarray) -> tuple[float, bool]:
     biggest = float(s.max())
     if biggest == 0.0 or s[-WINDOW:].max() <= NOISE_FRACTION * biggest:
         return 0.0, True
-    tail = s[int(np.argmax(s)) :]
+    tail = s[int(np.argmax(s[: max(1, s.size - WINDOW)])) :]
     if tail.size < WINDOW:
         return 0.0, False
     k = np.arange(tail.size)
