@@ -1,0 +1,122 @@
+"""
+amb-compare pieces: metrics on synthetic runs with known answers, the model perturbation
+against its closed form, the fault-triggered engagement, figure 8.3 for i = 1, timing.
+"""
+
+import math
+from dataclasses import replace
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from amb_controller.baselines import perturb_model
+from amb_controller.compare_cli import command_timing, run_metrics
+from amb_controller.errors import ControllerValueError
+from amb_controller.model_file import WaveletModel
+from amb_controller.stability import exponential_stability_map
+
+SPR = 16
+
+
+def _run(envelope, force=None):
+    """Synthetic RunResult: x2 = envelope[k] cos(theta) per revolution k, fault at rev 2."""
+    n = len(envelope) * SPR
+    theta = 2 * np.pi * np.arange(n) / SPR
+    x = np.zeros((n, 8))
+    x[:, 2] = np.repeat(envelope, SPR) * np.cos(theta)
+    wf = np.zeros((n, 4)) if force is None else force
+    return SimpleNamespace(
+        samples_per_rev=SPR, displacement=x, fault_time=2.0, wavelet_force=wf,
+        contact=np.zeros((n, 1), bool), time=np.arange(n) / SPR,
+    )  # fmt: skip
+
+
+def test_revolutions_to_10_percent_and_peak_of_a_geometric_decay():
+    env = np.concatenate([[0.0, 0.0], 100e-6 * 0.5 ** np.arange(30)])
+    m = run_metrics(_run(env), speed_hz=1.0)
+    assert m["peak"] == pytest.approx(100e-6, rel=1e-12)
+    # 0.5^k > 0.1 for k <= 3: revolutions 0..3 after the fault are above 10 %
+    assert m["revs_to_10"] == 4
+
+
+def test_never_settling_run_reports_not_reached_and_attenuation_in_db():
+    env = np.concatenate([[0.0, 0.0], np.full(30, 50e-6)])
+    m = run_metrics(_run(env), speed_hz=1.0, pid_steady=500e-6)
+    assert m["revs_to_10"] is None
+    assert m["steady_1x"] == pytest.approx(50e-6, rel=1e-9)
+    assert m["attenuation_db"] == pytest.approx(-20.0, abs=1e-9)
+
+
+def test_force_metrics_peak_of_the_bearing_resultant_and_rms_after_fault():
+    n = 10 * SPR
+    f = np.zeros((n, 4))
+    f[2 * SPR :, 0] = 30.0
+    f[2 * SPR :, 1] = 40.0
+    m = run_metrics(_run(np.ones(10) * 1e-6, f), speed_hz=1.0)
+    assert m["peak_force"] == pytest.approx(50.0)
+    assert m["rms_force"] == pytest.approx(math.sqrt((30.0**2 + 40.0**2) / 4))
+
+
+def _pair_model():
+    rng = np.random.default_rng(0)
+    markov = rng.normal(size=(3, 2, 2))
+    return WaveletModel(
+        markov=markov, inverse=np.zeros((1, 2, 2)), wavelet="haar", samples_per_rev=4,
+        omega=1.0, levels=(1,), measured_labels=("p1/q1/even/c2", "p1/q1/odd/c2"),
+        control_labels=("p1/q1/even/c0", "p1/q1/odd/c0"),
+    )  # fmt: skip
+
+
+def test_perturbation_scales_and_rotates_the_measured_phasor():
+    model = _pair_model()
+    out = perturb_model(model, 1.3, math.radians(30), inverse_order=0)
+    y = model.markov[:, 0] - 1j * model.markov[:, 1]
+    y_out = out.markov[:, 0] - 1j * out.markov[:, 1]
+    np.testing.assert_allclose(y_out, 1.3 * np.exp(1j * math.radians(30)) * y, atol=1e-12)
+    # the inverse is rebuilt from the perturbed Markov parameters, not kept from the model
+    from amb_controller.inverse import pseudo_inverse_series
+
+    np.testing.assert_array_equal(out.inverse, pseudo_inverse_series(out.markov, 0))
+    assert not np.allclose(out.inverse, pseudo_inverse_series(model.markov, 0))
+    with pytest.raises(ControllerValueError, match="gain must be > 0"):
+        perturb_model(model, -1.0)
+
+
+def test_figure_8_3_one_period_delay_admits_the_thesis_setting_and_more():
+    # i = 1: characteristic polynomial (z - v) + w (z - 1)^2 = w z^2 + (1 - 2w) z + (w - v);
+    # Jury conditions for a z^2 + b z + c (a > 0): |c| < a, a + b + c > 0, a - b + c > 0.
+    w = np.linspace(0.05, 0.95, 19)
+    v = np.linspace(0.0, 0.95, 20)
+    stable = exponential_stability_map(w, v, 1)
+    ww, vv = np.meshgrid(w, v)
+    a, b, c = ww, 1 - 2 * ww, ww - vv
+    jury = (np.abs(c) < a) & (a + b + c > 0) & (a - b + c > 0)
+    boundary = np.isclose(np.abs(c), a) | np.isclose(a - b + c, 0) | np.isclose(a + b + c, 0)
+    assert np.array_equal(stable[~boundary], jury[~boundary])
+    s1 = exponential_stability_map(w, v, 1).sum()
+    s2 = exponential_stability_map(w, v, 2).sum()
+    assert s1 > s2  # one-period delay: a larger stable region than the thesis's i = 2
+
+
+def test_command_evaluation_is_a_small_fraction_of_a_period():
+    t = command_timing(64, repeats=200)
+    period_67hz = 1 / 67.0  # s, fastest thesis experiment speed (second bending)
+    for name, v in t.items():
+        assert v["median_s"] < 0.05 * period_67hz, (name, v)
+
+
+def test_engage_on_starts_off_and_engages_at_the_detected_mass_loss(rig, first_critical):
+    from amb_controller.closed_loop import fe_model, run_closed_loop
+    from amb_controller.pipeline import ControllerConfig
+
+    sc = replace(first_critical, duration=3.0)
+    cfg = ControllerConfig(samples_per_rev=32, delay_periods=1)
+    model = fe_model(rig, 2 * math.pi * sc.speed_hz, cfg)
+    res = run_closed_loop(rig, sc, cfg, model, fault_monitor=True, engage_on=(1,))
+    onset = int(2.0 * sc.speed_hz * 32)
+    assert np.all(res.wavelet_force[:onset] == 0)  # PID only before the fault
+    assert np.abs(res.wavelet_force[onset:]).max() > 1.0
+    assert any(e["fault_type"] == "MASS_LOSS" for e in res.fault_events)
+    with pytest.raises(ControllerValueError, match="fault_monitor"):
+        run_closed_loop(rig, sc, cfg, model, engage_on=(1,))
