@@ -153,3 +153,22 @@ def test_one_command_per_period_for_the_next_period(loops):
     res = loops["synchronous"][0]
     n_periods = len(res.phasor)
     assert [c.target_period for c in res.commands] == [k + 1 for k in range(n_periods)]
+
+
+@pytest.mark.parametrize("controller", ["harmonic", "synchronous"])
+def test_amb_sim_selects_the_baseline(tmp_path, controller):
+    import json
+
+    from amb_controller.sim_cli import main
+
+    scenario = str(
+        __import__("pathlib").Path(__file__).resolve().parents[2]
+        / "config/scenarios/mass_loss_first_critical.yaml"
+    )
+    argv = ["--scenario", scenario, "--controller", controller, "--delay", "1", "--duration",
+            "1.0", "--samples-per-rev", "32", "--no-bag", "--out", str(tmp_path)]  # fmt: skip
+    assert main(argv) == 0
+    metrics = json.loads((tmp_path / "metrics.json").read_text())
+    assert metrics["controller"]["controller"] == controller
+    assert metrics["model_source"] == "fe-harmonic"
+    assert (tmp_path / "model.npz").exists()
