@@ -173,6 +173,20 @@ class _Progress:
         while time.monotonic() < deadline:
             self.executor.spin_once(timeout_sec=0.05)
 
+    def graph(self, topics: dict[str, int]) -> dict[str, int]:
+        """Subscribers of each topic now."""
+        return {t: self.node.count_subscribers(t) for t in topics}
+
+    def wait_for_graph(self, expected: dict[str, int], timeout: float) -> bool:
+        """Spin until every topic has its expected subscribers; False on timeout."""
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            counts = self.graph(expected)
+            if all(counts[t] >= n for t, n in expected.items()):
+                return True
+            self.spin(0.1)
+        return False
+
     def close(self) -> None:
         self.executor.shutdown()
         self.node.destroy_node()
@@ -224,9 +238,20 @@ def run(args: argparse.Namespace) -> int:
     status = 0
     t0 = time.monotonic()
     try:
-        for r in runs:
-            r.start(env)
         plant = next(r for r in runs if r.name == "plant_sim")
+        for r in runs:
+            if r is not plant:
+                r.start(env)
+        # the plant starts last, once every stream has all its subscribers (the recorder
+        # subscribes to a topic only when it has seen its publisher): nothing is lost at start
+        expected = _expected_subscribers(names)
+        if not progress.wait_for_graph(expected, timeout=120.0):
+            print(
+                f"[amb-run] not every subscription was up after 120 s: {progress.graph(expected)} "
+                f"of {expected}; starting anyway",
+                file=sys.stderr,
+            )
+        plant.start(env)
         last_print = 0.0
         first_sample_wall = None  # wall time of the first progress report (nodes are up)
         while plant.proc.poll() is None:
@@ -278,6 +303,33 @@ def run(args: argparse.Namespace) -> int:
             flush=True,
         )
     return status
+
+
+def _expected_subscribers(names: list[str]) -> dict[str, int]:
+    """Subscribers each stream must have before the plant's first sample."""
+    has = set(names)
+    recorder = int("recorder" in has)
+    consumers = {
+        "/amb/measurement": {"wavelet_filterbank", "fault_monitor", "wavelet_controller"},
+        "/amb/wavelet/coefficients": {"fault_monitor", "wavelet_controller"},
+        "/amb/control/command": set(),
+        "/amb/control/status": set(),
+        "/amb/fault/events": {"wavelet_controller"},
+    }
+    publishers = {
+        "/amb/measurement": "plant_sim",
+        "/amb/wavelet/coefficients": "wavelet_filterbank",
+        "/amb/control/command": "wavelet_controller",
+        "/amb/control/status": "wavelet_controller",
+        "/amb/fault/events": "fault_monitor",
+    }
+    # the recorder subscribes to /amb/measurement once the plant publishes it: the plant's own
+    # wait_for_subscribers counts it there
+    return {
+        topic: len(nodes & has) + (recorder if publishers[topic] != "plant_sim" else 0)
+        for topic, nodes in consumers.items()
+        if publishers[topic] in has
+    }
 
 
 def _available(name: str) -> bool:
