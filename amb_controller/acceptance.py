@@ -5,8 +5,19 @@ Thesis acceptance runs (sections 7.4.2 and 8.5.3) on the FE plant; prints JSON.
 speeds (PID only vs transient w = v = 0.75, 0.65, 0.9, linear 0.2; delay 2) and the
 chapter-7 comparison at 15 Hz (proportional k = 0.21 vs moderated k = 0.34, delay 3) with
 the largest acceptable gain of each (peak |x| <= 0.5 mm at every sensor after the fault,
-bisection). Models: the chapter-6 FE route. Not covered yet: the (w, v) acceptability map
-(figure 8.4), the linear-rate limit and the 22 Hz prediction (figures 7.2-7.5).
+bisection). Models: the chapter-6 FE route. ``--investigate`` compares the 1 x coefficient
+per period of each prescribed response with the nominal loop of eq. 8.11 (below). The (w, v)
+map and the linear-rate limit are in :mod:`amb_controller.acceptability`, the 22 Hz
+prediction in :mod:`amb_controller.prediction_cli`.
+
+Nominal response with delay (eq. 8.11)
+--------------------------------------
+With a perfect inverse the loop ``I + G B_u L`` of eq. 8.11 gives the controlled measured
+coefficients ``Q_c = T(z) Q_u`` with ``T = alpha (z - 1) z^i / (1 + alpha (z - 1)(z^i - 1))``
+and ``Q_u`` the PID-only response to the same disturbance. For ``i = 0`` the controlled step
+response is ``alpha`` itself (c_k of eq. 8.7); with the evaluation delay it is not:
+``T`` has the poles of :func:`amb_controller.stability.nominal_poles`. The investigation
+filters the PID-only 1 x phasor change by ``T`` and compares it with the controlled run.
 """
 
 from __future__ import annotations
@@ -15,6 +26,8 @@ import argparse
 import json
 import math
 from dataclasses import replace
+
+import numpy as np
 
 from amb_controller.closed_loop import fe_model, run_closed_loop
 from amb_controller.metrics import compute_metrics, inner_summary
@@ -74,14 +87,123 @@ def chapter7(rig, quick: bool) -> dict:
     return out
 
 
+def nominal_transfer(alpha, delay: int, n: int) -> np.ndarray:
+    """
+    Return the first ``n`` impulse-response terms of ``T(z)`` (module docstring, eq. 8.11).
+
+    Parameters
+    ----------
+    alpha : amb_controller.response.PrescribedResponse
+    delay : int
+        Evaluation delay i in periods.
+    n : int
+        Terms.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``t_0 .. t_{n-1}`` (dimensionless).
+
+    """
+    from scipy import signal
+
+    from amb_controller.stability import characteristic_polynomial
+
+    # alpha (z-1) z^i / den_cl, both multiplied by z^-(i+1) den(z^-1): numerator
+    # a(z^-1) (1 - z^-1) with a = alpha.num (ascending, a_0 = 0) shifted back one period.
+    num = np.convolve(alpha.num[1:], [1.0, -1.0])
+    den = characteristic_polynomial(alpha, delay)
+    impulse = np.zeros(n)
+    impulse[0] = 1.0
+    return signal.lfilter(num, den, impulse)
+
+
+def investigate(rig, gain_error: float = 1.0) -> dict:
+    """
+    Controlled 1 x phasor per period vs the nominal delayed loop, for the section 8.5.3 set.
+
+    Parameters
+    ----------
+    rig : amb_plant_sim.rig.Rig
+    gain_error : float
+        The controller's model Markov parameters are multiplied by this (1 = exact FE
+        model; < 1 makes the controller over-compensate by ``1 / gain_error``).
+
+    Returns
+    -------
+    dict
+        Per variant: nominal pole moduli, the largest deviation of the measured normalised
+        response from the nominal one, the most negative normalised response (overshoot
+        through zero = "flutter"), sign changes, and both series (x2, first 20 periods).
+
+    """
+    from amb_controller.inverse import pseudo_inverse_series
+    from amb_controller.pipeline import prescribed_response
+    from amb_controller.stability import nominal_poles
+    from amb_plant_sim.scenario import load_scenario
+
+    scenario = load_scenario(config_file("scenarios/mass_loss_first_critical.yaml"), rig)
+    cfg = ControllerConfig(samples_per_rev=64, delay_periods=2)
+    model = fe_model(rig, 2 * math.pi * scenario.speed_hz, cfg)
+    if gain_error != 1.0:
+        markov = model.markov * gain_error
+        model = replace(model, markov=markov, inverse=pseudo_inverse_series(markov, 5))
+    pid = run_closed_loop(rig, scenario, replace(cfg, controller="none"), model)
+    k_f = math.floor(
+        min(e.time for e in scenario.events if e.kind == "mass_loss") * scenario.speed_hz
+    )
+    c = 2  # x2, inner plane next to bearing 1
+    du = pid.phasor[k_f - 1 :, c] - pid.phasor[k_f - 1, c]
+    final = du[-10:].mean()
+    out = {}
+    for label, kw in (
+        ("w=v=0.75", {"w": 0.75, "v": 0.75}),
+        ("w=v=0.65", {"w": 0.65, "v": 0.65}),
+        ("w=v=0.9", {"w": 0.9, "v": 0.9}),
+        ("linear 0.2", {"response": "linear", "rate": 0.2}),
+    ):
+        c_cfg = replace(cfg, **kw)
+        run = run_closed_loop(rig, scenario, c_cfg, model)
+        dc = run.phasor[k_f - 1 :, c] - run.phasor[k_f - 1, c]
+        alpha = prescribed_response(c_cfg)
+        t = nominal_transfer(alpha, 2, du.size)
+        nominal = np.convolve(t, du)[: du.size]
+        y_meas = (dc * np.conj(final)).real / abs(final) ** 2
+        y_nom = (nominal * np.conj(final)).real / abs(final) ** 2
+        n = min(40, y_meas.size)
+        out[label] = {
+            "nominal_pole_moduli": sorted(
+                {round(float(abs(p)), 3) for p in nominal_poles(alpha, 2)}
+            ),
+            "max_deviation_from_nominal": float(np.max(np.abs(y_meas[:n] - y_nom[:n]))),
+            "most_negative_measured": float(y_meas[:n].min()),
+            "most_negative_nominal": float(y_nom[:n].min()),
+            "sign_changes_measured": int(np.sum(np.diff(np.sign(np.round(y_meas[:n], 2))) != 0)),
+            "measured": np.round(y_meas[:20], 3).tolist(),
+            "nominal": np.round(y_nom[:20], 3).tolist(),
+            "prescribed_c_k": np.round(alpha.series(20), 3).tolist(),
+        }
+    return out
+
+
 def main(argv=None) -> int:
     """Print the acceptance numbers as JSON."""
     from amb_plant_sim.rig import load_rig
 
     ap = argparse.ArgumentParser(prog="python -m amb_controller.acceptance")
     ap.add_argument("--quick", action="store_true", help="fewer bisection steps")
+    ap.add_argument(
+        "--investigate",
+        action="store_true",
+        help="only the 1x response per period vs the nominal delayed loop (exact model and "
+        "a model with 0.6 x the plant gain)",
+    )
     args = ap.parse_args(argv)
     rig = load_rig()
+    if args.investigate:
+        result = {"exact_model": investigate(rig), "model_gain_0.6": investigate(rig, 0.6)}
+        print(json.dumps(result, indent=1))
+        return 0
     result = {
         "mass_loss_first_critical": mass_loss(rig, "mass_loss_first_critical"),
         "mass_loss_second_critical": mass_loss(rig, "mass_loss_second_critical"),
