@@ -16,8 +16,11 @@ NODES = {
     "wavelet_filterbank": "amb_wavelet.node:main",
 }
 TOOLS = {
+    "amb-acceptability": "amb_controller.acceptability:main",
+    "amb-compare": "amb_controller.compare_cli:main",
     "amb-fault-eval": "amb_fault_monitor.eval_cli:main",
     "amb-modal": "amb_plant_sim.modal_cli:main",
+    "amb-prediction": "amb_controller.prediction_cli:main",
     "amb-report": "amb_tools.report_cli:main",
     "amb-run": "amb_tools.run_cli:main",
     "amb-sim": "amb_controller.sim_cli:main",
