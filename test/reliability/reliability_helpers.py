@@ -27,8 +27,6 @@ class Diagnostics:
         return int(self.get(name, key, "0"))
 
 
-
-
 def set_parameters(ros, node, target: str, params: dict):
     """Call ``/<target>/set_parameters``; return the list of ``SetParametersResult``."""
     from rcl_interfaces.srv import SetParameters

@@ -129,15 +129,15 @@ def test_filterbank_survives_random_and_garbled_measurements(ros, node_process) 
         ros.spin_for(0.02)
 
     throw()
+    # Without this pause the valid burst right after the fuzz burst was not seen by the node in
+    # about 1 of 4 runs (not delivered or not logged: see the report); with it, 0 of 9.
+    ros.spin_for(1.0)
     stream = valid_stream(10_000, 4 * SPR)
     for m, _ in stream:
         pub.publish(m)
     last = stream[-1][0].sample_index
-    assert ros.spin_until(lambda: any(c.sample_index == last for c in got), 20.0), (
-        diag.values,
-        fb.returncode,
-        fb.log(),
-    )
+    if not ros.spin_until(lambda: any(c.sample_index == last for c in got), 20.0):
+        pytest.fail(f"valid stream not processed: {diag.values} {fb.returncode}\n{fb.log()}")
     ros.spin_for(0.3)
     assert fb.returncode is None, fb.log()
     assert _all_finite_coefficients(got)
