@@ -293,38 +293,15 @@ def run_until_runaway(rig, scenario, config, model):
         Over the periods run.
 
     """
-    # The loop class of closed_loop is used directly: run_closed_loop has no stop hook (a
-    # ``stop(loop) -> bool`` argument there would remove this duplication).
-    from amb_controller.closed_loop import FAULT_KINDS, RunResult, _Loop
-    from amb_controller.errors import ControllerValueError
-    from amb_controller.supervisor import Mode
+    from amb_controller.closed_loop import run_closed_loop
 
-    loop = _Loop(rig, scenario, config, model, 0)
-    if config.controller != "none":
-        ok, message = loop.pipeline.set_mode(Mode.ACTIVE)
-        if not ok:
-            raise ControllerValueError(f"cannot activate the controller: {message}")
-    n_periods = max(1, round(scenario.duration * scenario.speed_hz))
-    for _ in range(n_periods):
-        loop.period()
-        guard = loop.pipeline.supervisor.guard
-        if (guard is not None and guard.tripped) or loop.blocks[-1].truth["contact"].any():
-            break
-    blocks = loop.blocks
-    faults = [e.time for e in scenario.events if e.kind in FAULT_KINDS]
-    return RunResult(
-        time=np.concatenate([b.time for b in blocks]),
-        displacement=np.concatenate([b.displacement for b in blocks]),
-        wavelet_force=np.concatenate(loop.forces),
-        bearing_force=np.concatenate([b.bearing_force for b in blocks]),
-        contact=np.concatenate([b.truth["contact"] for b in blocks]),
-        phasor=np.array(loop.phasors),
-        commands=loop.issued,
-        fault_time=float(min(faults)) if faults else 0.0,
-        samples_per_rev=config.samples_per_rev,
-        omega=float(blocks[-1].omega[-1]),
-        model=loop.pipeline.model,
-    )
+    return run_closed_loop(rig, scenario, config, model, 0, stop=_runaway)
+
+
+def _runaway(loop) -> bool:
+    """Return True once the divergence guard has tripped or a clearance bearing touches."""
+    guard = loop.pipeline.supervisor.guard
+    return bool((guard is not None and guard.tripped) or loop.blocks[-1].truth["contact"].any())
 
 
 def grid_values(n: int) -> np.ndarray:

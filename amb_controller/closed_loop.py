@@ -379,6 +379,7 @@ def run_closed_loop(
     progress=None,
     baseline=None,
     engage_on: tuple[int, ...] = (),
+    stop=None,
 ) -> RunResult:
     """
     Run one scenario in lock step with the wavelet controller ACTIVE from period 0.
@@ -411,6 +412,12 @@ def run_closed_loop(
         ``FaultEvent.MASS_LOSS``) the controller starts OFF (PID only) and is set ACTIVE
         when the fault monitor (``fault_monitor=True``) reports one of these fault types;
         other events take the configured ``fault_actions`` (hold on contact).
+    stop : callable, optional
+        ``stop(loop) -> bool``, called after each period (after ``progress``) with the loop
+        state: ``loop.k`` periods run, ``loop.blocks[-1]`` the last simulator block (its
+        ``truth["contact"]``), ``loop.pipeline`` (its ``supervisor.guard``), ``loop.phasors``,
+        ``loop.issued``. Returning True ends the run after that period; the result then
+        covers the periods run.
 
     Returns
     -------
@@ -438,6 +445,8 @@ def run_closed_loop(
         loop.period()
         if progress is not None:
             progress(k + 1, n_periods)
+        if stop is not None and stop(loop):
+            break
     blocks = loop.blocks
     faults = [e.time for e in scenario.events if e.kind in FAULT_KINDS]
     return RunResult(
