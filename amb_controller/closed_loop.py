@@ -380,6 +380,7 @@ def run_closed_loop(
     baseline=None,
     engage_on: tuple[int, ...] = (),
     stop=None,
+    controller=None,
 ) -> RunResult:
     """
     Run one scenario in lock step with the wavelet controller ACTIVE from period 0.
@@ -418,6 +419,12 @@ def run_closed_loop(
         ``truth["contact"]``), ``loop.pipeline`` (its ``supervisor.guard``), ``loop.phasors``,
         ``loop.issued``. Returning True ends the run after that period; the result then
         covers the periods run.
+    controller : object, optional
+        A controller to run in place of the one the pipeline builds from ``model`` (same
+        interface as :class:`~amb_controller.transient.TransientController`, same measured
+        and control layout as ``config``), e.g. the per-level
+        :class:`~amb_controller.multilevel.MultiLevelController`; ``model`` must still be
+        given (the pipeline checks its layout and reports it).
 
     Returns
     -------
@@ -429,6 +436,8 @@ def run_closed_loop(
         monitor = _Monitor(config.samples_per_rev, None)
     loop = _Loop(rig, scenario, config, model, seed, recorder, monitor, baseline)
     loop.engage_on = tuple(int(c) for c in engage_on)
+    if controller is not None:
+        loop.pipeline.supervisor.set_controller(controller)
     if engage_on and not fault_monitor:
         from amb_controller.errors import ControllerValueError
 
