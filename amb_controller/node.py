@@ -54,6 +54,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
+from array import array
 from collections import deque
 from pathlib import Path
 
@@ -288,7 +289,10 @@ class WaveletControllerNode(Node):
     # ------------------------------------------------------------------ run-time parameters
     def _on_set_parameters(self, params) -> SetParametersResult:
         """Validate a run-time change with the start-up validation; keep the old on refusal."""
-        changes = {p.name: p.value for p in params}
+        # array-valued parameters arrive as array('d') / array('q'): plain lists for the config
+        changes = {
+            p.name: list(p.value) if isinstance(p.value, array | tuple) else p.value for p in params
+        }
         for name in SETTINGS:
             if name in changes:
                 value = changes[name]

@@ -421,6 +421,8 @@ class PlantSimNode(Node):
                     )
                     self.get_logger().warning(self._last_reason)
                     self._publish_status()
+            elif k >= self._delay and k not in self._commands:
+                self.counts["missing"] += 1  # between the watchdog and the first new command
             self._waiting_since = None
             self._run_period(k)
 
