@@ -111,6 +111,13 @@ class MonitorConfig:
         Episode timing (module notes).
     isolation : float
         Share of the fixed-frame change energy in one channel that makes a sensor fault.
+    base_coherence : float
+        Plane coherence (0..1) of the fixed-frame changes below 1 x that makes base motion
+        (classifier rule 2): 1 when the four planes move alike along x and along y.
+    base_dominance : float
+        Base motion also needs the largest change below 1 x (m) to be at least this multiple
+        of the larger of the lasting 1 x phasor change and the largest change above 1 x (m):
+        the slow motion dominates.
     sync_change : float
         Ratio over threshold of the synchronous phasor change that makes a new steady level.
     sync_relative_floor : float
@@ -147,6 +154,8 @@ class MonitorConfig:
     decision_revs: float = 16.0
     max_tail_revs: float = 200.0
     isolation: float = 0.9
+    base_coherence: float = 0.8
+    base_dominance: float = 2.0
     sync_change: float = 1.5
     sync_relative_floor: float = 0.05
     sustain: float = 0.8
@@ -171,7 +180,7 @@ class MonitorConfig:
         positive = (
             "calibration_revs", "settle_ratio", "k", "confirm_ratio", "confirm_revs", "quiet_revs",
             "decision_revs", "max_tail_revs", "isolation", "sync_change", "burst_gap_revs",
-            "tail_rise", "dead_revs",
+            "tail_rise", "dead_revs", "base_coherence", "base_dominance",
         )  # fmt: skip
         for name in positive:
             if not getattr(self, name) > 0:
@@ -189,8 +198,11 @@ class MonitorConfig:
             )
         if self.confirm_features < 1:
             raise FaultMonitorError(f"confirm_features must be >= 1, got {self.confirm_features}")
-        if self.isolation > 1:
-            raise FaultMonitorError(f"isolation is a share in (0, 1], got {self.isolation}")
+        if self.isolation > 1 or self.base_coherence > 1:
+            raise FaultMonitorError(
+                f"isolation and base_coherence are shares in (0, 1], got {self.isolation}, "
+                f"{self.base_coherence}"
+            )
 
 
 class Crossing(tuple):
@@ -258,6 +270,10 @@ class _Episode:
     tail_onset: int = -1
     tail_history: deque = field(default_factory=deque)
     tail_detect: int = -1
+    low_coherent: float = 0.0
+    low_energy: float = 0.0
+    low_peak: float = 0.0
+    high_peak: float = 0.0
 
 
 class _Lag:
@@ -593,6 +609,10 @@ class FaultMonitor:
         if frame == "fixed":
             w = np.repeat(thr, 2)
             ep.channel_energy += (delta / w) ** 2
+            if level > self._R:
+                self._low_coherence(ep, delta)
+            elif level < self._R:
+                ep.high_peak = max(ep.high_peak, float(np.abs(delta).max()))
         if level < self._R:
             rmax = float(ratio.max())
             if ep.bursts and n - ep.bursts[-1][1] <= cfg.burst_gap_revs * cfg.samples_per_rev:
@@ -606,6 +626,17 @@ class FaultMonitor:
             float(ratio.max()) >= cfg.confirm_ratio or len(ep.keys) >= cfg.confirm_features
         ):
             ep.alarm = n
+
+    def _low_coherence(self, ep: _Episode, delta: np.ndarray) -> None:
+        """Accumulate the plane coherence of a fixed-frame change below 1 x (classifier rule 2)."""
+        for axis in (0, 1):
+            used = self._mask[axis::2]
+            d = delta[axis::2][used]
+            if d.size < 2:
+                continue
+            ep.low_coherent += float(d.sum()) ** 2
+            ep.low_energy += d.size * float(d @ d)
+        ep.low_peak = max(ep.low_peak, float(np.abs(delta).max()))
 
     def _tail_burst(self, n: int, first: int, ratio: np.ndarray) -> None:
         ep = self._episode
@@ -761,6 +792,9 @@ class FaultMonitor:
             sync_change=sync_change,
             bursts=[tuple(b) for b in ep.bursts],
             mask=self._mask.copy(),
+            low_coherence=ep.low_coherent / ep.low_energy if ep.low_energy > 0 else 0.0,
+            low_peak=ep.low_peak,
+            high_peak=ep.high_peak,
         )
         decision = classify(evidence, cfg)
         return FaultEvent(
