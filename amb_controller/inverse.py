@@ -18,6 +18,23 @@ residual of eq. 8.4 that section 8.2 warns may destabilise the loop; check with
 grows by ``lead`` periods. ``rho`` (Tikhonov) limits the inverse's gain on noisy
 identified models.
 
+Rank-deficient models (decision)
+--------------------------------
+With ``rank_rtol > 0`` the inverse is the truncated-SVD (Moore-Penrose) one: the steady-state
+gain ``G(1) = U S V^T`` is split at ``s_i > rank_rtol * s_1``, the series is posed on the
+reduced model ``U_r^T A^(k) V_r`` (square, full rank) and mapped back,
+``B^(k) = V_r B_r^(k) U_r^T``; the steady-state condition becomes ``B(1) G(1) = V_r V_r^T``
+(Penrose's ``G B G = G``) instead of the unreachable ``B(1) G(1) = I``. It is needed at
+levels p >= 2 with both quadratures: the odd control waveform is the even one advanced by
+a quarter period (:func:`amb_controller.basis.control_basis`), so per axis the level-2
+waveforms span 3 dimensions, not 4, and at level 3 the odd waveforms repeat the even ones
+of translations ``q +- 2`` (4 of 8). ``G_{p,q,p,q} B_u`` then has exact null directions
+(measured on the FE model at 22 Hz: 4 of 16 at p = 2, 16 of 32 at p = 3, singular values
+1e-16 of the largest, null for every ``A^(k)`` and every sensor), and the plain
+least-squares inverse with the ``B(1) G(1) = I`` rows inverts rounding noise (``|B|``
+up to 1e10-1e13 where ``1 / s_r`` is 1e7). Directions dropped are those no control
+coefficient can move, so nothing observable is lost.
+
 Indexing: ``A^(0)`` is the response, within the same period, of the coefficients
 measured over a period to the control coefficients applied over that period. Eq. 6.34
 starts at k = 1 because the thesis labels both sequences at the period's end and drops
@@ -39,6 +56,7 @@ def pseudo_inverse_series(
     lead: int = 0,
     regularisation: float = 0.0,
     dc_weight: float = 0.0,
+    rank_rtol: float = 0.0,
 ) -> np.ndarray:
     """
     Return ``B^(0) .. B^(order)`` of the truncated least-squares inverse (eq. 6.35).
@@ -58,6 +76,10 @@ def pseudo_inverse_series(
         Weight >= 0 of the extra equations ``B(1) G(1) = I`` (steady-state gain of the
         product, with ``G(1) = sum_k A^(k)``). Truncation leaves ``B(1) G(1) != I``; the
         steady-state predictor of eq. 7.6 needs it, so use e.g. 10 there. 0 = off.
+    rank_rtol : float
+        Relative singular-value cutoff (>= 0, < 1) of ``G(1)``: directions below
+        ``rank_rtol * s_max`` are dropped (truncated-SVD inverse, module docstring); e.g.
+        1e-8 for an FE model, larger for an identified one. 0 = off (full rank assumed).
 
     Returns
     -------
@@ -76,6 +98,24 @@ def pseudo_inverse_series(
         )
     if regularisation < 0:
         raise ControllerValueError(f"regularisation must be >= 0, got {regularisation}")
+    if not 0.0 <= rank_rtol < 1.0:
+        raise ControllerValueError(f"rank_rtol must lie in [0, 1), got {rank_rtol}")
+    if dc_weight < 0:
+        raise ControllerValueError(f"dc_weight must be >= 0, got {dc_weight}")
+    if rank_rtol > 0:
+        u, sv, vt = np.linalg.svd(dc_gain(markov))
+        rank = int(np.count_nonzero(sv > rank_rtol * sv[0])) if sv[0] > 0 else 0
+        if rank == 0:
+            raise ControllerValueError(
+                "G(1) is zero: no steady-state gain to invert; check the model (Markov "
+                "parameters) or use rank_rtol = 0"
+            )
+        u_r, v_r = u[:, :rank], vt[:rank].T
+        reduced = np.einsum("ya,kyu,ub->kab", u_r, markov, v_r)
+        b_r = pseudo_inverse_series(
+            reduced, order, lead=lead, regularisation=regularisation, dc_weight=dc_weight
+        )
+        return np.einsum("ua,kab,yb->kuy", v_r, b_r, u_r)
     n_terms, n_y, n_u = markov.shape
     horizon = order + n_terms
     # X = [B0 .. BK] (n_u x (K+1) n_y);  X T = E, T block (j, k) = A^(k-j).
@@ -88,8 +128,6 @@ def pseudo_inverse_series(
     target[:, lead * n_u : (lead + 1) * n_u] = np.eye(n_u)
     lhs = big_t.T
     rhs = target.T
-    if dc_weight < 0:
-        raise ControllerValueError(f"dc_weight must be >= 0, got {dc_weight}")
     if dc_weight > 0:
         # (sum_j B_j) G(1) = I  ->  X [G(1); G(1); ...] = I
         gdc = np.tile(markov.sum(axis=0), (order + 1, 1))

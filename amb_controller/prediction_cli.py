@@ -10,7 +10,8 @@ sensors, levels p = 1, 2, 3 = 1 x, 2 x, 4 x, both quadratures), and each level i
 through its own steady-state predictor ``W = S Q`` with ``S = Gamma (G B_u)^*`` (eq. 7.2,
 7.6; :func:`level_operator`), from the FE-route model of that level
 (:func:`~amb_controller.closed_loop.fe_model`, 5th-order inverse as in section 7.4.2, with
-the ``B(1) G(1) = I`` weight of :mod:`amb_controller.inverse`).
+the ``B(1) G(1) = I`` weight of :mod:`amb_controller.inverse`, truncated-SVD inverse of the
+rank-deficient level models, ``RANK_RTOL``).
 The thesis identified ``(G B_u)^*`` on line; here the model is the simulator's own FE
 closed loop, so the comparison tests the method, not an identification.
 
@@ -76,6 +77,11 @@ BAND = 0.05
 FINAL_PERIODS = 10
 INVERSE_ORDER = 5  # section 7.4.2
 DC_WEIGHT = 10.0
+#: Relative singular-value cutoff of ``G(1)`` for the inverse: the FE level models p >= 2 are
+#: structurally rank deficient (singular values 1e-16 of the largest; :mod:`amb_controller.
+#: inverse`), their genuine singular values are >= 3.9e-3 of the largest (db2, p = 2): any
+#: cutoff between 1e-14 and 1e-3 selects the same rank. 1e-8 ~ sqrt(machine epsilon).
+RANK_RTOL = 1e-8
 
 
 class PredictionValueError(ValueError):
@@ -259,6 +265,10 @@ def level_operator(rig, omega: float, config: ControllerConfig, level: int):
     by least squares instead, a synchronous force (which is not a combination of the level's
     control waveforms alone) leaves a residual outside the range of ``G(1)`` and the final
     prediction is biased (decision; the thesis does not say which sensors it inverted).
+    At p >= 2 the inner model is rank deficient (the odd control waveforms of
+    :func:`~amb_controller.basis.control_basis` repeat combinations of the even ones): the
+    inverse is the truncated-SVD one (``rank_rtol``), without which the level-2 prediction
+    peaked at 40 x the measured coefficient (haar, 22 Hz) and dominated the rebuilt signal.
 
     Parameters
     ----------
@@ -283,7 +293,9 @@ def level_operator(rig, omega: float, config: ControllerConfig, level: int):
     base = replace(config, levels=(level,), inverse_order=INVERSE_ORDER)
     inner = fe_model(rig, omega, replace(base, sensors=(2, 3, 4, 5)))
     full = fe_model(rig, omega, replace(base, sensors=tuple(range(8))))
-    inverse = pseudo_inverse_series(inner.markov, INVERSE_ORDER, dc_weight=DC_WEIGHT)
+    inverse = pseudo_inverse_series(
+        inner.markov, INVERSE_ORDER, dc_weight=DC_WEIGHT, rank_rtol=RANK_RTOL
+    )
     operator = series_product(dc_gain(full.markov)[None], inverse)
     return operator, tuple(inner.measured_labels), tuple(full.measured_labels)
 

@@ -81,12 +81,26 @@ def test_predicted_1x_coefficient_has_a_reduced_transient_at_the_inner_sensors(h
         assert np.abs(pred).max() <= 0.5 * np.abs(meas).max()
 
 
+def test_level_two_prediction_stays_below_the_measured_transient_at_the_inner_sensors(haar):
+    # With the full-rank least-squares inverse of the rank-deficient level-2 model the 2 x
+    # prediction peaked at 22-36 x the measured peak (x2, y2, x3, y3); truncated-SVD inverse:
+    # 0.32-0.47 (measured).
+    k0 = haar.step_period
+    for c in (2, 3, 4, 5):
+        cols = [i for i, lab in enumerate(haar.labels) if lab.startswith("p2/") and
+                lab.endswith(f"/c{c}")]  # fmt: skip
+        meas = np.nanmax(np.abs(haar.coefficients[k0:, cols]))
+        pred = np.nanmax(np.abs(haar.predicted_coefficients[k0:, cols]))
+        assert pred <= 0.6 * meas
+
+
 @pytest.mark.xfail(
     strict=True,
-    reason="thesis figs 7.2-7.5: prediction settles first; on the FE plant with a 5th-order "
-    "inverse the predicted 1x amplitude enters the 5 % band later (report: 1.32 s vs 0.55 s); "
-    "the level-2 (2 x) predictor's transient is ~1e3 x the measured coefficient and dominates "
-    "the reconstructed signal",
+    reason="thesis figs 7.2-7.5: prediction settles first; on the FE plant it settles 1 "
+    "period after the measurement (haar 0.591 s vs 0.545 s; db2 0.591, db4 0.636): the "
+    "5th-order inverse of the 1 x model leaves a least-squares residual of 0.53 of I "
+    "(haar; db2/db4 1.0 without lead) because the 1 x model is non-minimum phase (its "
+    "exact inverse series diverges) and the plant's own 1 x step settles in 10 periods",
 )
 def test_predicted_steady_state_settles_before_the_measured_response(haar):
     s = haar.summary

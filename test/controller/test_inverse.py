@@ -63,3 +63,55 @@ def test_dc_gain():
 def test_invalid_order_is_refused():
     with pytest.raises(ControllerValueError, match="order"):
         pseudo_inverse_series(np.ones((2, 1, 1)), order=-1)
+
+
+def _rank_two_static(noise: float) -> tuple[np.ndarray, np.ndarray]:
+    rng = np.random.default_rng(5)
+    u, _ = np.linalg.qr(rng.normal(size=(8, 8)))
+    v, _ = np.linalg.qr(rng.normal(size=(4, 4)))
+    s = np.zeros((8, 4))
+    s[0, 0], s[1, 1] = 3e-7, 1e-7  # m/N-like magnitudes; directions 3, 4 null
+    exact = u @ s @ v.T
+    return exact, exact + noise * rng.normal(size=exact.shape)
+
+
+def test_rank_rtol_gives_the_moore_penrose_inverse_of_a_rank_deficient_static_gain():
+    exact, noisy = _rank_two_static(3e-20)  # 1e-13 relative in the null directions
+    inv = pseudo_inverse_series(noisy[None], order=1, dc_weight=10.0, rank_rtol=1e-8)
+    np.testing.assert_allclose(inv[0] + inv[1], np.linalg.pinv(exact, rcond=1e-8), rtol=1e-6)
+    # B(1) G(1) is the projector onto the row space (Penrose G B G = G), not I
+    np.testing.assert_allclose(exact @ (inv[0] + inv[1]) @ exact, exact, atol=1e-12 * 3e-7)
+    plain = pseudo_inverse_series(noisy[None], order=1, dc_weight=10.0)
+    assert np.abs(plain).max() > 1e3 * np.abs(np.linalg.pinv(exact, rcond=1e-8)).max()
+
+
+def test_rank_rtol_inverse_of_rank_deficient_first_order_plant_is_exact_fir():
+    # A^(k) = a^k M with rank(M) = 2: G = M / (1 - a z^-1), inverse (1 - a z^-1) M^+.
+    a = 0.6
+    m, _ = _rank_two_static(0.0)
+    markov = a ** np.arange(40)[:, None, None] * m[None]
+    inv = pseudo_inverse_series(markov, order=3, rank_rtol=1e-8)
+    pinv = np.linalg.pinv(m, rcond=1e-8)
+    np.testing.assert_allclose(inv[0], pinv, rtol=1e-8, atol=1e-8 * np.abs(pinv).max())
+    np.testing.assert_allclose(inv[1], -a * pinv, rtol=1e-8, atol=1e-8 * np.abs(pinv).max())
+    np.testing.assert_allclose(inv[2:], 0.0, atol=1e-8 * np.abs(pinv).max())
+
+
+@pytest.mark.parametrize("wavelet", ["haar", "db2", "db4"])
+def test_two_quadrature_control_waveforms_are_dependent_at_levels_two_and_three(wavelet):
+    # Odd waveform = even advanced by N/4. Level 2 (two half-period wavelets): the sum of
+    # the four waveforms of one axis vanishes (by hand for haar: +-16-sample blocks), rank 3.
+    # Level 3 (quarter-period wavelets): odd q repeats even q + 2, rank 4 of 8.
+    from amb_controller.basis import control_basis
+
+    n = 64
+    for p, rank in ((1, 2), (2, 3), (3, 4)):
+        basis = control_basis(wavelet, n, [p], n_axes=1)
+        assert np.linalg.matrix_rank(basis.weights[:, 0, :], tol=1e-9) == rank
+
+
+def test_rank_rtol_out_of_range_is_refused():
+    with pytest.raises(ControllerValueError):
+        pseudo_inverse_series(np.ones((2, 1, 1)), order=1, rank_rtol=1.0)
+    with pytest.raises(ControllerValueError):
+        pseudo_inverse_series(np.zeros((2, 2, 2)), order=1, rank_rtol=1e-8)
