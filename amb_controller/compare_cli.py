@@ -31,6 +31,19 @@ Metrics (per run; inner sensors x2, y2, x3, y3 unless said)
   run, and its RMS over all axes after the fault (N).
 * ``contacts``: contact onsets (simulator truth).
 
+Multi-level (``--multilevel``, issue 9): on the two mass-loss scenarios, levels 1 x, 2 x and
+4 x (thesis p = 1, 2, 3) controlled at once, w = v = 0.75 per level, i = 1:
+``wavelet_124_coupled`` (one eq.-8.10 controller on the coupled model of all three levels)
+and ``wavelet_124_perlevel`` (:class:`~amb_controller.multilevel.MultiLevelController`: one
+controller per level on the level's own model, forces summed before the limiter); compare
+with ``wavelet_i1`` (1 x only). ``residual_um`` is the peak inner displacement of the last 10
+revolutions left after removing its 1 x fit (the harmonics a 1 x Haar square wave adds).
+
+Reconfiguration variants on ``contact_case2``: ``wavelet_reconf`` engages on the fault
+monitor's MASS_LOSS *event* (emitted at its decision, ~10 revolutions after the onset; the
+event's detection_sample_index is the early detection); ``wavelet_reconf_alarm`` engages
+at the monitor's *alarm* (confirmed detection, the onset revolution).
+
 Also written: figure 8.3 redrawn for i = 1..4 (``fig8_3_stability_i1-4.png``), and the time
 for one command (controller step + synthesis + limit) against the period (``timing``).
 """
@@ -56,6 +69,8 @@ SCENARIOS = {
     "contact_case2": "mass_loss_contact_case2.yaml",
 }
 CONTROLLERS = ("pid", "wavelet_i1", "wavelet_i2", "harmonic_i1", "synchronous_i1")
+MULTILEVEL = ("wavelet_124_coupled", "wavelet_124_perlevel")
+ML_LEVELS = (1, 2, 3)
 MASS_LOSS = 1
 AUX_BEARING_CONTACT = 2
 
@@ -169,7 +184,13 @@ class Matrix:
         if spec.model == "none":
             return None
         hz = scenario.speed_hz if speed_hz is None else speed_hz
-        key = (spec.model, round(hz, 6), config.samples_per_rev, config.delay_periods)
+        key = (
+            spec.model,
+            round(hz, 6),
+            config.samples_per_rev,
+            config.delay_periods,
+            config.levels,
+        )
         if key not in self._models:
             omega = 2 * math.pi * hz
             if spec.model == "fe":
@@ -195,7 +216,50 @@ class Matrix:
         return run_closed_loop(self.rig, scenario, config, model, **kw)
 
 
-def comparison(matrix: Matrix, controllers=CONTROLLERS, progress=None) -> dict:
+def residual_after_1x(result, revs: int = 10) -> float:
+    """Peak inner displacement (m) of the last ``revs`` revolutions minus its 1 x fit."""
+    spr = result.samples_per_rev
+    x = result.displacement[-revs * spr :, list(INNER)]
+    theta = 2 * np.pi * np.arange(x.shape[0]) / spr
+    basis = np.column_stack([np.ones(theta.size), np.cos(theta), np.sin(theta)])
+    coef, *_ = np.linalg.lstsq(basis, x, rcond=None)
+    return float(np.abs(x - basis @ coef).max())
+
+
+def run_multilevel(matrix: Matrix, name: str, key: str):
+    """Run ``wavelet_124_coupled`` or ``wavelet_124_perlevel`` on scenario ``key``."""
+    from amb_controller.basis import control_basis
+    from amb_controller.closed_loop import run_closed_loop
+    from amb_controller.multilevel import LevelResponse, MultiLevelController, block_diagonal_model
+    from amb_controller.pipeline import selected_measurement_basis
+
+    scenario = matrix.scenarios[key]
+    config = replace(matrix.config(SPECS["wavelet_i1"], scenario), levels=ML_LEVELS)
+    coupled = matrix.model(SPECS["wavelet_i1"], scenario, config)
+    controller = None
+    if name == "wavelet_124_perlevel":
+        controller = MultiLevelController.from_models(
+            block_diagonal_model(coupled, config.inverse_order),
+            {p: LevelResponse(p, config.w, config.v) for p in ML_LEVELS},
+            config.delay_periods,
+            selected_measurement_basis(config).labels,
+            control_basis(config.wavelet, config.period_samples, ML_LEVELS).labels,
+        )
+    return run_closed_loop(matrix.rig, scenario, config, coupled, controller=controller)
+
+
+def _engage_at_alarm(loop) -> bool:
+    """``stop`` hook of run_closed_loop: set ACTIVE once the fault monitor's alarm is raised."""
+    from amb_controller.supervisor import Mode
+
+    if loop.monitor.core.alarm and loop.pipeline.supervisor.mode == Mode.OFF:
+        loop.pipeline.set_mode(Mode.ACTIVE)
+    return False
+
+
+def comparison(
+    matrix: Matrix, controllers=CONTROLLERS, progress=None, multilevel: bool = False
+) -> dict:
     """Run every controller on every scenario; return ``{scenario: {controller: metrics}}``."""
     table: dict = {}
     traces: dict = {}
@@ -203,20 +267,32 @@ def comparison(matrix: Matrix, controllers=CONTROLLERS, progress=None) -> dict:
         table[key] = {}
         traces[key] = {}
         pid_steady = None
-        names = list(controllers) + (["wavelet_reconf"] if key == "contact_case2" else [])
+        names = list(controllers)
+        if key == "contact_case2":
+            names += ["wavelet_reconf", "wavelet_reconf_alarm"]
+        if multilevel and key.startswith("mass_loss"):
+            names += list(MULTILEVEL)
         for name in names:
             t0 = time.perf_counter()
             if name == "wavelet_reconf":
                 result = matrix.run(
                     SPECS["wavelet_i1"], key, fault_monitor=True, engage_on=(MASS_LOSS,)
                 )
+            elif name == "wavelet_reconf_alarm":
+                result = matrix.run(
+                    SPECS["wavelet_i1"], key, fault_monitor=True, engage_on=(MASS_LOSS,),
+                    stop=_engage_at_alarm,
+                )  # fmt: skip
+            elif name in MULTILEVEL:
+                result = run_multilevel(matrix, name, key)
             else:
                 result = matrix.run(SPECS[name], key)
             m = run_metrics(result, scenario.speed_hz, pid_steady)
             if name == "pid":
                 pid_steady = m["steady_1x"]
             m["wall_time"] = time.perf_counter() - t0
-            if name == "wavelet_reconf":
+            m["residual_um"] = residual_after_1x(result) * 1e6
+            if name.startswith("wavelet_reconf"):
                 spr = result.samples_per_rev
                 m["fault_events"] = [
                     [e["fault_type"], e["detection_sample_index"] / spr / scenario.speed_hz]
@@ -331,14 +407,15 @@ def markdown(result: dict, timing: dict, speeds: dict) -> str:
         lines += ["", f"## {key} ({speeds[key]:.2f} Hz)", ""]
         lines.append(
             "| controller | peak um | revs to 10 % | steady 1x um | attenuation dB | "
-            "peak force N | RMS force N | contacts |"
+            "peak force N | RMS force N | contacts | residual after 1x um |"
         )
-        lines.append("|---|---|---|---|---|---|---|---|")
+        lines.append("|---|---|---|---|---|---|---|---|---|")
         for name, m in rows.items():
             lines.append(
                 f"| {name} | {_fmt(m['peak'], 1e6)} | {_fmt(m['revs_to_10'], 1, 0)} | "
                 f"{_fmt(m['steady_1x'], 1e6, 2)} | {_fmt(m['attenuation_db'], 1, 1)} | "
-                f"{m['peak_force']:.0f} | {m['rms_force']:.1f} | {m['contacts']} |"
+                f"{m['peak_force']:.0f} | {m['rms_force']:.1f} | {m['contacts']} | "
+                f"{m.get('residual_um', float('nan')):.2f} |"
             )
     if "robustness" in result:
         lines += ["", "## Robustness (mass loss, first critical speed)", ""]
@@ -438,6 +515,9 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--force-limit", type=float, default=None, help="N per axis (default rig)")
     ap.add_argument("--robustness", action="store_true", help="add the robustness matrix")
     ap.add_argument("--quick", action="store_true", help="scenarios cut to 4 s")
+    ap.add_argument(
+        "--multilevel", action="store_true", help="add 1x+2x+4x coupled and per-level rows"
+    )
     ap.add_argument("--quiet", action="store_true", help="no progress on stderr")
     return ap
 
@@ -456,7 +536,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         matrix = Matrix(scenario_dir, args.samples_per_rev, args.force_limit, args.quick)
         t0 = time.perf_counter()
-        result = comparison(matrix, progress=progress)
+        result = comparison(matrix, progress=progress, multilevel=args.multilevel)
         if args.robustness:
             result["robustness"] = robustness(matrix, progress)
     except (ValueError, TypeError, FileNotFoundError) as exc:

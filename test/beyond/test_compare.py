@@ -120,3 +120,15 @@ def test_engage_on_starts_off_and_engages_at_the_detected_mass_loss(rig, first_c
     assert any(e["fault_type"] == "MASS_LOSS" for e in res.fault_events)
     with pytest.raises(ControllerValueError, match="fault_monitor"):
         run_closed_loop(rig, sc, cfg, model, engage_on=(1,))
+
+
+def test_residual_after_1x_is_the_third_harmonic_left_on_a_1x_orbit():
+    from amb_controller.compare_cli import residual_after_1x
+
+    n = 20 * SPR
+    theta = 2 * np.pi * np.arange(n) / SPR
+    x = np.zeros((n, 8))
+    x[:, 2] = 50e-6 * np.cos(theta + 0.3) + 4e-6 * np.cos(3 * theta)  # 1 x removed, 3 x left
+    x[:, 5] = 30e-6 * np.sin(theta)
+    run = SimpleNamespace(samples_per_rev=SPR, displacement=x)
+    assert residual_after_1x(run) == pytest.approx(4e-6, rel=1e-9)
