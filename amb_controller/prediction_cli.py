@@ -36,7 +36,8 @@ after the step from which ``|X_k - X_final| <= 0.05 |X_final|`` for every later 
 amplitudes are compared separately, ``amplitude_ratio``). Times are measured from the
 step, at the end of the period (when the value exists).
 
-Command: ``python -m amb_controller.prediction_cli --out DIR [--json]`` writes
+Command: ``python -m amb_controller.prediction_cli --out DIR [--json] [--inverse-sensors
+inner|all]`` writes
 ``prediction.json`` and, per wavelet, ``prediction_<wavelet>_signal.png`` (figure 7.2 style)
 and ``prediction_<wavelet>_coefficients.png`` (figures 7.3-7.5 style).
 """
@@ -77,6 +78,8 @@ BAND = 0.05
 FINAL_PERIODS = 10
 INVERSE_ORDER = 5  # section 7.4.2
 DC_WEIGHT = 10.0
+#: Sensors whose model is inverted (``B^(m)`` of eq. 7.2): inner planes 2, 3 (default) or all.
+INVERSE_SENSORS = {"inner": (2, 3, 4, 5), "all": tuple(range(8))}
 #: Relative singular-value cutoff of ``G(1)`` for the inverse: the FE level models p >= 2 are
 #: structurally rank deficient (singular values 1e-16 of the largest; :mod:`amb_controller.
 #: inverse`), their genuine singular values are >= 3.9e-3 of the largest (db2, p = 2): any
@@ -254,7 +257,9 @@ class PredictionResult:
     summary: dict
 
 
-def level_operator(rig, omega: float, config: ControllerConfig, level: int):
+def level_operator(
+    rig, omega: float, config: ControllerConfig, level: int, inverse_sensors: str = "inner"
+):
     """
     Return the steady-state operator of one level from the FE-route model (eq. 7.6).
 
@@ -264,11 +269,17 @@ def level_operator(rig, omega: float, config: ControllerConfig, level: int):
     G_all(1)`` maps it to the steady state of all 8 sensors. With the 8-sensor model inverted
     by least squares instead, a synchronous force (which is not a combination of the level's
     control waveforms alone) leaves a residual outside the range of ``G(1)`` and the final
-    prediction is biased (decision; the thesis does not say which sensors it inverted).
-    At p >= 2 the inner model is rank deficient (the odd control waveforms of
+    prediction is biased (decision; the thesis does not say which sensors it inverted,
+    though section 6.4 speaks of "a full model ... from all the sensor locations", which
+    ``inverse_sensors="all"`` gives). Measured at 22 Hz (haar / db2 / db4, worst x sensor,
+    s after the step; measured response 0.545): inner 0.591 / 0.591 / 0.636 with final 1 x
+    amplitude ratios 0.95-1.02 at x2, x3 and 0.63-0.99 at x1, x4; all 0.364 / 0.455 / 0.545
+    with ratios 0.92-1.0 except x3 (the near-node sensor, 8 um final amplitude): 2.31 / 0.87
+    / 0.79. At p >= 2 the inner model is rank deficient (the odd control waveforms of
     :func:`~amb_controller.basis.control_basis` repeat combinations of the even ones): the
     inverse is the truncated-SVD one (``rank_rtol``), without which the level-2 prediction
-    peaked at 40 x the measured coefficient (haar, 22 Hz) and dominated the rebuilt signal.
+    peaked at 22-36 x the measured level-2 coefficients (haar, 22 Hz, inner sensors) and
+    dominated the rebuilt signal.
 
     Parameters
     ----------
@@ -279,19 +290,25 @@ def level_operator(rig, omega: float, config: ControllerConfig, level: int):
         Wavelet and samples per revolution.
     level : int
         Thesis level p.
+    inverse_sensors : {"inner", "all"}
+        Sensors of the inverted model (:data:`INVERSE_SENSORS`).
 
     Returns
     -------
     tuple of (numpy.ndarray, tuple of str, tuple of str)
-        ``S^(0..K)`` of shape ``(K+1, n_all, n_in)``, the input (inner) labels and the
-        output (all-sensor) labels.
+        ``S^(0..K)`` of shape ``(K+1, n_all, n_in)``, the input (inverted-sensor) labels and
+        the output (all-sensor) labels.
 
     """
     from amb_controller.closed_loop import fe_model
     from amb_controller.inverse import dc_gain, series_product
 
+    if inverse_sensors not in INVERSE_SENSORS:
+        raise PredictionValueError(
+            f"inverse_sensors must be one of {sorted(INVERSE_SENSORS)}, got {inverse_sensors!r}"
+        )
     base = replace(config, levels=(level,), inverse_order=INVERSE_ORDER)
-    inner = fe_model(rig, omega, replace(base, sensors=(2, 3, 4, 5)))
+    inner = fe_model(rig, omega, replace(base, sensors=INVERSE_SENSORS[inverse_sensors]))
     full = fe_model(rig, omega, replace(base, sensors=tuple(range(8))))
     inverse = pseudo_inverse_series(
         inner.markov, INVERSE_ORDER, dc_weight=DC_WEIGHT, rank_rtol=RANK_RTOL
@@ -325,7 +342,9 @@ def apply_operator(operator: np.ndarray, q: np.ndarray) -> np.ndarray:
     return out
 
 
-def predict_run(rig, result, speed_hz: float, step_time: float, wavelet: str) -> PredictionResult:
+def predict_run(
+    rig, result, speed_hz: float, step_time: float, wavelet: str, inverse_sensors: str = "inner"
+) -> PredictionResult:
     """
     Predict the steady state of a measured run with one wavelet (module docstring).
 
@@ -341,6 +360,8 @@ def predict_run(rig, result, speed_hz: float, step_time: float, wavelet: str) ->
         Time of the disturbance step, s.
     wavelet : str
         Orthogonal PyWavelets name.
+    inverse_sensors : {"inner", "all"}
+        Sensors of the inverted model (:func:`level_operator`).
 
     Returns
     -------
@@ -357,7 +378,7 @@ def predict_run(rig, result, speed_hz: float, step_time: float, wavelet: str) ->
     w = np.full_like(q, np.nan)
     index = {lab: i for i, lab in enumerate(labels)}
     for p in LEVELS:
-        operator, inputs, outputs = level_operator(rig, omega, config, p)
+        operator, inputs, outputs = level_operator(rig, omega, config, p, inverse_sensors)
         cols_in = np.array([index[lab] for lab in inputs])
         cols_out = np.array([index[lab] for lab in outputs])
         w[:, cols_out] = apply_operator(operator, q[:, cols_in])
@@ -472,7 +493,9 @@ def plot_prediction(pr: PredictionResult, out: Path, step_time: float) -> list[P
     return [p1, p2]
 
 
-def run_prediction(wavelets=WAVELETS, samples_per_rev: int = 64, scenario_path=None):
+def run_prediction(
+    wavelets=WAVELETS, samples_per_rev: int = 64, scenario_path=None, inverse_sensors="inner"
+):
     """
     Run the 22 Hz step synchronous force (PID only) once and predict with each wavelet.
 
@@ -496,7 +519,10 @@ def run_prediction(wavelets=WAVELETS, samples_per_rev: int = 64, scenario_path=N
         raise PredictionValueError(f"scenario {scenario.name!r} has no sync_force event")
     cfg = ControllerConfig(samples_per_rev=samples_per_rev, controller="none")
     result = run_closed_loop(rig, scenario, cfg)
-    out = {w: predict_run(rig, result, scenario.speed_hz, steps[0], w) for w in wavelets}
+    out = {
+        w: predict_run(rig, result, scenario.speed_hz, steps[0], w, inverse_sensors)
+        for w in wavelets
+    }
     return out, steps[0]
 
 
@@ -509,9 +535,15 @@ def main(argv=None) -> int:
     ap.add_argument("--out", type=Path, required=True, help="output folder (created)")
     ap.add_argument("--wavelets", nargs="+", default=list(WAVELETS))
     ap.add_argument("--json", action="store_true", help="print the JSON result")
+    ap.add_argument(
+        "--inverse-sensors",
+        choices=sorted(INVERSE_SENSORS),
+        default="inner",
+        help="sensors of the inverted model: inner planes 2, 3 (default) or all 8",
+    )
     args = ap.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
-    results, step = run_prediction(args.wavelets)
+    results, step = run_prediction(args.wavelets, inverse_sensors=args.inverse_sensors)
     summary = {w: pr.summary for w, pr in results.items()}
     (args.out / "prediction.json").write_text(json.dumps(summary, indent=1))
     for pr in results.values():

@@ -96,12 +96,29 @@ def test_level_two_prediction_stays_below_the_measured_transient_at_the_inner_se
 
 @pytest.mark.xfail(
     strict=True,
-    reason="thesis figs 7.2-7.5: prediction settles first; on the FE plant it settles 1 "
-    "period after the measurement (haar 0.591 s vs 0.545 s; db2 0.591, db4 0.636): the "
-    "5th-order inverse of the 1 x model leaves a least-squares residual of 0.53 of I "
-    "(haar; db2/db4 1.0 without lead) because the 1 x model is non-minimum phase (its "
-    "exact inverse series diverges) and the plant's own 1 x step settles in 10 periods",
+    reason="thesis figs 7.2-7.5: prediction settles first; with the inner-sensor inverse it "
+    "settles 1 period after the measurement (haar 0.591 s vs 0.545 s; db2 0.591, db4 0.636): "
+    "the 5th-order inverse of the 1 x model leaves a least-squares residual of 0.53 of I "
+    "(haar), and the outer sensors x1, x4 (worst) are predicted through G_all(1) from an "
+    "equivalent control step that a sinusoidal force is not (final 1 x ratio 0.63-0.78); "
+    "the all-sensor inverse settles first (test_full_model_inverse_...)",
 )
 def test_predicted_steady_state_settles_before_the_measured_response(haar):
     s = haar.summary
     assert s["predicted_settling_s"] < s["measured_settling_s"]
+
+
+@pytest.fixture(scope="module")
+def haar_all():
+    results, _ = run_prediction(("haar",), inverse_sensors="all")
+    return results["haar"]
+
+
+def test_full_model_inverse_settles_before_the_measured_response(haar_all):
+    # Section 6.4's "full inverse dynamic model" from all 8 sensors (least-squares left
+    # inverse): the prediction enters the 5 % band first (measured: 0.364 s vs 0.545 s),
+    # at the price of a biased final value at the near-node sensor x3 (level_operator doc).
+    s = haar_all.summary
+    assert s["predicted_settling_s"] < s["measured_settling_s"]
+    for name in ("x1", "x2", "x4"):  # large-amplitude sensors: final 1 x within 10 %
+        assert abs(s["sensors"][name]["amplitude_ratio"] - 1.0) <= 0.1
