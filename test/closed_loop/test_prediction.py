@@ -98,8 +98,9 @@ def test_level_two_prediction_stays_below_the_measured_transient_at_the_inner_se
     strict=True,
     reason="thesis figs 7.2-7.5: prediction settles first; with the inner-sensor inverse it "
     "settles 1 period after the measurement (haar 0.591 s vs 0.545 s; db2 0.591, db4 0.636): "
-    "the 5th-order inverse of the 1 x model leaves a least-squares residual of 0.53 of I "
-    "(haar), and the outer sensors x1, x4 (worst) are predicted through G_all(1) from an "
+    "no 5th-order inverse equalises the 1 x model, ||B*G - I|| / ||I|| = 0.53 at best and "
+    "2.44 with the B(1) G(1) = I weight 10 (haar; db2 1.00/1.56, db4 1.00/2.58), and the "
+    "outer sensors x1, x4 (worst) are predicted through G_all(1) from an "
     "equivalent control step that a sinusoidal force is not (final 1 x ratio 0.63-0.78); "
     "the all-sensor inverse settles first (test_full_model_inverse_...)",
 )
