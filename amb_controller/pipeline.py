@@ -529,7 +529,10 @@ class ControllerPipeline:
             raise ConfigError("model control coefficient labels differ from the configuration")
         if model.inverse.shape[0] != cfg.inverse_order + 1:
             inverse = pseudo_inverse_series(
-                model.markov, cfg.inverse_order, regularisation=cfg.inverse_regularisation
+                model.markov,
+                cfg.inverse_order,
+                regularisation=cfg.inverse_regularisation,
+                rank_rtol=_rank_rtol(cfg),
             )
             model = _replace_inverse(model, inverse)
         self._model = model
@@ -561,6 +564,7 @@ class ControllerPipeline:
                 cfg.inverse_order,
                 regularisation=cfg.inverse_regularisation,
                 dc_weight=cfg.predictor_dc_weight,
+                rank_rtol=_rank_rtol(cfg),
             )
             predictor = SteadyStatePredictor(steady_state_operator(model.markov, inverse))
         return ProportionalController(gain, i, predictor)
@@ -796,7 +800,10 @@ class ControllerPipeline:
         sup.identification_result = None
         cfg = self.config
         inverse = pseudo_inverse_series(
-            result.markov, cfg.inverse_order, regularisation=cfg.inverse_regularisation
+            result.markov,
+            cfg.inverse_order,
+            regularisation=cfg.inverse_regularisation,
+            rank_rtol=_rank_rtol(cfg),
         )
         model = WaveletModel(
             markov=result.markov,
@@ -850,6 +857,18 @@ class ControllerPipeline:
     def count_late(self) -> None:
         """Count a command that reached the plant after its target period had started."""
         self._stats["commands_late"] += 1
+
+
+def _rank_rtol(config: ControllerConfig) -> float:
+    """Singular-value cutoff of the inverse of eq. 6.35 (``inverse.pseudo_inverse_series``).
+
+    At thesis level p >= 2 the odd control waveforms (the even ones shifted by a quarter
+    revolution) are linearly dependent on the even ones, so ``G(1)`` of those levels has exact
+    null directions that no input can move (singular values ~1e-16 of the largest); the
+    truncated-SVD inverse drops them. At p = 1 alone ``G(1)`` has full rank and the plain
+    least-squares inverse is kept (0 = off), so single-level results are unchanged.
+    """
+    return 1e-8 if max(config.levels) > 1 else 0.0
 
 
 def _replace_inverse(model: WaveletModel, inverse: np.ndarray) -> WaveletModel:
