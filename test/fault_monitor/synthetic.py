@@ -80,3 +80,31 @@ def run_monitor(monitor, xy, angle, idx, wavelet: str = "haar"):
     for i in range(len(idx)):
         events += monitor.step(adapter.step(int(idx[i]), xy[i], angle[i], OMEGA))
     return events
+
+
+def add_base_motion(
+    xy: np.ndarray,
+    idx: np.ndarray,
+    *,
+    start_rev: float,
+    amplitude: float = 40e-6,
+    hz: float = 3.0,
+    duration: float = 1.0,
+    axis: int = 0,
+    gains: tuple[float, float, float, float] = (1.0, 0.8, 0.6, 1.0),
+) -> np.ndarray:
+    """
+    Add a slow relative displacement, in phase on all four planes, along ``axis`` (0 x, 1 y).
+
+    ``amplitude * sin(2 pi hz (t - t0))`` for ``duration`` s from revolution ``start_rev``,
+    scaled per plane by ``gains``: the rotor's motion relative to a moving base below 1 x
+    (eq. 3.6; the simulated rig shows 30-60 um at 2-3 Hz, all planes together).
+    """
+    out = xy.copy()
+    t = idx / (SPR * HZ)
+    t0 = start_rev / HZ
+    on = (t >= t0) & (t < t0 + duration)
+    s = np.where(on, amplitude * np.sin(2 * np.pi * hz * (t - t0)), 0.0)
+    for p in range(4):
+        out[:, 2 * p + axis] += gains[p] * s
+    return out
