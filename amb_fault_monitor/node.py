@@ -115,6 +115,11 @@ class FaultMonitorNode(Node):
             1e3,
             **ro,
         )
+        dbl(
+            "decision_max_revs", 32.0,
+            "longest wait while the 1 x level still moves far from its reference, revolutions "
+            "(>= decision_revs)", 0.5, 1e3, **ro,
+        )  # fmt: skip
         dbl("quiet_revs", 2.0, "hold-off: quiet revolutions that end an episode", 0.25, 1e3, **ro)
         self.declare_parameter(
             "event_log",
@@ -164,6 +169,7 @@ class FaultMonitorNode(Node):
                 threshold_floor=p("threshold_floor").value,
                 decision_revs=p("decision_revs").value,
                 quiet_revs=p("quiet_revs").value,
+                decision_max_revs=p("decision_max_revs").value,
             )
             self._log = EventLog(p("event_log").value or None)
             from amb_plant_sim.rig import load_rig
