@@ -37,6 +37,8 @@ inconsistent or constant signal of one transducer. The rules, in order:
 4. ``AUX_BEARING_CONTACT``: crossings at levels above 1 x in *both* frames (figure 5.30, the
    4 Omega coefficients) without a lasting synchronous change; the count is the number of
    separate bursts.
+   Contacts *during* another fault's ring-down are found by the monitor's rise test
+   (:mod:`amb_fault_monitor.monitor`, step 4) and reported as their own event.
 5. ``UNKNOWN``: anything else (Table 5.1 "unidentified").
 """
 

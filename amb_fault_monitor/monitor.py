@@ -50,10 +50,25 @@ Episodes
    5.1 asks for the new *steady state*: deciding at a fixed delay while the transient still
    rings confuses the two (the simulated contacts at 29 and 67 Hz move the 1 x level by
    10-20 thresholds for 5-20 revolutions, a 100 g cm loss settles at 40-50 thresholds).
-4. *Tail*: the disturbance may ring on; no new episode starts until ``quiet_revs`` pass without
-   a crossing (at most ``max_tail_revs``). Strong fine-level bursts in both frames during the
-   tail (contacts that a mass loss leads to, figure 5.27 case 2) are counted and reported
-   as one ``AUX_BEARING_CONTACT`` event with their count when the tail ends.
+   The wait is extended up to ``decision_max_revs`` while ``s_k >= sync_change`` on all of
+   the latest ``2 settle_revs`` phasors (the level has not returned and still moves: a
+   430 g cm loss at 67 Hz whose contacts keep it ringing settles 19-20 revolutions after
+   the alarm; deciding at 16 called it a contact).
+4. *Contacts inside an episode and tail*: the disturbance may ring on; no new episode starts
+   until ``quiet_revs`` pass without a crossing (at most ``max_tail_revs``), and for
+   ``rearm_revs`` after that a new episode needs a strong crossing (``confirm_ratio``) to be
+   confirmed (the end of a long ring-down hovers at the threshold). From one revolution
+   after the first crossing, each finest-level coefficient (either frame) is compared with
+   the ring-down's own envelope, the largest finest-level ratio of the preceding revolution
+   without its last quarter: ``r >= tail_rise * envelope`` and ``r >= confirm_ratio`` is a
+   new impulse, a contact (a free ring-down decays smoothly; contacts that a mass loss leads
+   to, figure 5.27 case 2, keep re-exciting it). Bursts closer than ``burst_gap_revs`` are
+   one. If the episode is decided a contact, they add to its count; otherwise one
+   ``AUX_BEARING_CONTACT`` event is emitted right after the decision (or at the first
+   contact found in the tail), onset at the first burst, ``count`` the bursts found until
+   then (later bursts of the same episode are not reported again). Limitation: a contact in
+   the first revolution of the episode (before the envelope exists) is not separated from
+   the fault's own onset.
 
 Sensor channels found faulty are masked (their plane feature uses the partner channel only)
 until :meth:`FaultMonitor.reset`. A channel whose finest-level coefficient stays below
