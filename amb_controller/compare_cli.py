@@ -44,6 +44,13 @@ monitor's MASS_LOSS *event* (emitted at its decision, ~10 revolutions after the 
 event's detection_sample_index is the early detection); ``wavelet_reconf_alarm`` engages
 at the monitor's *alarm* (confirmed detection, the onset revolution).
 
+Third critical speed (``sync_150N_3rd``): ``wavelet_i1_8sensors`` is ``wavelet_i1`` measuring
+all 8 sensors (least-squares inverse). With the 4 inner sensors the steady-state gain
+``G(1)`` is nearly singular there (singular values down to 0.0035 of the largest) and the
+5th-order inverse poor (``||B G - I|| = 0.69`` at k = 0): the exact closed loop on the FE
+Markov model has spectral radius 1.027, so the divergence of every inner-sensor controller
+is predicted by the (correct) model; with all 8 sensors ``B G = I`` and the radius is 0.74-0.78.
+
 Also written: figure 8.3 redrawn for i = 1..4 (``fig8_3_stability_i1-4.png``), and the time
 for one command (controller step + synthesis + limit) against the period (``timing``).
 """
@@ -236,6 +243,9 @@ def run_multilevel(matrix: Matrix, name: str, key: str):
     scenario = matrix.scenarios[key]
     config = replace(matrix.config(SPECS["wavelet_i1"], scenario), levels=ML_LEVELS)
     coupled = matrix.model(SPECS["wavelet_i1"], scenario, config)
+    # plain least-squares inverse of fe_model for the coupled model (not the truncated SVD
+    # the pipeline uses at p >= 2 when it recomputes the inverse): exact closed-loop radius
+    # on the FE model at the first critical speed 1.0 plain vs 1.076 truncated (64 samples)
     controller = None
     if name == "wavelet_124_perlevel":
         controller = MultiLevelController.from_models(
@@ -261,6 +271,8 @@ def comparison(
     matrix: Matrix, controllers=CONTROLLERS, progress=None, multilevel: bool = False
 ) -> dict:
     """Run every controller on every scenario; return ``{scenario: {controller: metrics}}``."""
+    from amb_controller.closed_loop import run_closed_loop
+
     table: dict = {}
     traces: dict = {}
     for key, scenario in matrix.scenarios.items():
@@ -272,6 +284,8 @@ def comparison(
             names += ["wavelet_reconf", "wavelet_reconf_alarm"]
         if multilevel and key.startswith("mass_loss"):
             names += list(MULTILEVEL)
+        if key == "sync_150N_3rd":
+            names += ["wavelet_i1_8sensors"]
         for name in names:
             t0 = time.perf_counter()
             if name == "wavelet_reconf":
@@ -285,6 +299,11 @@ def comparison(
                 )  # fmt: skip
             elif name in MULTILEVEL:
                 result = run_multilevel(matrix, name, key)
+            elif name == "wavelet_i1_8sensors":
+                spec = SPECS["wavelet_i1"]
+                config = replace(matrix.config(spec, scenario), sensors=tuple(range(8)))
+                model = matrix.model(spec, scenario, config)
+                result = run_closed_loop(matrix.rig, scenario, config, model)
             else:
                 result = matrix.run(SPECS[name], key)
             m = run_metrics(result, scenario.speed_hz, pid_steady)
