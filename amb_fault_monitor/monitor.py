@@ -681,7 +681,10 @@ class FaultMonitor:
         coefficients overlapping this one): the ring-down of a transient decays smoothly, so
         a coefficient ``tail_rise`` times that envelope, and strong (``confirm_ratio``), is a
         new impulse. Measured on the simulated suite (haar, 32 samples per revolution): the
-        largest rise in a mass-loss ring-down without contact is 1.54, with contacts 1.84-2.66.
+        largest rise in a mass-loss ring-down without contact is 1.54, with contacts 1.84-2.66
+        (a 10-20 % margin each side of 1.7). With db2 the finest-level rise does not separate
+        them (1.73 without contact at 19 Hz, 1.59 with contacts at 67 Hz): the two 67 Hz
+        contact cases are still missed with db2.
         """
         ep = self._episode
         cfg = self.config
