@@ -1,0 +1,110 @@
+"""Restarts: the controller process is killed (SIGKILL) mid-run and started again.
+
+Lock-step run of a mass loss at the first critical speed with the real plant, filterbank and
+controller (transient, ACTIVE from a model file) over DDS. The controller is killed after the
+fault: the plant's watchdog keeps the rotor on its PID (zero wavelet force, STATUS_WATCHDOG) and
+the run goes on; a new controller process started with the same parameters loads the saved
+model, re-enters ACTIVE, and its commands are applied again. Throughout, no displacement at
+the inner (control) planes exceeds the 0.5 mm limit of the thesis (section 8.5.1) and the end
+planes stay clear of the retainer bearings. Measured in this test's first runs: inner peaks
+0.16-0.24 mm, end planes 0.55-0.66 mm (the wavelet force the dead controller was applying drops
+to zero at once; PID alone peaks at ~0.40 mm at the end planes after this fault).
+"""
+
+from __future__ import annotations
+
+import signal
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import yaml
+from amb_msgs.msg import ControllerStatus, Measurement
+
+from amb_plant_sim.rig import load_rig
+from amb_wavelet.node import stream_qos
+
+pytestmark = [pytest.mark.ros, pytest.mark.slow]
+
+SPR = 32
+SCENARIO = {
+    "name": "restart",
+    "speed": {"role": "first_critical"},
+    "duration": 9.0,
+    "samples_per_rev": SPR,
+    "measurement_noise": 2.0e-7,
+    "events": [
+        {"kind": "unbalance", "time": 0.0, "disk": "D1", "me": 0.5e-3, "angle": 0.0},
+        {"kind": "mass_loss", "time": 1.5, "disk": "D1", "me": 4.3e-3, "angle": 0.0},
+    ],
+}
+LIMIT = 0.5e-3  # m, thesis section 8.5.1
+
+
+def test_controller_killed_and_restarted_mid_run(ros, node_process, tmp_path) -> None:
+    scenario = tmp_path / "scenario.yaml"
+    scenario.write_text(yaml.safe_dump(SCENARIO))
+    model_run = subprocess.run(
+        [sys.executable, "-m", "amb_controller.sim_cli", "--scenario", str(scenario),
+         "--controller", "transient", "--model", "fe", "--duration", "0.3", "--no-bag",
+         "--out", str(tmp_path / "model")],
+        capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    assert model_run.returncode == 0, model_run.stderr
+    model = tmp_path / "model" / "model.npz"
+    controller_params = {
+        "samples_per_rev": SPR,
+        "controller": "transient",
+        "model_file": str(model),
+        "start_mode": "active",
+    }
+    node = ros.node("amb_test_restart_observer")
+    samples: list[Measurement] = []
+    statuses: list[ControllerStatus] = []
+    node.create_subscription(Measurement, "/amb/measurement", samples.append, stream_qos(SPR))
+    node.create_subscription(ControllerStatus, "/amb/control/status", statuses.append, 100)
+    node_process("wavelet_filterbank", params={"samples_per_rev": SPR})
+    first = node_process("wavelet_controller", params=controller_params)
+    plant = node_process(
+        "plant_sim",
+        params={"scenario_file": str(scenario), "samples_per_rev": SPR,
+                "command_timeout": 0.5, "wait_for_subscribers": 3},
+    )  # fmt: skip
+    # let the controller act on the fault, then kill it
+    assert ros.spin_until(lambda: len(samples) >= 30 * SPR, 120.0), plant.log()
+    assert any(s.mode == ControllerStatus.MODE_ACTIVE for s in statuses), first.log()
+    first.proc.send_signal(signal.SIGKILL)
+    assert ros.spin_until(lambda: first.returncode is not None, 10.0)
+    killed_at = len(samples)
+    assert ros.spin_until(lambda: len(samples) >= killed_at + 10 * SPR, 120.0), plant.log()
+    n_status = len(statuses)
+    second = node_process("wavelet_controller", params=controller_params)
+    assert ros.spin_until(lambda: plant.returncode is not None, 240.0), plant.log()
+    assert plant.returncode == 0, plant.log()
+    ros.spin_for(0.5)
+
+    x = np.array([m.displacement for m in samples])
+    assert len(samples) == round(SCENARIO["duration"] * samples[0].rotor_speed / (2 * np.pi)) * SPR
+    assert [m.sample_index for m in samples] == list(range(len(samples)))
+    peak = np.max(np.abs(x), axis=0)
+    inner = peak[2:6]  # x2, y2, x3, y3: the planes beside the AMBs, where the PID acts
+    assert np.all(inner < LIMIT), f"an inner plane left the 0.5 mm limit: peaks {peak}"
+    # the end planes swing more (PID only peaks at ~0.40 mm there after this fault; the force
+    # dropped at the kill adds to it): they must stay clear of the 900 um retainer bearings
+    retainer = min(
+        c.radial_clearance for c in load_rig().clearance_bearings if "retainer" in c.kind
+    )
+    assert np.all(peak < retainer), f"end planes reach the retainers: peaks {peak}"
+    watchdog = [m for m in samples[killed_at:] if m.status & Measurement.STATUS_WATCHDOG]
+    assert watchdog and all(not np.any(m.wavelet_force) for m in watchdog)
+    resumed = [s for s in statuses[n_status:] if s.mode == ControllerStatus.MODE_ACTIVE]
+    assert resumed, second.log()
+    last_watchdog = max(m.sample_index for m in watchdog)
+    after = [m for m in samples if m.sample_index > last_watchdog]
+    assert any(np.any(m.wavelet_force) for m in after), (
+        f"commands were not applied again: {len(after)} samples after the watchdog; "
+        f"statuses {[(s.period_index, s.mode, s.message) for s in statuses[n_status:]][:12]}"
+        f"\n{plant.log()[-3000:]}"
+    )
+    assert "model" in second.log()
