@@ -1,0 +1,69 @@
+"""The recorder loses nothing: a node crashes mid-run, the recorder is stopped, the bag holds
+every message the publishers sent (lock-step, counts checked against the publishers' own)."""
+
+from __future__ import annotations
+
+import re
+import signal
+
+import pytest
+import yaml
+from rosbags.rosbag2 import Reader
+
+pytestmark = [pytest.mark.ros, pytest.mark.slow]
+
+SPR = 16
+SCENARIO = {
+    "name": "recorder_counts",
+    "speed": {"hz": 20.0},
+    "duration": 3.0,
+    "samples_per_rev": SPR,
+    "measurement_noise": 2.0e-7,
+    "events": [{"kind": "unbalance", "time": 0.0, "disk": "D1", "me": 1.0e-3, "angle": 0.0}],
+}
+
+
+@pytest.mark.parametrize("stop_signal", [signal.SIGTERM, signal.SIGINT])
+def test_bag_holds_every_message_after_a_crash_and_a_stop(
+    ros, node_process, tmp_path, stop_signal
+) -> None:
+    scenario = tmp_path / "scenario.yaml"
+    scenario.write_text(yaml.safe_dump(SCENARIO))
+    bag = tmp_path / "bag"
+    recorder = node_process(
+        "recorder",
+        params={"output": str(bag), "topics": ["/amb/measurement", "/amb/control/command"]},
+    )
+    filterbank = node_process("wavelet_filterbank", params={"samples_per_rev": SPR})
+    controller = node_process(
+        "wavelet_controller",
+        params={"samples_per_rev": SPR, "controller": "none", "coefficient_timeout": 0.2},
+    )
+    node = ros.node("amb_test_observer")
+    assert ros.spin_until(lambda: node.count_subscribers("/amb/control/command") >= 1, 30.0)
+    plant = node_process(
+        "plant_sim",
+        params={"scenario_file": str(scenario), "samples_per_rev": SPR,
+                "wait_for_subscribers": 3, "command_timeout": 5.0},
+    )  # fmt: skip
+    assert ros.spin_until(lambda: "samples/rev" in plant.log(), 60.0), plant.log()
+    ros.spin_for(0.5)
+    filterbank.proc.send_signal(signal.SIGKILL)  # a crash of another node mid-run
+    assert ros.spin_until(lambda: plant.returncode is not None, 120.0), plant.log()
+    assert plant.returncode == 0, plant.log()
+    ros.spin_for(0.5)
+    assert recorder.stop(stop_signal) == 0, recorder.log()
+    controller.stop()
+
+    n_samples = int(re.search(r"\((\d+) samples\)", plant.log()).group(1))
+    applied = int(re.search(r"applied (\d+)", plant.log()).group(1))
+    counts: dict[str, int] = {}
+    with Reader(bag) as reader:
+        for conn, _t, _raw in reader.messages():
+            counts[conn.topic] = counts.get(conn.topic, 0) + 1
+    assert counts["/amb/measurement"] == n_samples == round(3.0 * 20.0) * SPR
+    # one command per measured period; the plant applied all but the last `delay` of them
+    assert counts["/amb/control/command"] == n_samples // SPR
+    assert applied == n_samples // SPR - 2
+    written = re.search(r"messages written: (.*)", recorder.log()).group(1)
+    assert f"/amb/measurement: {n_samples}" in written
