@@ -42,7 +42,20 @@ revolutions left after removing its 1 x fit (the harmonics a 1 x Haar square wav
 Reconfiguration variants on ``contact_case2``: ``wavelet_reconf`` engages on the fault
 monitor's MASS_LOSS *event* (emitted at its decision, ~10 revolutions after the onset; the
 event's detection_sample_index is the early detection); ``wavelet_reconf_alarm`` engages
-at the monitor's *alarm* (confirmed detection, the onset revolution).
+at the monitor's *alarm* (confirmed detection, the onset revolution). Measured (64
+samples/rev, i = 1): onset 2.000 s (revolution 38), first contact 2.036 s (0.7 revolution
+later, simulator truth), alarm within revolution 38, the MASS_LOSS and AUX_BEARING_CONTACT
+events both at the decision ~10 revolutions later. Engaged at the decision the controller is
+set ACTIVE and at once HOLD by the contact event with a zero last command: the run equals
+PID (773 um, 20 contact onsets; with the earlier monitor, which reported no contact event,
+835 um and 54). Engaged at the alarm the first force can act in revolution 40 (i = 1), after
+the first contact; HOLD at the contact event then repeats a stale non-zero command: 793 um,
+28 onsets. The start-up of eq. 8.10 is not the cause: from a zero state its first output is
+``(1/w - 1) B^(0) q`` (1/3 of the full correction for w = 0.75) and no command saturated
+(peak 491-577 N, limit 1000 N). Controllers running before the fault (``wavelet_i1``,
+``harmonic_i1``) avoid every contact (285 / 268 um) because they had already removed the
+211 um of 1 x vibration of the pre-fault unbalance: in case 2 the margin comes from running
+before the fault, not from reconfiguration.
 
 Third critical speed (``sync_150N_3rd``): ``wavelet_i1_8sensors`` is ``wavelet_i1`` measuring
 all 8 sensors (least-squares inverse). With the 4 inner sensors the steady-state gain
@@ -197,6 +210,7 @@ class Matrix:
             config.samples_per_rev,
             config.delay_periods,
             config.levels,
+            config.sensors,
         )
         if key not in self._models:
             omega = 2 * math.pi * hz
