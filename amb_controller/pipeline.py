@@ -529,10 +529,7 @@ class ControllerPipeline:
             raise ConfigError("model control coefficient labels differ from the configuration")
         if model.inverse.shape[0] != cfg.inverse_order + 1:
             inverse = pseudo_inverse_series(
-                model.markov,
-                cfg.inverse_order,
-                regularisation=cfg.inverse_regularisation,
-                rank_rtol=_rank_rtol(cfg),
+                model.markov, cfg.inverse_order, regularisation=cfg.inverse_regularisation
             )
             model = _replace_inverse(model, inverse)
         self._model = model
@@ -800,10 +797,7 @@ class ControllerPipeline:
         sup.identification_result = None
         cfg = self.config
         inverse = pseudo_inverse_series(
-            result.markov,
-            cfg.inverse_order,
-            regularisation=cfg.inverse_regularisation,
-            rank_rtol=_rank_rtol(cfg),
+            result.markov, cfg.inverse_order, regularisation=cfg.inverse_regularisation
         )
         model = WaveletModel(
             markov=result.markov,
@@ -860,13 +854,15 @@ class ControllerPipeline:
 
 
 def _rank_rtol(config: ControllerConfig) -> float:
-    """Singular-value cutoff of the inverse of eq. 6.35 (``inverse.pseudo_inverse_series``).
+    """Singular-value cutoff of the steady-state predictor's inverse (eq. 6.35, 7.6).
 
     At thesis level p >= 2 the odd control waveforms (the even ones shifted by a quarter
     revolution) are linearly dependent on the even ones, so ``G(1)`` of those levels has exact
-    null directions that no input can move (singular values ~1e-16 of the largest); the
-    truncated-SVD inverse drops them. At p = 1 alone ``G(1)`` has full rank and the plain
-    least-squares inverse is kept (0 = off), so single-level results are unchanged.
+    null directions that no input can move (singular values ~1e-16 of the largest). The
+    predictor's ``B(1) G(1) = I`` weight then inverts rounding noise (terms up to 1e13), so its
+    inverse is the truncated-SVD one. The transient controller keeps the plain inverse: on the
+    coupled 1x+2x+4x FE loop the truncated one raised the exact closed-loop spectral radius from
+    1.0 to 1.055-1.076 (test/beyond, issue 9 report). At p = 1 alone nothing changes (0 = off).
     """
     return 1e-8 if max(config.levels) > 1 else 0.0
 
