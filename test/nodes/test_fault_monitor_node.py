@@ -50,8 +50,14 @@ def test_mass_loss_event_published_and_logged(ros, node_process, tmp_path) -> No
                 diag.update({kv.key: kv.value for kv in s.values})
 
     node.create_subscription(DiagnosticArray, "/diagnostics", on_diag, 10)
+    # the monitor must also be matched to the filterbank's coefficients before samples flow
     assert ros.spin_until(
-        lambda: pub.get_subscription_count() >= 2 and "messages" in diag, timeout=30.0
+        lambda: (
+            pub.get_subscription_count() >= 2
+            and node.count_subscribers("/amb/wavelet/coefficients") >= 1
+            and "messages" in diag
+        ),
+        timeout=30.0,
     ), (fb.log(), fm.log())
     # the synthetic rotor starts at rest: its start-up transient lasts ~25 revolutions, which
     # the calibration waits out (stationarity test), so the loss comes after 50 revolutions
@@ -113,7 +119,12 @@ def test_1x_trip_error_and_black_box_bag(ros, node_process, tmp_path) -> None:
 
     node.create_subscription(DiagnosticArray, "/diagnostics", on_diag, 10)
     assert ros.spin_until(
-        lambda: pub.get_subscription_count() >= 2 and "fault_monitor" in planes, timeout=30.0
+        lambda: (
+            pub.get_subscription_count() >= 2
+            and node.count_subscribers("/amb/wavelet/coefficients") >= 1
+            and "fault_monitor" in planes
+        ),
+        timeout=30.0,
     ), (fb.log(), fm.log())
     n_revs, step_rev = 40, 30
     for i in range(n_revs * SPR):
@@ -144,8 +155,9 @@ def test_1x_trip_error_and_black_box_bag(ros, node_process, tmp_path) -> None:
     # ERROR while tripped, with the 1 x amplitude of the 80 um orbit (diagnostics print 6 digits)
     assert ros.spin_until(settled_error, timeout=10.0), planes
     # black box: the bag of the first event, both topics, 0.2 s before to 0.1 s after
-    assert ros.spin_until(lambda: any(boxes.glob("event_*")), timeout=15.0), fm.log()
-    bag = sorted(boxes.glob("event_*"))[0]
+    # the folder appears when the bag opens; metadata.yaml when it is closed (post window over)
+    assert ros.spin_until(lambda: any(boxes.glob("event_*/metadata.yaml")), 15.0), fm.log()
+    bag = sorted(boxes.glob("event_*/metadata.yaml"))[0].parent
     with AnyReader([bag], default_typestore=typestore()) as reader:
         counts = {c.topic: c.msgcount for c in reader.connections}
         stamps = [t for c, t, _raw in reader.messages() if c.topic == "/amb/measurement"]

@@ -31,7 +31,7 @@ SPR = 32
 SCENARIO = {
     "name": "restart",
     "speed": {"role": "first_critical"},
-    "duration": 9.0,
+    "duration": 20.0,  # room for the new process to start while the plant runs on its watchdog
     "samples_per_rev": SPR,
     "measurement_noise": 2.0e-7,
     "events": [
@@ -80,6 +80,13 @@ def test_controller_killed_and_restarted_mid_run(ros, node_process, tmp_path) ->
     assert ros.spin_until(lambda: len(samples) >= killed_at + 10 * SPR, 120.0), plant.log()
     n_status = len(statuses)
     second = node_process("wavelet_controller", params=controller_params)
+    assert ros.spin_until(
+        lambda: (
+            any(s.mode == ControllerStatus.MODE_ACTIVE for s in statuses[n_status:])
+            or plant.returncode is not None
+        ),
+        120.0,
+    ), second.log()
     assert ros.spin_until(lambda: plant.returncode is not None, 240.0), plant.log()
     assert plant.returncode == 0, plant.log()
     ros.spin_for(0.5)
