@@ -63,9 +63,13 @@ def test_controller_killed_and_restarted_mid_run(ros, node_process, tmp_path) ->
     samples: list[Measurement] = []
     statuses: list[ControllerStatus] = []
     node.create_subscription(Measurement, "/amb/measurement", samples.append, stream_qos(SPR))
-    node.create_subscription(ControllerStatus, "/amb/control/status", statuses.append, 100)
+    status_sub = node.create_subscription(
+        ControllerStatus, "/amb/control/status", statuses.append, 100
+    )
     node_process("wavelet_filterbank", params={"samples_per_rev": SPR})
     first = node_process("wavelet_controller", params=controller_params)
+    # statuses are volatile: be matched to the controller before the run starts
+    assert ros.spin_until(lambda: status_sub.get_publisher_count() >= 1, 60.0), first.log()
     plant = node_process(
         "plant_sim",
         params={"scenario_file": str(scenario), "samples_per_rev": SPR,
