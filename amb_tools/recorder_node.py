@@ -14,6 +14,9 @@ output : str
 topics : str[]
     Shell-style patterns of topic names (``*`` also matches ``/``); default ``/amb/*`` and
     ``/diagnostics``.
+topic_types : str[]
+    ``/topic:pkg/msg/Type`` entries subscribed at start, before any publisher is discovered, so
+    that a run started right after the recorder loses nothing on them (reliable, volatile).
 storage : str
     ``mcap`` or ``sqlite3``.
 stamp_source : str
@@ -107,6 +110,15 @@ class Recorder(Node):
             ),
         )
         self.declare_parameter(
+            "topic_types",
+            [""],
+            ParameterDescriptor(
+                description="topics to subscribe at start, before any publisher is seen, as "
+                "'topic:pkg/msg/Type' ([''] = none; discovery by 'topics' goes on beside them)",
+                read_only=True,
+            ),
+        )
+        self.declare_parameter(
             "queue_depth",
             10000,
             ParameterDescriptor(
@@ -140,6 +152,15 @@ class Recorder(Node):
         status_period = self.get_parameter("status_period").value
         if status_period > 0:
             self.create_timer(status_period, self._publish_status)
+        for entry in self.get_parameter("topic_types").value:
+            if not entry:
+                continue
+            topic, sep, msgtype = entry.partition(":")
+            if not sep or not topic.startswith("/") or msgtype.count("/") != 2:
+                raise ConfigurationError(
+                    f"parameter 'topic_types' entry {entry!r}: expected '/topic:pkg/msg/Type'"
+                )
+            self._subscribe(topic, msgtype)
         self._discover()
         self.get_logger().info(f"recording {self._patterns} to {output} ({storage})")
 

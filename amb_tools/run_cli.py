@@ -35,6 +35,13 @@ from amb_tools.paths import config_file
 
 INSTALL_LIB = Path(__file__).resolve().parent.parent / "install" / "amb_wavelet_control" / "lib"
 NODES = ("recorder", "wavelet_filterbank", "fault_monitor", "wavelet_controller", "plant_sim")
+STREAM_TYPES = {
+    "/amb/measurement": "amb_msgs/msg/Measurement",
+    "/amb/wavelet/coefficients": "amb_msgs/msg/WaveletCoefficients",
+    "/amb/control/command": "amb_msgs/msg/ControlCommand",
+    "/amb/control/status": "amb_msgs/msg/ControllerStatus",
+    "/amb/fault/events": "amb_msgs/msg/FaultEvent",
+}
 
 
 @dataclass
@@ -212,6 +219,9 @@ def run(args: argparse.Namespace) -> int:
     (out / "logs").mkdir(parents=True)
     over = _overrides(args, scenario.resolve())
     over["recorder"] += ["-p", f"recorder:output:={(out / 'bag').resolve()}"]
+    # the recorder subscribes the contract's streams at start, not when it discovers them
+    streams = ",".join(f'"{t}:{m}"' for t, m in STREAM_TYPES.items())
+    over["recorder"] += ["-p", f"recorder:topic_types:=[{streams}]"]
     names = [n for n in NODES if n not in args.without and _available(n)]
     missing = [n for n in NODES if n not in names and n not in args.without]
     if "plant_sim" not in names:
@@ -323,10 +333,9 @@ def _expected_subscribers(names: list[str]) -> dict[str, int]:
         "/amb/control/status": "wavelet_controller",
         "/amb/fault/events": "fault_monitor",
     }
-    # the recorder subscribes to /amb/measurement once the plant publishes it: the plant's own
-    # wait_for_subscribers counts it there
+    # the recorder subscribes every stream at start (topic_types), so it counts on each
     return {
-        topic: len(nodes & has) + (recorder if publishers[topic] != "plant_sim" else 0)
+        topic: len(nodes & has) + recorder
         for topic, nodes in consumers.items()
         if publishers[topic] in has
     }

@@ -148,9 +148,14 @@ def test_fault_injection_service(ros, node_process, tmp_path) -> None:
     assert client.wait_for_service(timeout_sec=30.0), plant.log()
 
     def call(event_yaml: str) -> InjectFault.Response:
-        future = client.call_async(InjectFault.Request(event_yaml=event_yaml))
-        assert ros.spin_until(future.done, 30.0)
-        return future.result()
+        # a request sent while the service's reply path is still being matched can go
+        # unanswered (DDS discovery): ask again, up to three times
+        for _ in range(3):
+            future = client.call_async(InjectFault.Request(event_yaml=event_yaml))
+            if ros.spin_until(future.done, 10.0):
+                return future.result()
+            client.remove_pending_request(future)
+        raise AssertionError(f"no reply from /amb/plant/inject_fault:\n{plant.log()}")
 
     ok = call("{kind: sensor_fault, plane: 1, axis: x, mode: offset, value: 1.0e-4}")
     assert ok.accepted, ok.message
