@@ -706,25 +706,9 @@ class HarmonicPipeline:
 
     def status(self) -> dict:
         """Return the ``ControllerStatus`` fields (as :meth:`ControllerPipeline.status`)."""
-        sup = self.supervisor
-        cmd = self._last_command
-        peak = np.zeros(N_AXES) if cmd is None else np.max(np.abs(cmd.force), axis=1)
-        return {
-            "mode": int(sup.mode),
-            "controller": self.config.controller,
-            "period_index": int(self._last_period),
-            "delay_periods": int(self.config.delay_periods),
-            "compute_time": float(self._compute_time),
-            "peak_wavelet_force": peak.astype(float),
-            "saturated": bool(cmd is not None and np.any(cmd.saturated)),
-            "guard_tripped": bool(sup.guard is not None and sup.guard.tripped),
-            "identification_progress": 1.0,
-            "commands_sent": int(self._stats["commands_sent"]),
-            "commands_late": int(self._stats["commands_late"]),
-            "inputs_rejected": int(self._stats["inputs_rejected"]),
-            "model_file": "",
-            "message": (cmd.message if cmd is not None and cmd.message else sup.message),
-        }
+        from amb_controller.pipeline import status_fields
+
+        return status_fields(self, 1.0, "")
 
     def count_late(self) -> None:
         """Count a command that reached the plant after its target period had started."""

@@ -828,29 +828,51 @@ class ControllerPipeline:
         peak_wavelet_force (4 N), saturated, guard_tripped, identification_progress,
         commands_sent, commands_late, inputs_rejected, model_file, message.
         """
-        sup = self.supervisor
-        cmd = self._last_command
-        peak = np.zeros(N_AXES) if cmd is None else np.max(np.abs(cmd.force), axis=1)
-        return {
-            "mode": int(sup.mode),
-            "controller": self.config.controller,
-            "period_index": int(self._last_period),
-            "delay_periods": int(self.config.delay_periods),
-            "compute_time": float(self._compute_time),
-            "peak_wavelet_force": peak.astype(float),
-            "saturated": bool(cmd is not None and np.any(cmd.saturated)),
-            "guard_tripped": bool(sup.guard is not None and sup.guard.tripped),
-            "identification_progress": float(sup.identification_progress),
-            "commands_sent": int(self._stats["commands_sent"]),
-            "commands_late": int(self._stats["commands_late"]),
-            "inputs_rejected": int(self._stats["inputs_rejected"]),
-            "model_file": self._model_file,
-            "message": (cmd.message if cmd is not None and cmd.message else sup.message),
-        }
+        return status_fields(self, float(self.supervisor.identification_progress), self._model_file)
 
     def count_late(self) -> None:
         """Count a command that reached the plant after its target period had started."""
         self._stats["commands_late"] += 1
+
+
+def status_fields(pipeline, identification_progress: float, model_file: str) -> dict:
+    """The ``ControllerStatus`` fields of a pipeline (this one or a baseline's).
+
+    Parameters
+    ----------
+    pipeline : ControllerPipeline or amb_controller.baselines.HarmonicPipeline
+        Anything with ``config``, ``supervisor``, ``_last_command``, ``_last_period``,
+        ``_compute_time`` (s) and ``_stats`` (commands_sent, commands_late, inputs_rejected).
+    identification_progress : float
+        0..1.
+    model_file : str
+        Model file in use ('' = none).
+
+    Returns
+    -------
+    dict
+        Keys as the message fields (see :meth:`ControllerPipeline.status`).
+    """
+    sup = pipeline.supervisor
+    cmd = pipeline._last_command
+    peak = np.zeros(N_AXES) if cmd is None else np.max(np.abs(cmd.force), axis=1)
+    stats = pipeline._stats
+    return {
+        "mode": int(sup.mode),
+        "controller": pipeline.config.controller,
+        "period_index": int(pipeline._last_period),
+        "delay_periods": int(pipeline.config.delay_periods),
+        "compute_time": float(pipeline._compute_time),
+        "peak_wavelet_force": peak.astype(float),
+        "saturated": bool(cmd is not None and np.any(cmd.saturated)),
+        "guard_tripped": bool(sup.guard is not None and sup.guard.tripped),
+        "identification_progress": float(identification_progress),
+        "commands_sent": int(stats["commands_sent"]),
+        "commands_late": int(stats["commands_late"]),
+        "inputs_rejected": int(stats["inputs_rejected"]),
+        "model_file": model_file,
+        "message": (cmd.message if cmd is not None and cmd.message else sup.message),
+    }
 
 
 def _rank_rtol(config: ControllerConfig) -> float:
