@@ -66,9 +66,6 @@ from amb_msgs.msg import ControlCommand, Measurement
 from amb_msgs.srv import InjectFault
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rcl_interfaces.msg import (
-    FloatingPointRange,
-    IntegerRange,
-    ParameterDescriptor,
     SetParametersResult,
 )
 from rclpy.duration import Duration
@@ -87,7 +84,7 @@ from amb_tools.conversions import (
     measurement_msgs,
     stamp_seconds,
 )
-from amb_tools.node_main import ConfigurationError, run_node
+from amb_tools.node_main import ConfigurationError, descriptor, run_node
 from amb_tools.paths import config_file
 from amb_wavelet.node import stream_qos
 
@@ -101,44 +98,34 @@ COMMAND_QOS = QoSProfile(
 )
 
 
-def _descriptor(description: str, read_only: bool = True, **ranges) -> ParameterDescriptor:
-    if "ints" in ranges:
-        lo, hi = ranges.pop("ints")
-        ranges["integer_range"] = [IntegerRange(from_value=lo, to_value=hi)]
-    if "floats" in ranges:
-        lo, hi = ranges.pop("floats")
-        ranges["floating_point_range"] = [FloatingPointRange(from_value=lo, to_value=hi)]
-    return ParameterDescriptor(description=description, read_only=read_only, **ranges)
-
-
 class PlantSimNode(Node):
     """The simulated rig (module docstring)."""
 
     def __init__(self) -> None:
         super().__init__("plant_sim")
         d = self.declare_parameter
-        d("rig_file", "", _descriptor("rig description YAML ('' = the package's config/rig.yaml)"))
-        d("scenario_file", "", _descriptor("scenario YAML: speed, duration, events (required)"))
+        d("rig_file", "", descriptor("rig description YAML ('' = the package's config/rig.yaml)"))
+        d("scenario_file", "", descriptor("scenario YAML: speed, duration, events (required)"))
         d(
             "samples_per_rev",
             0,
-            _descriptor("samples per revolution, power of two (0 = scenario's)", ints=(0, 4096)),
+            descriptor("samples per revolution, power of two (0 = scenario's)", ints=(0, 4096)),
         )
         d(
             "samples_per_period",
             0,
-            _descriptor("control period in samples (0 = samples_per_rev)", ints=(0, 65536)),
+            descriptor("control period in samples (0 = samples_per_rev)", ints=(0, 65536)),
         )
-        d("mode", "lockstep", _descriptor("lockstep | realtime"))
+        d("mode", "lockstep", descriptor("lockstep | realtime"))
         d(
             "delay_periods",
             2,
-            _descriptor("i: commands for period k answer measured period k - i", ints=(1, 16)),
+            descriptor("i: commands for period k answer measured period k - i", ints=(1, 16)),
         )
         d(
             "command_timeout",
             5.0,
-            _descriptor(
+            descriptor(
                 "lockstep: wall s to wait for a command before running the period without it",
                 read_only=False,
                 floats=(0.01, 600.0),
@@ -147,30 +134,28 @@ class PlantSimNode(Node):
         d(
             "wait_for_subscribers",
             1,
-            _descriptor(
-                "subscribers of /amb/measurement to wait for before sample 0", ints=(0, 64)
-            ),
+            descriptor("subscribers of /amb/measurement to wait for before sample 0", ints=(0, 64)),
         )
-        d("startup_timeout", 30.0, _descriptor("wall s to wait for them", floats=(0.0, 600.0)))
+        d("startup_timeout", 30.0, descriptor("wall s to wait for them", floats=(0.0, 600.0)))
         d(
             "time_scale",
             1.0,
-            _descriptor("realtime: simulated s per wall s", read_only=False, floats=(0.01, 100.0)),
+            descriptor("realtime: simulated s per wall s", read_only=False, floats=(0.01, 100.0)),
         )
         d(
             "wavelet_force_limit",
             0.0,
-            _descriptor(
+            descriptor(
                 "N per axis (0 = the rig's bearing capacity)", read_only=False, floats=(0.0, 1.0e5)
             ),
         )
-        d("seed", 0, _descriptor("noise seed", ints=(0, 2**31 - 1)))
-        d("exit_at_end", True, _descriptor("exit when the scenario duration is reached"))
-        d("clock_every", 8, _descriptor("publish /clock every this many samples", ints=(1, 65536)))
+        d("seed", 0, descriptor("noise seed", ints=(0, 2**31 - 1)))
+        d("exit_at_end", True, descriptor("exit when the scenario duration is reached"))
+        d("clock_every", 8, descriptor("publish /clock every this many samples", ints=(1, 65536)))
         d(
             "status_period",
             1.0,
-            _descriptor(
+            descriptor(
                 "period of the /diagnostics report, wall s", read_only=False, floats=(0.05, 60.0)
             ),
         )

@@ -26,6 +26,7 @@ from collections.abc import Callable, Sequence
 from types import FrameType
 
 import rclpy
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
@@ -35,6 +36,33 @@ EXIT_CONFIGURATION_ERROR = 2
 
 class ConfigurationError(ValueError):
     """A node cannot start: a parameter or a file it names is invalid (the message says which)."""
+
+
+def descriptor(
+    description: str,
+    read_only: bool = True,
+    ints: tuple[int, int] | None = None,
+    floats: tuple[float, float] | None = None,
+) -> ParameterDescriptor:
+    """A ``ParameterDescriptor`` with its description and, where given, its range.
+
+    Parameters
+    ----------
+    description : str
+        What the parameter is, with its unit.
+    read_only : bool
+        Structural parameters (wavelet, samples_per_rev, ...) are read-only.
+    ints, floats : tuple, optional
+        Inclusive ``(low, high)`` integer or floating-point range.
+    """
+    ranges = {}
+    if ints is not None:
+        ranges["integer_range"] = [IntegerRange(from_value=ints[0], to_value=ints[1])]
+    if floats is not None:
+        ranges["floating_point_range"] = [
+            FloatingPointRange(from_value=floats[0], to_value=floats[1])
+        ]
+    return ParameterDescriptor(description=description, read_only=read_only, **ranges)
 
 
 def make_executor():

@@ -39,7 +39,6 @@ from pathlib import Path
 from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.node import Node
 from rclpy.qos import (
     DurabilityPolicy,
@@ -50,7 +49,7 @@ from rclpy.qos import (
 from std_msgs.msg import Header
 
 from amb_tools.bag_writer import STORAGE_PLUGINS, BagWriter, header_stamp_ns
-from amb_tools.node_main import ConfigurationError, run_node
+from amb_tools.node_main import ConfigurationError, descriptor, run_node
 
 STAMP_SOURCES = ("receive", "header")
 
@@ -77,53 +76,38 @@ class Recorder(Node):
 
     def __init__(self) -> None:
         super().__init__("recorder")
-        self.declare_parameter(
-            "output", "", ParameterDescriptor(description="bag folder to create", read_only=True)
-        )
-        self.declare_parameter(
-            "topics",
-            ["/amb/*", "/diagnostics"],
-            ParameterDescriptor(description="topic name patterns to record", read_only=True),
-        )
-        self.declare_parameter(
-            "storage", "mcap", ParameterDescriptor(description="mcap | sqlite3", read_only=True)
-        )
-        self.declare_parameter(
-            "stamp_source",
-            "receive",
-            ParameterDescriptor(description="receive | header", read_only=True),
-        )
-        self.declare_parameter(
+        d = self.declare_parameter
+        d("output", "", descriptor("bag folder to create"))
+        d("topics", ["/amb/*", "/diagnostics"], descriptor("topic name patterns to record"))
+        d("storage", "mcap", descriptor("mcap | sqlite3"))
+        d("stamp_source", "receive", descriptor("receive | header"))
+        d(
             "discovery_period",
             0.2,
-            ParameterDescriptor(
-                description="graph scan period, s",
-                floating_point_range=[FloatingPointRange(from_value=0.01, to_value=10.0)],
-            ),
+            descriptor("graph scan period, s", read_only=False, floats=(0.01, 10.0)),
         )
-        self.declare_parameter(
+        d(
             "status_period",
             1.0,
-            ParameterDescriptor(
-                description="period of the counts on /diagnostics, s (0 = off)",
-                floating_point_range=[FloatingPointRange(from_value=0.0, to_value=60.0)],
+            descriptor(
+                "period of the counts on /diagnostics, s (0 = off)",
+                read_only=False,
+                floats=(0.0, 60.0),
             ),
         )
-        self.declare_parameter(
+        d(
             "topic_types",
             [""],
-            ParameterDescriptor(
-                description="topics to subscribe at start, before any publisher is seen, as "
-                "'topic:pkg/msg/Type' ([''] = none; discovery by 'topics' goes on beside them)",
-                read_only=True,
+            descriptor(
+                "topics to subscribe at start, before any publisher is seen, as "
+                "'topic:pkg/msg/Type' ([''] = none; discovery by 'topics' goes on beside them)"
             ),
         )
-        self.declare_parameter(
+        d(
             "queue_depth",
             10000,
-            ParameterDescriptor(
-                description="subscription history depth, messages",
-                integer_range=[IntegerRange(from_value=1, to_value=1_000_000)],
+            descriptor(
+                "subscription history depth, messages", read_only=False, ints=(1, 1_000_000)
             ),
         )
         output = self.get_parameter("output").value

@@ -32,14 +32,13 @@ from pathlib import Path
 
 import numpy as np
 from amb_msgs.msg import ControlCommand, Measurement
-from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.serialization import deserialize_message
 from rosbags.rosbag2 import Reader
 
 from amb_tools.conversions import NUM_AXES, from_float_array, stamp_seconds
-from amb_tools.node_main import ConfigurationError, run_node
+from amb_tools.node_main import ConfigurationError, descriptor, run_node
 from amb_wavelet.node import stream_qos
 
 COMMAND_QOS_DEPTH = 16
@@ -50,38 +49,12 @@ class ReplayBridge(Node):
 
     def __init__(self) -> None:
         super().__init__("replay_bridge")
-        ro = {"read_only": True}
-        self.declare_parameter("bag", "", ParameterDescriptor(description="rosbag2 folder", **ro))
-        self.declare_parameter(
-            "time_scale",
-            1.0,
-            ParameterDescriptor(
-                description="simulated s per wall s",
-                floating_point_range=[FloatingPointRange(from_value=0.01, to_value=100.0)],
-                **ro,
-            ),
-        )
-        self.declare_parameter(
-            "command_log", "", ParameterDescriptor(description="JSON-lines command log", **ro)
-        )
-        self.declare_parameter(
-            "wait_for_subscribers",
-            1,
-            ParameterDescriptor(
-                description="subscribers to wait for",
-                integer_range=[IntegerRange(from_value=0, to_value=64)],
-                **ro,
-            ),
-        )
-        self.declare_parameter(
-            "startup_timeout",
-            30.0,
-            ParameterDescriptor(
-                description="wall s",
-                floating_point_range=[FloatingPointRange(from_value=0.0, to_value=600.0)],
-                **ro,
-            ),
-        )
+        d = self.declare_parameter
+        d("bag", "", descriptor("rosbag2 folder"))
+        d("time_scale", 1.0, descriptor("simulated s per wall s", floats=(0.01, 100.0)))
+        d("command_log", "", descriptor("JSON-lines command log"))
+        d("wait_for_subscribers", 1, descriptor("subscribers to wait for", ints=(0, 64)))
+        d("startup_timeout", 30.0, descriptor("wall s", floats=(0.0, 600.0)))
         bag = self.get_parameter("bag").value
         if not bag or not Path(bag).is_dir():
             raise ConfigurationError(f"parameter 'bag' = {bag!r}: not a rosbag2 folder")

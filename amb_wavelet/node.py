@@ -30,9 +30,6 @@ import numpy as np
 from amb_msgs.msg import CoefficientSet, Measurement, WaveletCoefficients
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rcl_interfaces.msg import (
-    FloatingPointRange,
-    IntegerRange,
-    ParameterDescriptor,
     SetParametersResult,
 )
 from rclpy.node import Node
@@ -45,7 +42,7 @@ from amb_tools.conversions import (
     coefficients_msg,
     stamp_seconds,
 )
-from amb_tools.node_main import ConfigurationError, run_node
+from amb_tools.node_main import ConfigurationError, descriptor, run_node
 from amb_wavelet.analysis import AnalysisFilterbank
 from amb_wavelet.errors import LevelError, WaveletNameError
 from amb_wavelet.filters import get_filters
@@ -70,58 +67,35 @@ class WaveletFilterbankNode(Node):
 
     def __init__(self) -> None:
         super().__init__("wavelet_filterbank")
-        ro = {"read_only": True}
-        self.declare_parameter(
-            "wavelet", "haar", ParameterDescriptor(description="PyWavelets name (orthogonal)", **ro)
-        )
-        self.declare_parameter(
-            "samples_per_rev",
-            64,
-            ParameterDescriptor(
-                description="samples per revolution, power of two",
-                integer_range=[IntegerRange(from_value=4, to_value=4096)],
-                **ro,
-            ),
-        )
-        self.declare_parameter(
+        d = self.declare_parameter
+        d("wavelet", "haar", descriptor("PyWavelets name (orthogonal)"))
+        d("samples_per_rev", 64, descriptor("samples per revolution, power of two", ints=(4, 4096)))
+        d(
             "samples_per_period",
             0,
-            ParameterDescriptor(
-                description="control period in samples (0 = samples_per_rev)",
-                integer_range=[IntegerRange(from_value=0, to_value=65536)],
-                **ro,
-            ),
+            descriptor("control period in samples (0 = samples_per_rev)", ints=(0, 65536)),
         )
-        self.declare_parameter(
+        d(
             "levels",
             0,
-            ParameterDescriptor(
-                description="filterbank levels J (0 = log2(samples_per_rev) + 1: down to 0.5 x)",
-                integer_range=[IntegerRange(from_value=0, to_value=16)],
-                **ro,
+            descriptor(
+                "filterbank levels J (0 = log2(samples_per_rev) + 1: down to 0.5 x)", ints=(0, 16)
             ),
         )
-        self.declare_parameter(
-            "frames", list(FRAMES), ParameterDescriptor(description="fixed, rotating", **ro)
-        )
-        self.declare_parameter(
-            "quadrature", list(QUADRATURES), ParameterDescriptor(description="even, odd", **ro)
-        )
-        self.declare_parameter(
+        d("frames", list(FRAMES), descriptor("fixed, rotating"))
+        d("quadrature", list(QUADRATURES), descriptor("even, odd"))
+        d(
             "quarter_delay",
             0,
-            ParameterDescriptor(
-                description="odd-channel delay in samples (0 = samples_per_rev / 4)",
-                integer_range=[IntegerRange(from_value=0, to_value=65536)],
-                **ro,
-            ),
+            descriptor("odd-channel delay in samples (0 = samples_per_rev / 4)", ints=(0, 65536)),
         )
-        self.declare_parameter(
+        d(
             "status_period",
             1.0,
-            ParameterDescriptor(
-                description="period of the /diagnostics report, s (wall clock)",
-                floating_point_range=[FloatingPointRange(from_value=0.05, to_value=60.0)],
+            descriptor(
+                "period of the /diagnostics report, s (wall clock)",
+                read_only=False,
+                floats=(0.05, 60.0),
             ),
         )
         self._configure()
