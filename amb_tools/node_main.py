@@ -65,7 +65,7 @@ def descriptor(
     return ParameterDescriptor(description=description, read_only=read_only, **ranges)
 
 
-def make_executor():
+def make_executor(choice: str | None = None):
     """The executor every node spins (``AMB_EXECUTOR``: ``events``, the default, or ``single``).
 
     rclpy's ``EventsExecutor`` (experimental in Jazzy) halves the per-message cost: measured with
@@ -73,13 +73,14 @@ def make_executor():
     loop ran at 0.67 x real time against 0.33 x with the ``SingleThreadedExecutor``, and the
     realtime command latency at 11 Hz fell from p50 56 ms / p99 157 ms to 16 / 25 ms. Nodes spin
     it with a timeout only (``spin_once(timeout_sec=...)``): without one it was seen to run no
-    callbacks. ``AMB_EXECUTOR=single`` returns to the standard executor.
+    callbacks. ``AMB_EXECUTOR=single`` returns to the standard executor; ``choice`` overrides
+    the environment for one node (the recorder keeps ``single``, see its ``main``).
 
     Returns
     -------
     rclpy.executors.Executor
     """
-    choice = os.environ.get("AMB_EXECUTOR", "events")
+    choice = choice or os.environ.get("AMB_EXECUTOR", "events")
     if choice == "events":
         from rclpy.experimental import EventsExecutor
 
@@ -90,7 +91,10 @@ def make_executor():
 
 
 def run_node(
-    factory: Callable[[], Node], args: Sequence[str] | None = None, spin_timeout: float = 0.1
+    factory: Callable[[], Node],
+    args: Sequence[str] | None = None,
+    spin_timeout: float = 0.1,
+    executor: str | None = None,
 ) -> int:
     """Create a node with ``factory`` and spin it until SIGINT, SIGTERM or shutdown.
 
@@ -102,6 +106,8 @@ def run_node(
         Command-line arguments (``--ros-args ...``); ``sys.argv`` if omitted.
     spin_timeout : float
         s, longest wait in one spin before the stop flag is checked.
+    executor : str, optional
+        ``"events"`` or ``"single"``; default ``AMB_EXECUTOR`` (see :func:`make_executor`).
 
     Returns
     -------
@@ -123,12 +129,12 @@ def run_node(
         except ConfigurationError as exc:
             print(f"[ERROR] configuration: {exc}", file=sys.stderr, flush=True)
             return EXIT_CONFIGURATION_ERROR
-        executor = make_executor()
-        executor.add_node(node)
+        spinner = make_executor(executor)
+        spinner.add_node(node)
         node.callback_errors = 0
         while not stop and rclpy.ok() and not getattr(node, "done", False):
             try:
-                executor.spin_once(timeout_sec=spin_timeout)
+                spinner.spin_once(timeout_sec=spin_timeout)
             except (KeyboardInterrupt, ExternalShutdownException):
                 raise
             except Exception:

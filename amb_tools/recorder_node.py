@@ -229,7 +229,10 @@ def _stamp(now: Any) -> Any:
 
 def main(args: list[str] | None = None) -> int:
     """Entry point of the ``recorder`` executable."""
-    return run_node(Recorder, args)
+    # The recorder keeps the SingleThreadedExecutor: with the EventsExecutor two fresh-clone CI
+    # runs each produced an amb-run bag in which one whole topic (coefficients, then commands)
+    # had no message, although every node received it; never seen with this executor.
+    return run_node(Recorder, args, executor="single")
 
 
 if __name__ == "__main__":
