@@ -1,8 +1,10 @@
 """Soak benchmark: the 67 Hz pipeline in lockstep over DDS for a long simulated time.
 
-Starts plant_sim (67 Hz, ``--spr`` samples/rev, lockstep), wavelet_filterbank,
-wavelet_controller (OFF: zero commands, so the lock-step exchange runs every period) and the
-recorder as separate processes (the installed node executables), samples the resident memory
+Starts plant_sim (67 Hz, ``--spr`` samples/rev, lockstep), wavelet_filterbank, fault_monitor,
+wavelet_controller and the recorder as separate processes (the installed node executables).
+The controller runs the transient law ACTIVE from a model built by ``amb-sim --model fe``
+(``--controller off``: zero commands; the lock-step exchange runs every period either way).
+It samples the resident memory
 (``VmRSS`` from ``/proc``) of each every few seconds, and at the end prints: simulated and wall
 time, samples the plant produced, samples in the bag (messages lost = difference), commands
 missing/late/rejected (plant's log), memory after warm-up and its growth per process.
@@ -19,6 +21,7 @@ import os
 import re
 import signal
 import subprocess
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -54,6 +57,9 @@ def main() -> int:
     p.add_argument("--hz", type=float, default=67.0, help="running speed, Hz")
     p.add_argument("--spr", type=int, default=32, help="samples per revolution")
     p.add_argument("--sample-every", type=float, default=5.0, help="wall s between RSS samples")
+    p.add_argument(
+        "--controller", choices=("transient", "off"), default="transient", help="controller law"
+    )
     args = p.parse_args()
     work = Path(tempfile.mkdtemp(prefix="amb-soak-"))
     duration = args.soak_minutes * 60.0
@@ -70,6 +76,19 @@ def main() -> int:
             }
         )
     )
+    controller = {"samples_per_rev": args.spr}
+    if args.controller == "transient":
+        model_dir = work / "model"
+        subprocess.run(
+            [sys.executable, "-m", "amb_controller.sim_cli", "--scenario", str(scenario),
+             "--controller", "transient", "--model", "fe", "--duration", "0.5", "--no-bag",
+             "--out", str(model_dir)],
+            check=True, capture_output=True,
+        )  # fmt: skip
+        controller.update(
+            {"model_file": str(model_dir / "model.npz"), "start_mode": "active",
+             "controller": "transient"}
+        )  # fmt: skip
     bag = work / "bag"
     procs = {}
     procs["recorder"] = start(
@@ -78,7 +97,8 @@ def main() -> int:
         {"output": str(bag), "topics": "['/amb/measurement', '/amb/control/command']"},
     )
     procs["wavelet_filterbank"] = start("wavelet_filterbank", work, {"samples_per_rev": args.spr})
-    procs["wavelet_controller"] = start("wavelet_controller", work, {"samples_per_rev": args.spr})
+    procs["fault_monitor"] = start("fault_monitor", work, {"samples_per_rev": args.spr})
+    procs["wavelet_controller"] = start("wavelet_controller", work, controller)
     time.sleep(3.0)
     procs["plant_sim"] = start(
         "plant_sim",
@@ -88,14 +108,19 @@ def main() -> int:
     wall0 = time.monotonic()
     memory: dict[str, list[tuple[float, int]]] = {name: [] for name in procs}
     plant = procs["plant_sim"][0]
+    next_report = 60.0
     while plant.poll() is None:
         t = time.monotonic() - wall0
         for name, (proc, _) in procs.items():
             memory[name].append((t, rss_kib(proc.pid)))
+        if t >= next_report:
+            rss = ", ".join(f"{n} {s[-1][1] / 1024:.0f}" for n, s in memory.items())
+            print(f"  {t / 60:5.1f} min wall; RSS MiB: {rss}", flush=True)
+            next_report += 60.0
         time.sleep(args.sample_every)
     wall = time.monotonic() - wall0
     time.sleep(2.0)
-    for name in ("wavelet_controller", "wavelet_filterbank", "recorder"):
+    for name in ("wavelet_controller", "fault_monitor", "wavelet_filterbank", "recorder"):
         procs[name][0].send_signal(signal.SIGINT)
     for proc, _ in procs.values():
         proc.wait(60)
@@ -110,7 +135,7 @@ def main() -> int:
     with AnyReader([bag]) as reader:
         counts = {c.topic: c.msgcount for c in reader.connections}
     in_bag = counts.get("/amb/measurement", 0)
-    print(f"soak: {args.hz:g} Hz, {args.spr} samples/rev, lockstep, controller OFF")
+    print(f"soak: {args.hz:g} Hz, {args.spr} samples/rev, lockstep, controller {args.controller}")
     print(
         f"simulated {sim_time:.1f} s in {wall:.1f} s wall (real-time factor {sim_time / wall:.2f})"
     )
