@@ -11,7 +11,8 @@ through its own steady-state predictor ``W = S Q`` with ``S = Gamma (G B_u)^*`` 
 7.6; :func:`level_operator`), from the FE-route model of that level
 (:func:`~amb_controller.closed_loop.fe_model`, 5th-order inverse as in section 7.4.2, with
 the ``B(1) G(1) = I`` weight of :mod:`amb_controller.inverse`, truncated-SVD inverse of the
-rank-deficient level models, ``RANK_RTOL``).
+rank-deficient level models, ``RANK_RTOL``). The inverted model is that of all 8 sensors by
+default, as in section 6.4 (:func:`level_operator`).
 The thesis identified ``(G B_u)^*`` on line; here the model is the simulator's own FE
 closed loop, so the comparison tests the method, not an identification.
 
@@ -78,8 +79,10 @@ BAND = 0.05
 FINAL_PERIODS = 10
 INVERSE_ORDER = 5  # section 7.4.2
 DC_WEIGHT = 10.0
-#: Sensors whose model is inverted (``B^(m)`` of eq. 7.2): inner planes 2, 3 (default) or all.
+#: Sensors whose model is inverted (``B^(m)`` of eq. 7.2): all 8 (default, section 6.4) or the
+#: inner planes 2, 3 beside the AMBs.
 INVERSE_SENSORS = {"inner": (2, 3, 4, 5), "all": tuple(range(8))}
+DEFAULT_INVERSE_SENSORS = "all"
 #: Relative singular-value cutoff of ``G(1)`` for the inverse: the FE level models p >= 2 are
 #: structurally rank deficient (singular values 1e-16 of the largest; :mod:`amb_controller.
 #: inverse`), their genuine singular values are >= 3.9e-3 of the largest (db2, p = 2): any
@@ -258,24 +261,37 @@ class PredictionResult:
 
 
 def level_operator(
-    rig, omega: float, config: ControllerConfig, level: int, inverse_sensors: str = "inner"
+    rig,
+    omega: float,
+    config: ControllerConfig,
+    level: int,
+    inverse_sensors: str = DEFAULT_INVERSE_SENSORS,
 ):
     """
     Return the steady-state operator of one level from the FE-route model (eq. 7.6).
 
-    ``S(z) = Gamma (G_in B_u)^*(z)``: the 5th-order inverse is that of the square model from
-    the inner sensors (planes 2, 3 beside the AMBs, the controller's default ``B^(m)``), which
-    recovers the equivalent control-coefficient step exactly in the steady state; ``Gamma =
-    G_all(1)`` maps it to the steady state of all 8 sensors. With the 8-sensor model inverted
-    by least squares instead, a synchronous force (which is not a combination of the level's
-    control waveforms alone) leaves a residual outside the range of ``G(1)`` and the final
-    prediction is biased (decision; the thesis does not say which sensors it inverted,
-    though section 6.4 speaks of "a full model ... from all the sensor locations", which
-    ``inverse_sensors="all"`` gives). Measured at 22 Hz (haar / db2 / db4, worst x sensor,
-    s after the step; measured response 0.545): inner 0.591 / 0.591 / 0.636 with final 1 x
-    amplitude ratios 0.95-1.02 at x2, x3 and 0.63-0.99 at x1, x4; all 0.364 / 0.455 / 0.545
-    with ratios 0.92-1.0 except x3 (the near-node sensor, 8 um final amplitude): 2.31 / 0.87
-    / 0.79. At p >= 2 the inner model is rank deficient (the odd control waveforms of
+    ``S(z) = Gamma (G B_u)^*(z)`` with ``Gamma = G_all(1)``, the steady-state gain of all 8
+    sensors, and ``(G B_u)^*`` the 5th-order least-squares inverse of the model of
+    ``inverse_sensors``.
+
+    Which sensors are inverted (decision, from the thesis's text): all 8. Section 6.4, after
+    eq. 6.35: "Applying the same process in all the control axis and measuring the response at
+    all the sensor locations allows a full model of the system to be constructed, from which a
+    full inverse dynamic model can be evaluated"; figures 6.3-6.7 show the inverse transfer
+    function at sensor 1, a rotor-end sensor that the inner-plane model does not contain
+    (section 2.1: pairs "at the rotor ends and next to the active magnetic bearings"); and
+    ``(.)^*`` of eq. 6.35 / 7.6 is a pseudo-inverse, which a square 4-sensor model would not
+    need. Only the PID loop takes the inner sensors (section 2.6).
+
+    Measured at 22 Hz, 200 N step (haar / db2 / db4; worst x sensor, s after the step;
+    measured response 0.545 s, set by the near-node sensor x3 with 8 um final 1 x):
+    all 8 sensors, prediction settles at 0.364 / 0.455 / 0.545 s, final 1 x amplitude
+    ratios 0.92-1.0 at x1, x2, x4, but biased at x3 (2.31 / 0.87 / 0.79): a synchronous
+    force is not a combination of the level's control waveforms alone, and the least-squares
+    inverse leaves its residual outside the range of ``G(1)``. Inner sensors (square model,
+    exact steady state at x2, x3: ratios 0.95-1.02; x1, x4 through ``G_all(1)``:
+    0.63-0.99): 0.591 / 0.591 / 0.636 s, one or two periods after the measurement. At
+    p >= 2 the inner model is rank deficient (the odd control waveforms of
     :func:`~amb_controller.basis.control_basis` repeat combinations of the even ones): the
     inverse is the truncated-SVD one (``rank_rtol``), without which the level-2 prediction
     peaked at 22-36 x the measured level-2 coefficients (haar, 22 Hz, inner sensors) and
@@ -308,13 +324,13 @@ def level_operator(
             f"inverse_sensors must be one of {sorted(INVERSE_SENSORS)}, got {inverse_sensors!r}"
         )
     base = replace(config, levels=(level,), inverse_order=INVERSE_ORDER)
-    inner = fe_model(rig, omega, replace(base, sensors=INVERSE_SENSORS[inverse_sensors]))
+    inverted = fe_model(rig, omega, replace(base, sensors=INVERSE_SENSORS[inverse_sensors]))
     full = fe_model(rig, omega, replace(base, sensors=tuple(range(8))))
     inverse = pseudo_inverse_series(
-        inner.markov, INVERSE_ORDER, dc_weight=DC_WEIGHT, rank_rtol=RANK_RTOL
+        inverted.markov, INVERSE_ORDER, dc_weight=DC_WEIGHT, rank_rtol=RANK_RTOL
     )
     operator = series_product(dc_gain(full.markov)[None], inverse)
-    return operator, tuple(inner.measured_labels), tuple(full.measured_labels)
+    return operator, tuple(inverted.measured_labels), tuple(full.measured_labels)
 
 
 def apply_operator(operator: np.ndarray, q: np.ndarray) -> np.ndarray:
@@ -343,7 +359,12 @@ def apply_operator(operator: np.ndarray, q: np.ndarray) -> np.ndarray:
 
 
 def predict_run(
-    rig, result, speed_hz: float, step_time: float, wavelet: str, inverse_sensors: str = "inner"
+    rig,
+    result,
+    speed_hz: float,
+    step_time: float,
+    wavelet: str,
+    inverse_sensors: str = DEFAULT_INVERSE_SENSORS,
 ) -> PredictionResult:
     """
     Predict the steady state of a measured run with one wavelet (module docstring).
@@ -494,7 +515,10 @@ def plot_prediction(pr: PredictionResult, out: Path, step_time: float) -> list[P
 
 
 def run_prediction(
-    wavelets=WAVELETS, samples_per_rev: int = 64, scenario_path=None, inverse_sensors="inner"
+    wavelets=WAVELETS,
+    samples_per_rev: int = 64,
+    scenario_path=None,
+    inverse_sensors=DEFAULT_INVERSE_SENSORS,
 ):
     """
     Run the 22 Hz step synchronous force (PID only) once and predict with each wavelet.
@@ -538,8 +562,9 @@ def main(argv=None) -> int:
     ap.add_argument(
         "--inverse-sensors",
         choices=sorted(INVERSE_SENSORS),
-        default="inner",
-        help="sensors of the inverted model: inner planes 2, 3 (default) or all 8",
+        default=DEFAULT_INVERSE_SENSORS,
+        help="sensors of the inverted model: all 8 (default, thesis section 6.4) or the inner "
+        "planes 2, 3",
     )
     args = ap.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)

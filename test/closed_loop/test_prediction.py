@@ -2,20 +2,29 @@
 Steady-state prediction of section 7.4.1 (200 N step synchronous force at 22 Hz, PID only).
 
 References: PyWavelets' periodised Haar DWT of one period (coefficient stream), the measured
-run's own final 1 x coefficients (the predictor's final value, eq. 7.4-7.5).
+run's own final 1 x coefficients (the predictor's final value, eq. 7.4-7.5), and the thesis's
+statements on figures 7.2-7.13. The inverted model is that of all 8 sensors (section 6.4's
+"full inverse dynamic model"); the inner-sensor alternative is tested for comparison.
 """
 
 import numpy as np
 import pytest
 import pywt
 
+from amb_controller.closed_loop import run_closed_loop
 from amb_controller.pipeline import ControllerConfig
 from amb_controller.prediction_cli import (
+    DEFAULT_INVERSE_SENSORS,
+    INVERSE_SENSORS,
+    WAVELETS,
     coefficient_stream,
-    run_prediction,
+    predict_run,
     settling_period,
     wrapped_weights,
 )
+from amb_plant_sim.rig import load_rig
+from amb_plant_sim.scenario import load_scenario
+from amb_tools.paths import config_file
 
 SPR = 64
 
@@ -51,9 +60,29 @@ def test_settling_period_of_a_known_sequence():
 
 
 @pytest.fixture(scope="module")
-def haar():
-    results, _ = run_prediction(("haar",))
-    return results["haar"]
+def measured_run():
+    """The 22 Hz step synchronous force run, PID only, once for the module."""
+    rig = load_rig()
+    scenario = load_scenario(config_file("scenarios/sync_force_200N_22Hz.yaml"), rig)
+    step = next(e.time for e in scenario.events if e.kind == "sync_force")
+    result = run_closed_loop(
+        rig, scenario, ControllerConfig(samples_per_rev=SPR, controller="none")
+    )
+    return rig, result, scenario.speed_hz, step
+
+
+@pytest.fixture(scope="module")
+def predict(measured_run):
+    """``predict(wavelet, inverse_sensors=default)``: prediction of the measured run (cached)."""
+    cache = {}
+
+    def get(wavelet: str, inverse_sensors: str = DEFAULT_INVERSE_SENSORS):
+        key = (wavelet, inverse_sensors)
+        if key not in cache:
+            cache[key] = predict_run(*measured_run, wavelet, inverse_sensors)
+        return cache[key]
+
+    return get
 
 
 def _phasor(pr, series, c):
@@ -62,64 +91,103 @@ def _phasor(pr, series, c):
     return series[:, e] + 1j * series[:, o]
 
 
-def test_predicted_1x_coefficient_reaches_the_measured_final_value_at_the_inner_sensors(haar):
-    for c in (2, 4):  # x2, x3 (inverted sensors)
-        meas = _phasor(haar, haar.coefficients, c)[-10:].mean()
-        pred = _phasor(haar, haar.predicted_coefficients, c)[-10:].mean()
-        assert abs(pred - meas) <= 0.03 * abs(meas)
+def test_default_inverse_is_the_full_model_of_all_sensors():
+    # Section 6.4: "measuring the response at all the sensor locations allows a full model
+    # of the system to be constructed, from which a full inverse dynamic model can be evaluated".
+    assert INVERSE_SENSORS[DEFAULT_INVERSE_SENSORS] == tuple(range(8))
 
 
-def test_predicted_1x_coefficient_has_a_reduced_transient_at_the_inner_sensors(haar):
-    # thesis 7.4.1: "greatly reduced transient response"; measured here: peak |W| / peak |Q|
-    # = 0.38 (x2) and 0.36 (x3); the overshoot over the final value stays (x3: 2.8 x)
-    k0 = haar.step_period
-    for c in (2, 4):  # x2, x3: the sensors the inverse is built from
-        meas = _phasor(haar, haar.coefficients, c)[k0:]
-        pred = _phasor(haar, haar.predicted_coefficients, c)[k0:]
+@pytest.mark.parametrize(
+    "wavelet",
+    [
+        "haar",
+        "db2",
+        pytest.param(
+            "db4",
+            marks=pytest.mark.xfail(
+                strict=True,
+                reason="db4's level-1 analysis window spans 458 samples = 7.2 periods: its "
+                "measured 1 x coefficient settles 4-5 periods after the signal (x1: 8 vs 4, "
+                "x3: 15 vs 11 periods; haar 0-2, db2 1-2), and the prediction, built on it, "
+                "at 0.545 s, as the measurement (haar 0.364 s, db2 0.455 s)",
+            ),
+        ),
+    ],
+)
+def test_predicted_steady_state_settles_before_the_measured_response(predict, wavelet):
+    # Section 7.4.1, figures 7.3-7.5 (Haar), 7.7-7.9 (db2), 7.11-7.13 (db4): "The predictive
+    # steady state wavelet coefficients are seen to have a much shorter transient response
+    # reaching steady state before the system". Worst x sensor; measured: 0.545 s (x3).
+    s = predict(wavelet).summary
+    assert s["predicted_settling_s"] < s["measured_settling_s"]
+
+
+@pytest.mark.parametrize("wavelet", WAVELETS)
+@pytest.mark.parametrize(
+    "sensor",
+    [
+        "x1",
+        "x2",
+        pytest.param(
+            "x3",
+            marks=pytest.mark.xfail(
+                strict=True,
+                reason="x3 is near a node (8.1 um final 1 x against 411 um at x1): the "
+                "least-squares inverse of the 8-sensor model leaves the synchronous force's "
+                "residual outside the range of G(1); predicted/measured 2.31 (haar), 0.87 "
+                "(db2), 0.79 (db4), 10.6 um at most",
+            ),
+        ),
+        "x4",
+    ],
+)
+def test_predicted_final_amplitude_matches_the_measured_one(predict, wavelet, sensor):
+    # Section 7.4.1 (figure 7.2): the prediction "matches the steady state amplitude of the
+    # measured response"; measured ratios 0.92-1.0 at x1, x2, x4.
+    ratio = predict(wavelet).summary["sensors"][sensor]["amplitude_ratio"]
+    assert abs(ratio - 1.0) <= 0.1
+
+
+@pytest.mark.parametrize("wavelet", WAVELETS)
+def test_predicted_1x_coefficient_has_a_reduced_transient_at_the_inner_sensors(predict, wavelet):
+    # Section 7.4.1: "The predictive steady state response of the system has a greatly reduced
+    # transient response"; measured peak |W| / peak |Q| at x2, x3: haar 0.36, 0.18; db2
+    # 0.37, 0.06; db4 0.42, 0.10 (the measured 1 x overshoots its final value 2.4-11 x).
+    pr = predict(wavelet)
+    k0 = pr.step_period
+    for c in (2, 4):  # x2, x3
+        meas = _phasor(pr, pr.coefficients, c)[k0:]
+        pred = _phasor(pr, pr.predicted_coefficients, c)[k0:]
         final = abs(meas[-10:].mean())
         assert np.abs(meas).max() > 2.0 * final  # the measured 1x overshoots strongly
-        assert np.abs(pred).max() <= 0.5 * np.abs(meas).max()
+        assert np.nanmax(np.abs(pred)) <= 0.5 * np.abs(meas).max()
 
 
-def test_level_two_prediction_stays_below_the_measured_transient_at_the_inner_sensors(haar):
+def test_level_two_prediction_stays_below_the_measured_transient_at_the_inner_sensors(predict):
     # With the full-rank least-squares inverse of the rank-deficient level-2 model the 2 x
-    # prediction peaked at 22-36 x the measured peak (x2, y2, x3, y3); truncated-SVD inverse:
-    # 0.32-0.47 (measured).
-    k0 = haar.step_period
+    # prediction peaked at 22-36 x the measured peak (inner-sensor model); truncated-SVD
+    # inverse of the 8-sensor model: 0.24-0.56 (haar, x2, y2, x3, y3).
+    pr = predict("haar")
+    k0 = pr.step_period
     for c in (2, 3, 4, 5):
-        cols = [i for i, lab in enumerate(haar.labels) if lab.startswith("p2/") and
+        cols = [i for i, lab in enumerate(pr.labels) if lab.startswith("p2/") and
                 lab.endswith(f"/c{c}")]  # fmt: skip
-        meas = np.nanmax(np.abs(haar.coefficients[k0:, cols]))
-        pred = np.nanmax(np.abs(haar.predicted_coefficients[k0:, cols]))
+        meas = np.nanmax(np.abs(pr.coefficients[k0:, cols]))
+        pred = np.nanmax(np.abs(pr.predicted_coefficients[k0:, cols]))
         assert pred <= 0.6 * meas
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="thesis figs 7.2-7.5: prediction settles first; with the inner-sensor inverse it "
-    "settles 1 period after the measurement (haar 0.591 s vs 0.545 s; db2 0.591, db4 0.636): "
-    "no 5th-order inverse equalises the 1 x model, ||B*G - I|| / ||I|| = 0.53 at best and "
-    "2.44 with the B(1) G(1) = I weight 10 (haar; db2 1.00/1.56, db4 1.00/2.58), and the "
-    "outer sensors x1, x4 (worst) are predicted through G_all(1) from an "
-    "equivalent control step that a sinusoidal force is not (final 1 x ratio 0.63-0.78); "
-    "the all-sensor inverse settles first (test_full_model_inverse_...)",
-)
-def test_predicted_steady_state_settles_before_the_measured_response(haar):
-    s = haar.summary
-    assert s["predicted_settling_s"] < s["measured_settling_s"]
-
-
-@pytest.fixture(scope="module")
-def haar_all():
-    results, _ = run_prediction(("haar",), inverse_sensors="all")
-    return results["haar"]
-
-
-def test_full_model_inverse_settles_before_the_measured_response(haar_all):
-    # Section 6.4's "full inverse dynamic model" from all 8 sensors (least-squares left
-    # inverse): the prediction enters the 5 % band first (measured: 0.364 s vs 0.545 s),
-    # at the price of a biased final value at the near-node sensor x3 (level_operator doc).
-    s = haar_all.summary
-    assert s["predicted_settling_s"] < s["measured_settling_s"]
-    for name in ("x1", "x2", "x4"):  # large-amplitude sensors: final 1 x within 10 %
-        assert abs(s["sensors"][name]["amplitude_ratio"] - 1.0) <= 0.1
+def test_inner_sensor_inverse_is_exact_in_the_steady_state_but_settles_after_the_measurement(
+    predict,
+):
+    # The alternative B^(m) (planes 2, 3 only, a square model): exact steady state where it
+    # measures (x2, x3 within 3 %; x3 was 2.31 x with all sensors), but it settles one period
+    # after the measurement (haar 0.591 s vs 0.545 s), against the thesis's figures 7.3-7.5:
+    # no 5th-order inverse equalises the 1 x model (||B * G - I|| / ||I|| >= 0.53).
+    pr = predict("haar", "inner")
+    for c in (2, 4):  # x2, x3
+        meas = _phasor(pr, pr.coefficients, c)[-10:].mean()
+        pred = _phasor(pr, pr.predicted_coefficients, c)[-10:].mean()
+        assert abs(pred - meas) <= 0.03 * abs(meas)
+    s = pr.summary
+    assert s["predicted_settling_s"] > s["measured_settling_s"]
