@@ -26,9 +26,9 @@ The 1 x model ``G(z)`` has transmission zeros outside the unit circle (``|z|`` 1
 inverse of eq. 6.35 leaves ``||B * A - I||`` 0.58 / 0.53 at k = 0 (5th order; >= 0.51 at any
 order). The wavelet-domain loop of eq. 8.10 with that inverse, which the FE run reproduces,
 settles in 12 periods at 11 Hz (5th or 10th order) and in 18 / 12 at 18 Hz (5th / 10th order).
-The 8-sensor least-squares inverse is no way out: its integral action settles on
-``B(1) q = 0``, not ``q = 0`` (11 Hz FE run: 413 um steady 1 x at the inner sensors, 106
-contacts).
+The 8-sensor least-squares inverse is no way out: its integral action can only drive
+``B(1) q``, not ``q``, to zero (11 Hz FE run: 413 um 1 x over the last 10 revolutions at the
+inner sensors, 106 contacts).
 """
 
 import functools
