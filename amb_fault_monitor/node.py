@@ -14,25 +14,57 @@ override them in m. A trip is an ERROR on ``/diagnostics`` and a ``TRIP`` event.
 ``/diagnostics`` carries one status per sensor plane (OK / WARN while an episode is open /
 ERROR when tripped) and one for the monitor.
 
-Black box (``blackbox_dir`` non-empty): every received measurement and coefficient message is
+Black box (``blackbox_dir`` non-empty): every accepted measurement and coefficient message is
 serialised (``rclpy.serialization.serialize_message``) into a ring buffer of
 ``blackbox_pre_s`` seconds; at each event ``blackbox_post_s`` more seconds are captured and the
 lot written to its own bag ``blackbox_dir/event_<id>_<TYPE>`` (topic names as subscribed).
 
 Stamps: the coefficient message carries the stamp of its completing sample; the onset and
 detection stamps are back-dated from it by ``(sample_index - n) / fs`` at the current speed.
+
+Bad input (issue 8)
+-------------------
+Measurements are validated (:func:`amb_tools.conversions.check_measurement`: array lengths,
+finite values, ``rotor_speed`` > 0, ``rotor_angle`` in [0, 2 pi), ``samples_per_rev``) and
+sequenced (:class:`amb_tools.conversions.SampleSequencer`: repeats, stray indices and stamps
+going back or from the future are dropped; a confirmed gap or restart empties the 1 x window).
+Coefficient messages are validated by :func:`check_coefficients` (``samples_per_rev``, known
+level, kind, frame and quadrature codes, 8 finite values per set, a support ending at the
+message's sample) and sequenced the same way: the finest level completes a coefficient every
+second sample (fig. 4.3), so ``sample_index // 2`` of consecutive messages is consecutive and
+the coefficient stream is a :class:`~amb_tools.conversions.SampleSequencer` stream at half the
+sample rate. A confirmed gap or restart of the coefficient stream (a filterbank or plant
+restarted, samples lost) resets the monitor, which calibrates again: its change features
+compare coefficients a revolution apart and must not straddle a discontinuity. Nothing
+rejected reaches the trips, the monitor or the black box; every rejection is counted by kind
+on the monitor's ``/diagnostics`` status (``measurements_rejected``, ``coefficients_rejected``,
+``samples_*``, ``coefficients_*``), which turns WARN.
+
+Parameters
+----------
+Structural parameters are read-only. ``trip_displacement``, ``trip_displacement_fraction``,
+``trip_1x``, ``trip_1x_fraction``, ``trip_hysteresis`` and ``status_period`` may be set at run
+time: the on-set callback checks the whole change (finite, in the declared range, trip levels
+computable) and refuses it with a reason naming the parameter, the value and the range (the old
+values stay); the post-set callback applies it. At start-up an out-of-range or mistyped value,
+an unknown frame, a level the filterbank cannot publish, a missing or malformed rig file or
+event log stop the node with exit status 2 and the same kind of message
+(:class:`amb_tools.node_main.ConfigurationError`).
 """
 
 from __future__ import annotations
 
 import math
 
+import numpy as np
+import yaml
 from amb_msgs.msg import CoefficientSet as CoefficientSetMsg
 from amb_msgs.msg import FaultEvent as FaultEventMsg
 from amb_msgs.msg import Measurement, WaveletCoefficients
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.serialization import serialize_message
@@ -42,19 +74,119 @@ from amb_fault_monitor.errors import FaultMonitorError, RecordError
 from amb_fault_monitor.event_log import EventLog
 from amb_fault_monitor.events import FaultEvent, FaultType
 from amb_fault_monitor.monitor import FaultMonitor, MonitorConfig
-from amb_fault_monitor.records import CoefficientSet, SampleCoefficients
+from amb_fault_monitor.records import N_SENSORS, CoefficientSet, SampleCoefficients
 from amb_fault_monitor.trips import SynchronousAmplitude, TripMonitor, clearance_levels
-from amb_tools.conversions import from_float_array, stamp, stamp_seconds
-from amb_tools.node_main import ConfigurationError, run_node
+from amb_plant_sim.errors import RigError
+from amb_tools.conversions import (
+    MessageError,
+    SampleSequencer,
+    check_finite,
+    check_length,
+    check_measurement,
+    from_float_array,
+    stamp,
+    stamp_seconds,
+)
+from amb_tools.node_main import ConfigurationError, descriptor, run_node
+from amb_wavelet.levels import revolution_level
 from amb_wavelet.node import stream_qos
 
 KIND = {CoefficientSetMsg.KIND_DETAIL: "detail", CoefficientSetMsg.KIND_APPROXIMATION: "approx"}
 FRAME = {CoefficientSetMsg.FRAME_FIXED: "fixed", CoefficientSetMsg.FRAME_ROTATING: "rotating"}
 QUAD = {CoefficientSetMsg.QUADRATURE_EVEN: "even", CoefficientSetMsg.QUADRATURE_ODD: "odd"}
+#: Deepest level the filterbank can publish: ``log2(samples_per_rev) + 1`` (0.5 x, section 5.3);
+#: its approximation counts one level deeper in the monitor.
+EXTRA_OCTAVES = 1
+#: Floating-point parameters: name -> (default, description with unit, lowest, highest,
+#: settable at run time). The one table for the declaration and both validations.
+FLOATS: dict[str, tuple[float, str, float, float, bool]] = {
+    "calibration_revs": (16.0, "healthy calibration window, revolutions", 1.0, 1e4, False),
+    "k": (8.0, "robust standard deviations of the thresholds", 1.0, 100.0, False),
+    "threshold_floor": (2.0e-8, "smallest threshold, m", 0.0, 1e-3, False),
+    "decision_revs": (16.0, "longest wait from alarm to decision, revolutions", 0.5, 1e3, False),
+    "decision_max_revs": (
+        32.0,
+        "longest wait while the 1 x level still moves far from its reference, revolutions "
+        "(>= decision_revs)",
+        0.5,
+        1e3,
+        False,
+    ),
+    "quiet_revs": (2.0, "hold-off: quiet revolutions that end an episode", 0.25, 1e3, False),
+    "trip_displacement": (
+        0.0, "radial trip level, m (0 = from the rig clearances)", 0.0, 0.1, True,
+    ),
+    "trip_displacement_fraction": (
+        2.0 / 3.0, "default radial trip level as a share of the nearest clearance", 0.01, 1.0, True,
+    ),
+    "trip_1x": (
+        0.0, "1 x orbit semi-major axis trip level, m (0 = from the rig)", 0.0, 0.1, True,
+    ),
+    "trip_1x_fraction": (
+        0.5, "default 1 x trip level as a share of the nearest clearance", 0.01, 1.0, True,
+    ),
+    "trip_hysteresis": (0.1, "trip clears below level * (1 - this)", 0.0, 0.99, True),
+    "status_period": (1.0, "period of the /diagnostics report, s (wall clock)", 0.05, 60.0, True),
+    "blackbox_pre_s": (2.0, "black box: seconds kept before an event", 0.0, 600.0, False),
+    "blackbox_post_s": (1.0, "black box: seconds recorded after an event", 0.0, 600.0, False),
+}  # fmt: skip
+#: Parameters the on-set callback accepts (all others are read-only).
+RUNTIME = tuple(name for name, spec in FLOATS.items() if spec[4])
+#: rad/s used for the stamp check of coefficients before any measurement gave the speed: the
+#: expected step is then huge, so only stamps going back are refused.
+UNKNOWN_OMEGA = 1e-9
+#: Sequencer counts of refused messages (the others, gaps and restarts, are confirmed changes).
+REFUSED = ("repeat", "stray", "stamp")
+
+
+def check_coefficients(msg: WaveletCoefficients, samples_per_rev: int) -> None:
+    """
+    Raise :class:`~amb_tools.conversions.MessageError` unless a coefficient message can be used.
+
+    Parameters
+    ----------
+    msg : amb_msgs.msg.WaveletCoefficients
+    samples_per_rev : int
+        The monitor's samples per revolution; levels 1 .. ``log2(samples_per_rev) + 1`` exist.
+
+    Raises
+    ------
+    MessageError
+        Naming the field, the expected and the actual value: ``samples_per_rev`` differs, no
+        set, an unknown level, kind, frame or quadrature code, a support that does not end at
+        ``sample_index`` or starts after it ends, a set without 8 values, a non-finite value.
+    """
+    if msg.samples_per_rev != samples_per_rev:
+        raise MessageError(
+            f"field 'samples_per_rev' = {msg.samples_per_rev}, expected {samples_per_rev}"
+        )
+    if not msg.sets:
+        raise MessageError("field 'sets' is empty: a coefficient message carries at least one")
+    deepest = revolution_level(samples_per_rev) + EXTRA_OCTAVES
+    n = msg.sample_index
+    for s in msg.sets:
+        if not 1 <= s.level <= deepest:
+            raise MessageError(f"field 'sets[].level' = {s.level}, expected 1..{deepest}")
+        for name, value, codes in (
+            ("kind", s.kind, KIND),
+            ("frame", s.frame, FRAME),
+            ("quadrature", s.quadrature, QUAD),
+        ):
+            if value not in codes:
+                raise MessageError(
+                    f"field 'sets[].{name}' = {value}, expected one of {list(codes)}"
+                )
+        if s.last_sample_index != n or s.first_sample_index > s.last_sample_index:
+            raise MessageError(
+                f"field 'sets[]' support [{s.first_sample_index}, {s.last_sample_index}], "
+                f"expected to end at sample_index {n}"
+            )
+        check_length("sets[].values", from_float_array(s.values), N_SENSORS)
+    check_finite("sets[].values", np.concatenate([from_float_array(s.values) for s in msg.sets]))
 
 
 def record_from_msg(msg: WaveletCoefficients, omega: float) -> SampleCoefficients:
-    """Convert a ``WaveletCoefficients`` message into the core's record."""
+    """Convert a ``WaveletCoefficients`` message (checked by :func:`check_coefficients`)."""
     sets = tuple(
         CoefficientSet(
             int(s.level),
@@ -72,98 +204,51 @@ def record_from_msg(msg: WaveletCoefficients, omega: float) -> SampleCoefficient
     return SampleCoefficients(int(msg.sample_index), float(omega), sets)
 
 
+def check_runtime_value(name: str, value: object) -> str | None:
+    """Return why a run-time value of parameter ``name`` is refused, or None if it is valid."""
+    _default, desc, lo, hi, _settable = FLOATS[name]
+    if not (isinstance(value, float) and math.isfinite(value) and lo <= value <= hi):
+        return f"parameter '{name}' = {value!r}: expected {lo:g}..{hi:g} ({desc})"
+    return None
+
+
 class FaultMonitorNode(Node):
     """Publish fault events classified from the wavelet coefficients (module docstring)."""
 
     def __init__(self) -> None:
         super().__init__("fault_monitor")
-        ro = {"read_only": True}
-
-        def dbl(name, value, desc, lo, hi, **kw):
-            rng = [FloatingPointRange(from_value=lo, to_value=hi)]
-            self.declare_parameter(
-                name, value, ParameterDescriptor(description=desc, floating_point_range=rng, **kw)
-            )
-
-        self.declare_parameter(
+        self._declare(
             "samples_per_rev",
             32,
-            ParameterDescriptor(
-                description="samples per revolution of the coefficient stream, power of two",
-                integer_range=[IntegerRange(from_value=4, to_value=4096)],
-                **ro,
+            descriptor(
+                "samples per revolution of the coefficient stream, power of two", ints=(4, 4096)
             ),
         )
-        self.declare_parameter(
-            "levels",
-            [0],
-            ParameterDescriptor(description="detail levels used ([0] = all received)", **ro),
+        self._declare(
+            "levels", [0], descriptor("detail levels used ([0] = all received), 1..log2(spr)+2")
         )
-        self.declare_parameter(
-            "frames",
-            ["fixed", "rotating"],
-            ParameterDescriptor(description="fixed, rotating", **ro),
+        self._declare("frames", ["fixed", "rotating"], descriptor("fixed, rotating"))
+        for name, (default, desc, lo, hi, settable) in FLOATS.items():
+            self._declare(name, default, descriptor(desc, not settable, floats=(lo, hi)))
+        self._declare("event_log", "", descriptor("JSON-lines event log path ('' = off)"))
+        self._declare("rig", "", descriptor("rig file for the clearances ('' = config/rig.yaml)"))
+        self._declare(
+            "blackbox_dir", "", descriptor("folder of the per-event black-box bags ('' = off)")
         )
-        dbl("calibration_revs", 16.0, "healthy calibration window, revolutions", 1.0, 1e4, **ro)
-        dbl("k", 8.0, "robust standard deviations of the thresholds", 1.0, 100.0, **ro)
-        dbl("threshold_floor", 2.0e-8, "smallest threshold, m", 0.0, 1e-3, **ro)
-        dbl(
-            "decision_revs",
-            16.0,
-            "longest wait from alarm to decision, revolutions",
-            0.5,
-            1e3,
-            **ro,
-        )
-        dbl(
-            "decision_max_revs", 32.0,
-            "longest wait while the 1 x level still moves far from its reference, revolutions "
-            "(>= decision_revs)", 0.5, 1e3, **ro,
-        )  # fmt: skip
-        dbl("quiet_revs", 2.0, "hold-off: quiet revolutions that end an episode", 0.25, 1e3, **ro)
-        self.declare_parameter(
-            "event_log",
-            "",
-            ParameterDescriptor(description="JSON-lines event log path ('' = off)", **ro),
-        )
-        self.declare_parameter(
-            "rig",
-            "",
-            ParameterDescriptor(
-                description="rig file for the clearances ('' = config/rig.yaml)", **ro
-            ),
-        )
-        dbl(
-            "trip_displacement", 0.0, "radial trip level, m (0 = from the rig clearances)", 0.0, 0.1
-        )
-        dbl(
-            "trip_displacement_fraction", 2.0 / 3.0,
-            "default radial trip level as a share of the nearest clearance", 0.01, 1.0,
-        )  # fmt: skip
-        dbl("trip_1x", 0.0, "1 x orbit semi-major axis trip level, m (0 = from the rig)", 0.0, 0.1)
-        dbl(
-            "trip_1x_fraction", 0.5,
-            "default 1 x trip level as a share of the nearest clearance", 0.01, 1.0,
-        )  # fmt: skip
-        dbl("trip_hysteresis", 0.1, "trip clears below level * (1 - this)", 0.0, 0.99)
-        dbl("status_period", 1.0, "period of the /diagnostics report, s (wall clock)", 0.05, 60.0)
-        self.declare_parameter(
-            "blackbox_dir",
-            "",
-            ParameterDescriptor(
-                description="folder of the per-event black-box bags ('' = off)", **ro
-            ),
-        )
-        dbl("blackbox_pre_s", 2.0, "black box: seconds kept before an event", 0.0, 600.0, **ro)
-        dbl("blackbox_post_s", 1.0, "black box: seconds recorded after an event", 0.0, 600.0, **ro)
         p = self.get_parameter
-        levels = tuple(int(j) for j in p("levels").value if int(j) > 0)
         self._spr = p("samples_per_rev").value
+        levels = self._levels(list(p("levels").value))
+        frames = tuple(p("frames").value)
+        if not frames or any(f not in FRAME.values() for f in frames):
+            raise ConfigurationError(
+                f"parameter 'frames' = {list(frames)}: expected a non-empty subset of "
+                f"{list(FRAME.values())}"
+            )
         try:
             config = MonitorConfig(
                 self._spr,
                 levels=levels,
-                frames=tuple(p("frames").value),
+                frames=frames,
                 calibration_revs=p("calibration_revs").value,
                 k=p("k").value,
                 threshold_floor=p("threshold_floor").value,
@@ -171,26 +256,25 @@ class FaultMonitorNode(Node):
                 quiet_revs=p("quiet_revs").value,
                 decision_max_revs=p("decision_max_revs").value,
             )
-            self._log = EventLog(p("event_log").value or None)
-            from amb_plant_sim.rig import load_rig
-
-            rig = load_rig(p("rig").value or None)
-            self._default_disp = clearance_levels(rig, p("trip_displacement_fraction").value)
-            self._default_1x = clearance_levels(rig, p("trip_1x_fraction").value)
-            hyst = p("trip_hysteresis").value
-            self._trip = TripMonitor(self._level(p("trip_displacement").value, "disp"), hyst)
-            self._trip_1x = TripMonitor(self._level(p("trip_1x").value, "1x"), hyst)
-            self._sync_amp = SynchronousAmplitude(self._spr)
-            folder = p("blackbox_dir").value
-            self._box = (
-                BlackBox(folder, p("blackbox_pre_s").value, p("blackbox_post_s").value)
-                if folder
-                else None
-            )
-        except (FaultMonitorError, OSError) as exc:
+        except FaultMonitorError as exc:
             raise ConfigurationError(f"fault_monitor parameters: {exc}") from exc
+        log_path = p("event_log").value
+        try:
+            self._log = EventLog(log_path or None)
+        except (FaultMonitorError, OSError) as exc:
+            raise ConfigurationError(f"parameter 'event_log' = {log_path!r}: {exc}") from exc
+        self._rig_levels()
+        hyst = p("trip_hysteresis").value
+        self._trip = TripMonitor(self._level(p("trip_displacement").value, "disp"), hyst)
+        self._trip_1x = TripMonitor(self._level(p("trip_1x").value, "1x"), hyst)
+        self._sync_amp = SynchronousAmplitude(self._spr)
+        self._box = self._blackbox()
         self._monitor = FaultMonitor(config)
+        self._meas_seq = SampleSequencer(self._spr)
+        # coefficient messages every second sample: index // 2 is consecutive (module notes)
+        self._coef_seq = SampleSequencer(self._spr // 2)
         self.add_on_set_parameters_callback(self._on_set)
+        self.add_post_set_parameters_callback(self._after_set)
         qos = stream_qos(self._spr)
         self._pub = self.create_publisher(
             FaultEventMsg,
@@ -204,14 +288,74 @@ class FaultMonitorNode(Node):
         self._meas_sub = self.create_subscription(
             Measurement, "/amb/measurement", self._on_measurement, qos
         )
-        self.create_timer(p("status_period").value, self._publish_status)
+        self._status_timer = self.create_timer(p("status_period").value, self._publish_status)
         self._omega = 0.0
-        self.received = self.rejected = self.restarts = self.bags_written = 0
+        self.received = self.restarts = self.bags_written = 0
+        self.counts = dict.fromkeys(("measurements_rejected", "coefficients_rejected"), 0)
         self._last_reason = ""
         self.get_logger().info(
             f"{len(self._log.events)} logged events reloaded; contacts per bearing "
             f"{dict(self._log.contacts)}"
         )
+
+    # ------------------------------------------------------------------ configuration
+    def _declare(self, name: str, default: object, desc: ParameterDescriptor) -> None:
+        """Declare a parameter; an override rclpy refuses (range, type) is a ConfigurationError."""
+        try:
+            self.declare_parameter(name, default, desc)
+        except (InvalidParameterValueException, InvalidParameterTypeException) as exc:
+            ranges = [(r.from_value, r.to_value) for r in desc.floating_point_range] + [
+                (r.from_value, r.to_value) for r in desc.integer_range
+            ]
+            allowed = f"{ranges[0][0]:g}..{ranges[0][1]:g}" if ranges else type(default).__name__
+            raise ConfigurationError(
+                f"parameter '{name}' refused ({exc.args[0]}): allowed {allowed} "
+                f"({desc.description})"
+            ) from exc
+
+    def _levels(self, values: list[int]) -> tuple[int, ...]:
+        """The configured detail levels (``[0]`` = all); each must exist in the stream."""
+        try:
+            deepest = revolution_level(self._spr) + EXTRA_OCTAVES + 1
+        except ValueError as exc:
+            raise ConfigurationError(f"parameter 'samples_per_rev' = {self._spr}: {exc}") from exc
+        if values == [0]:
+            return ()
+        bad = [j for j in values if not 1 <= j <= deepest]
+        if bad or not values:
+            raise ConfigurationError(
+                f"parameter 'levels' = {values}: expected [0] (all) or levels 1..{deepest} "
+                f"(log2(samples_per_rev) + 2 with samples_per_rev = {self._spr}: the "
+                "filterbank's deepest detail and its approximation)"
+            )
+        return tuple(values)
+
+    def _rig_levels(self) -> None:
+        """Default trip levels from the clearances of the rig file (``rig`` parameter)."""
+        from amb_plant_sim.rig import load_rig
+
+        path = self.get_parameter("rig").value
+        try:
+            rig = load_rig(path or None)
+        except (RigError, OSError, yaml.YAMLError) as exc:
+            shown = path or "config/rig.yaml"
+            raise ConfigurationError(f"parameter 'rig' = {shown!r}: {exc}") from exc
+        try:
+            self._clearance = clearance_levels(rig, 1.0)  # m, nearest clearance per plane
+        except FaultMonitorError as exc:
+            raise ConfigurationError(f"parameter 'rig' = {path!r}: {exc}") from exc
+
+    def _blackbox(self) -> BlackBox | None:
+        p = self.get_parameter
+        folder = p("blackbox_dir").value
+        if not folder:
+            return None
+        try:
+            box = BlackBox(folder, p("blackbox_pre_s").value, p("blackbox_post_s").value)
+            box.folder.mkdir(parents=True, exist_ok=True)
+        except (FaultMonitorError, OSError) as exc:
+            raise ConfigurationError(f"parameter 'blackbox_dir' = {folder!r}: {exc}") from exc
+        return box
 
     def destroy_node(self) -> None:
         """Write an open black-box capture before the node goes away."""
@@ -219,29 +363,41 @@ class FaultMonitorNode(Node):
             self.bags_written += 1
         super().destroy_node()
 
-    def _level(self, value: float, which: str):
-        """Trip level per plane, m: ``value`` if > 0, else the clearance-derived default."""
+    def _level(self, value: float, which: str) -> float | np.ndarray:
+        """Trip level per plane, m: ``value`` if > 0, else the fraction of the clearances."""
         if value > 0:
             return float(value)
-        return (self._default_disp if which == "disp" else self._default_1x).copy()
+        name = "trip_displacement_fraction" if which == "disp" else "trip_1x_fraction"
+        return self.get_parameter(name).value * self._clearance
 
-    def _on_set(self, params):
-        from rcl_interfaces.msg import SetParametersResult
-
+    # ------------------------------------------------------------------ run-time parameters
+    def _on_set(self, params) -> SetParametersResult:
+        """Check a run-time change as a whole; refuse it with the reason (old values kept)."""
         for prm in params:
-            if prm.name in ("trip_displacement", "trip_1x") and not prm.value >= 0:
-                return SetParametersResult(successful=False, reason=f"{prm.name} >= 0 m")
-        for prm in params:
-            if prm.name == "trip_displacement":
-                self._trip.set_level(self._level(float(prm.value), "disp"))
-            elif prm.name == "trip_1x":
-                self._trip_1x.set_level(self._level(float(prm.value), "1x"))
-            elif prm.name == "trip_hysteresis":
-                self._trip.hysteresis = self._trip_1x.hysteresis = float(prm.value)
+            if prm.name not in RUNTIME:
+                continue  # read-only ones never get here (rclpy refuses them, naming them)
+            why = check_runtime_value(prm.name, prm.value)
+            if why is not None:
+                return SetParametersResult(successful=False, reason=why)
         return SetParametersResult(successful=True)
 
+    def _after_set(self, params) -> None:
+        """Apply an accepted change (the parameters already hold the new values)."""
+        names = {prm.name for prm in params}
+        p = self.get_parameter
+        if names & {"trip_displacement", "trip_displacement_fraction"}:
+            self._trip.set_level(self._level(p("trip_displacement").value, "disp"))
+        if names & {"trip_1x", "trip_1x_fraction"}:
+            self._trip_1x.set_level(self._level(p("trip_1x").value, "1x"))
+        if "trip_hysteresis" in names:
+            self._trip.hysteresis = self._trip_1x.hysteresis = p("trip_hysteresis").value
+        if "status_period" in names:
+            self._status_timer.cancel()
+            self._status_timer = self.create_timer(p("status_period").value, self._publish_status)
+
+    # ------------------------------------------------------------------ streams
     def _record(self, sub, msgtype: str, msg) -> None:
-        """Hand a received message to the black box; write its bag when a capture completes."""
+        """Hand an accepted message to the black box; write its bag when a capture completes."""
         if self._box is None:
             return
         t_ns = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
@@ -250,11 +406,39 @@ class FaultMonitorNode(Node):
             self.bags_written += 1
             self.get_logger().info(f"black box written to {path}")
 
+    def _reject(self, counter: str, reason: str) -> None:
+        self.counts[counter] += 1
+        self._last_reason = reason
+        self.get_logger().warning(reason, throttle_duration_sec=5.0)
+
+    def _sequence(self, seq: SampleSequencer, index: int, msg, omega: float) -> list:
+        """Offer a checked message to a sequencer; log what it refused; return the accepted."""
+        before = dict(seq.counts)
+        accepted = seq.push(index, stamp_seconds(msg.header.stamp), omega, msg)
+        if seq.counts != before:
+            self._last_reason = seq.last_reason
+            if any(seq.counts[k] != before[k] for k in ("stray", "stamp", "repeat")):
+                self.get_logger().warning(self._last_reason, throttle_duration_sec=5.0)
+        return accepted
+
     def _on_measurement(self, msg: Measurement) -> None:
+        try:
+            check_measurement(msg, self._spr)
+        except MessageError as exc:
+            self._reject("measurements_rejected", f"sample {msg.sample_index}: {exc}; dropped")
+            return
+        for reset, m in self._sequence(
+            self._meas_seq, int(msg.sample_index), msg, float(msg.rotor_speed)
+        ):
+            if reset:
+                self._sync_amp.reset()  # the 1 x window must not straddle a discontinuity
+            self._measurement(m)
+
+    def _measurement(self, msg: Measurement) -> None:
         self._record(self._meas_sub, "amb_msgs/msg/Measurement", msg)
         self._omega = float(msg.rotor_speed)
         n = int(msg.sample_index)
-        d = msg.displacement
+        d = from_float_array(msg.displacement)
         amp = self._sync_amp.step(d, float(msg.rotor_angle))
         found = [("displacement", pl, self._trip) for pl in self._trip.step(d)]
         if self._sync_amp.ready:
@@ -274,19 +458,37 @@ class FaultMonitorNode(Node):
             self._emit(ev, msg.header.stamp, n)
 
     def _on_coefficients(self, msg: WaveletCoefficients) -> None:
+        try:
+            check_coefficients(msg, self._spr)
+        except MessageError as exc:
+            self._reject(
+                "coefficients_rejected",
+                f"coefficients of sample {msg.sample_index}: {exc}; dropped",
+            )
+            return
+        omega = self._omega if self._omega > 0 else UNKNOWN_OMEGA
+        for reset, m in self._sequence(self._coef_seq, int(msg.sample_index) // 2, msg, omega):
+            self._coefficients(m, reset)
+
+    def _coefficients(self, msg: WaveletCoefficients, reset: bool) -> None:
+        if reset and self._monitor.samples:
+            self._restart(f"coefficient stream discontinuous at sample {msg.sample_index}")
         self._record(self._coef_sub, "amb_msgs/msg/WaveletCoefficients", msg)
         self.received += 1
-        omega = self._omega or 0.0
         try:
-            events = self._monitor.step(record_from_msg(msg, omega))
-        except RecordError as exc:
-            self.restarts += 1
-            self._last_reason = f"{exc}: monitor reset, calibrating again"
-            self.get_logger().warning(self._last_reason, throttle_duration_sec=5.0)
-            self._monitor.reset()
+            events = self._monitor.step(record_from_msg(msg, self._omega))
+        except RecordError as exc:  # not expected after the checks above: the last line
+            self._restart(str(exc))
             return
         for ev in events:
             self._emit(ev, msg.header.stamp, int(msg.sample_index))
+
+    def _restart(self, why: str) -> None:
+        """Reset the monitor (it calibrates again) and report why."""
+        self.restarts += 1
+        self._last_reason = f"{why}: monitor reset, calibrating again"
+        self.get_logger().warning(self._last_reason, throttle_duration_sec=5.0)
+        self._monitor.reset()
 
     def _back_date(self, now: Time, now_index: int, index: int) -> Time:
         fs = self._spr * self._omega / (2 * math.pi)
@@ -353,10 +555,18 @@ class FaultMonitorNode(Node):
             "blackbox_bags": self.bags_written,
             "masked_channels": self._monitor.masked_channels,
             **{f"contacts_bearing_{b}": c for b, c in sorted(self._log.contacts.items())},
+            **self.counts,
+            **{f"samples_{k}": v for k, v in self._meas_seq.counts.items()},
+            **{f"coefficients_{k}": v for k, v in self._coef_seq.counts.items()},
+            "callback_errors": getattr(self, "callback_errors", 0),
         }
+        problems = any(self.counts.values()) or any(
+            seq.counts[k] for seq in (self._meas_seq, self._coef_seq) for k in REFUSED
+        )
+        ok = self._monitor.calibrated and not problems
         statuses.append(
             DiagnosticStatus(
-                level=DiagnosticStatus.OK if self._monitor.calibrated else DiagnosticStatus.WARN,
+                level=DiagnosticStatus.OK if ok else DiagnosticStatus.WARN,
                 name="fault_monitor",
                 message=self._last_reason
                 or ("monitoring" if self._monitor.calibrated else "calibrating"),

@@ -295,3 +295,67 @@ def test_controller_survives_random_measurements_and_coefficients(ros, node_proc
     )
     assert rejected > 0, diag.values
     assert diag.get("wavelet_controller", "callback_errors") == "0", ctrl.log()
+
+
+def test_fault_monitor_survives_random_measurements_and_coefficients(ros, node_process) -> None:
+    """The fault monitor: garbage on both inputs, then a valid stream is monitored again."""
+    from amb_msgs.msg import FaultEvent
+
+    fm = node_process("fault_monitor", params={"samples_per_rev": SPR, "status_period": 0.1})
+    node = ros.node("amb_fuzz_fm")
+    qos = stream_qos(SPR)
+    pm = node.create_publisher(Measurement, "/amb/measurement", qos)
+    pc = node.create_publisher(WaveletCoefficients, "/amb/wavelet/coefficients", qos)
+    events: list[FaultEvent] = []
+    node.create_subscription(FaultEvent, "/amb/fault/events", events.append, 100)
+    diag = Diagnostics(node)
+    name = "fault_monitor"
+    assert ros.spin_until(
+        lambda: pm.get_subscription_count() and pc.get_subscription_count() and name in diag.values,
+        30.0,
+    ), fm.log()
+
+    @FUZZ
+    @given(
+        ms=st.lists(measurements(), max_size=6),
+        cs=st.lists(coefficient_messages(), max_size=4),
+        raw=st.lists(garbling, max_size=2),
+    )
+    def throw(ms, cs, raw) -> None:
+        for m in ms:
+            pm.publish(m)
+        for c in cs:
+            pc.publish(c)
+        for how, where, byte in raw:
+            pm.publish(garble(serialize_message(Measurement()), how, where, byte))
+            pc.publish(
+                garble(serialize_message(cs[0] if cs else WaveletCoefficients()), how, where, byte)
+            )
+        ros.spin_for(0.02)
+
+    throw()
+    ros.spin_for(1.0)
+    before = diag.number(name, "messages")
+    stream = valid_stream(1_000_000 * SPR, 6 * SPR)
+    for m, c in stream:
+        pm.publish(m)
+        if c is not None:
+            pc.publish(c)
+    valid = sum(c is not None for _, c in stream)
+    # all but at most the first two (a candidate after the garbage, or a stamp the garbage's
+    # last accepted message makes impossible) are monitored
+    assert ros.spin_until(lambda: diag.number(name, "messages") >= before + valid - 2, 20.0), (
+        diag.values.get(name),
+        fm.log()[-3000:],
+    )
+    ros.spin_for(0.3)
+    assert fm.returncode is None, fm.log()
+    refused = [
+        f"{s}_{k}" for s in ("samples", "coefficients") for k in ("repeat", "stray", "stamp")
+    ]
+    counters = ["measurements_rejected", "coefficients_rejected", *refused]
+    rejected = sum(diag.number(name, k) for k in counters)
+    assert rejected > 0, diag.values.get(name)
+    assert diag.get(name, "callback_errors") == "0", fm.log()
+    for e in events:
+        assert all(np.isfinite([e.severity, e.confidence, e.rotor_speed])), e
