@@ -16,9 +16,30 @@ as zeros, to keep the lock-step loop alive). Modes follow ``ControllerStatus``:
   passes the :class:`~amb_controller.synthesis.ForceLimiter`. While any axis saturates
   the controller's state is held (not advanced: anti-windup) and the scaled command is
   sent.
-* ``HOLD``: the last command is repeated and the controller state frozen (fault
-  reconfiguration, e.g. auxiliary-bearing contact); after a divergence-guard trip the
-  force is zero instead and only :meth:`reset` re-arms.
+* ``HOLD``: no new correction; the controller state is frozen (fault reconfiguration,
+  e.g. auxiliary-bearing contact). With ``hold_ramp_periods = 0`` the last command is
+  repeated (hold-last); with ``hold_ramp_periods = n > 0`` the last command is scaled
+  down linearly to zero over n periods (ramp-to-zero). After a divergence-guard trip the
+  force is zero at once and only :meth:`reset` re-arms.
+
+Hold-last or ramp-to-zero (decision)
+------------------------------------
+Thesis section 3.3.2 asks a reconfigurable controller to switch to the controller "most
+suited" to the faulty plant and names the drawback: "it is essential to use the correct
+controller". Once the rotor touches the auxiliary bearing the identified wavelet-domain
+model (chapter 6, a linear rotor on its AMBs) no longer describes the plant: the rotor is
+constrained by the auxiliary bearing and driven by its friction force (eq. 5.2), so the
+last command, computed for the contact-free plant, is a stale open-loop force. What an
+AMB engineer expects at touchdown is the certified levitation loop alone (here: the PID
+the plant runs, the same as ``OFF``), without a force step: a step of the added force is
+itself a step disturbance (eq. 8.3) that excites the rotor again. Ramp-to-zero gives
+both; hold-last keeps cancelling a steady unbalance that the controller had already
+removed (useful when the contact did not come from the controller's own force). Both
+are reasonable, so both exist; the default stays hold-last (``0``) for the contract of
+``amb_msgs`` and the node tests, and ``amb-compare`` measures both on the figure-5.27
+case-2 scenario (its report and module docstring give the numbers). Leaving a ramped
+HOLD for ACTIVE resets the controller, because the force actually applied is no longer
+the one its integral state (``beta``, eq. 8.10) remembers.
 """
 
 from __future__ import annotations
@@ -118,6 +139,9 @@ class WaveletControlSupervisor:
     fault_actions : dict of int to str, optional
         ``FaultEvent.fault_type`` -> ``"hold"``, ``"off"`` or ``"ignore"``
         (default: hold on auxiliary-bearing contact).
+    hold_ramp_periods : int, optional
+        Periods over which HOLD ramps the held command linearly to zero (>= 0; 0: repeat
+        the last command, hold-last). Module docstring, "Hold-last or ramp-to-zero".
 
     """
 
@@ -128,9 +152,15 @@ class WaveletControlSupervisor:
         controller=None,
         guard: DivergenceGuard | None = None,
         fault_actions: dict[int, str] | None = None,
+        hold_ramp_periods: int = 0,
     ) -> None:
         if int(delay) != delay or delay < 1:
             raise ControllerValueError(f"delay must be an integer >= 1 period, got {delay}")
+        if int(hold_ramp_periods) != hold_ramp_periods or hold_ramp_periods < 0:
+            raise ControllerValueError(
+                f"hold_ramp_periods must be an integer >= 0 periods, got {hold_ramp_periods}"
+            )
+        self.hold_ramp_periods = int(hold_ramp_periods)
         self.limiter = limiter
         self.delay = int(delay)
         self.guard = guard
@@ -147,6 +177,8 @@ class WaveletControlSupervisor:
         self._identification: _Identification | None = None
         self._sent: dict[int, np.ndarray] = {}
         self._last = np.zeros(limiter.basis.n_coefficients)
+        self._held: np.ndarray | None = None  # command at HOLD entry (ramp-to-zero)
+        self._held_periods = 0
 
     # ------------------------------------------------------------------ configuration
     def set_controller(self, controller) -> None:
@@ -182,15 +214,25 @@ class WaveletControlSupervisor:
                 return False, "no controller model loaded: identify or load a model first"
             if self.guard is not None and self.guard.tripped:
                 return False, f"divergence guard tripped ({self.guard.reason}); reset() first"
-            if self.mode != Mode.HOLD:
-                self.controller.reset()
+            if self.mode != Mode.HOLD or self._held_periods > 0:
+                self.controller.reset()  # a ramped hold applied less than it remembers
         if mode == Mode.OFF:
             self._identification = None
             if self.controller is not None:
                 self.controller.reset()
-        self.mode = mode
+        self._enter(mode)
         self.message = mode.name.lower()
         return True, self.message
+
+    def _enter(self, mode: Mode) -> None:
+        """Switch to ``mode``; entering HOLD starts the ramp from the last command."""
+        if mode == Mode.HOLD and self.mode != Mode.HOLD:
+            self._held = self._last.copy()
+            self._held_periods = 0
+        elif mode != Mode.HOLD:
+            self._held = None
+            self._held_periods = 0
+        self.mode = mode
 
     def start_identification(self, experiment: StepExperiment, identifier: MarkovIdentifier):
         """Enter IDENTIFYING with this excitation and estimator."""
@@ -209,7 +251,7 @@ class WaveletControlSupervisor:
         """Apply the configured reconfiguration for a fault event; return the action."""
         action = self.fault_actions.get(int(fault_type), "ignore")
         if action == "hold" and self.mode == Mode.ACTIVE:
-            self.mode = Mode.HOLD
+            self._enter(Mode.HOLD)
             self.message = f"hold on fault {fault_type}"
         elif action == "off" and self.mode in (Mode.ACTIVE, Mode.HOLD):
             self.set_mode(Mode.OFF)
@@ -258,7 +300,7 @@ class WaveletControlSupervisor:
             was = self.guard.tripped
             guard_tripped = self.guard.update(measured, displacement_peak)
             if guard_tripped and not was:
-                self.mode = Mode.HOLD
+                self._enter(Mode.HOLD)
                 self.message = f"guard: {self.guard.reason}"
                 if self.controller is not None:
                     self.controller.reset()
@@ -277,7 +319,7 @@ class WaveletControlSupervisor:
             hold = True
             if self.controller is not None and not guard_tripped:
                 self.controller.skip(k)
-            coefficients = zeros if guard_tripped else self._last
+            coefficients = zeros if guard_tripped else self._hold_command()
         else:
             coefficients = zeros
         if result is None:
@@ -297,6 +339,20 @@ class WaveletControlSupervisor:
             bool(self.guard is not None and self.guard.tripped),
             self.message,
         )
+
+    def _hold_command(self) -> np.ndarray:
+        """
+        Command of one HOLD period: the last one, or its linear ramp to zero.
+
+        With ``n = hold_ramp_periods > 0`` the j-th HOLD period (j = 1, 2, ...) sends
+        ``max(0, 1 - j/n)`` times the command in force at HOLD entry: the force is linear
+        in the control coefficients (eq. 6.7), so its amplitude falls linearly to zero
+        over n periods and stays zero.
+        """
+        if self.hold_ramp_periods == 0 or self._held is None:
+            return self._last
+        self._held_periods += 1
+        return max(0.0, 1.0 - self._held_periods / self.hold_ramp_periods) * self._held
 
     def _identify(self, k: int, measured: np.ndarray, target: int) -> np.ndarray:
         ident = self._identification
