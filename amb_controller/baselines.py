@@ -26,17 +26,42 @@ linear time-invariant plant the steady-state map ``Y = T U`` is complex, and the
 
 (a) Adaptive open-loop synchronous control (``controller = "synchronous"``)
 ---------------------------------------------------------------------------
-Influence-coefficient (convergent) control of Burrows & Sahinkaya [1]_ as used on magnetic
-bearings by Knospe et al. [2]_: a 1 x force, open loop with respect to the fast dynamics,
-updated once per window of ``window`` periods from the window mean ``Y_j``::
+Influence-coefficient control of Burrows & Sahinkaya [1]_ as used on magnetic bearings by
+Knospe et al. [2]_: a 1 x force, open loop with respect to the fast dynamics, updated once
+per window of ``window`` periods from the window mean ``Y_j``::
 
     U_{j+1} = U_j - a (T^H T + R)^-1 T^H Y_j                                    (B.1)
 
 with ``T`` the steady-state influence coefficients (complex, sensors x axes) identified
 by trial injections (:func:`influence_by_trials`: each axis in turn driven with a known
 1 x force, the change of the steady 1 x response measured), ``a`` the convergence gain
-(``ControllerConfig.gain``) and ``R = rho ||T||_F^2 / n_u I`` a Tikhonov weight.
-With ``T`` exact, ``a = 1`` and ``R = 0`` one update cancels a steady disturbance.
+(``ControllerConfig.gain``) and ``R = rho ||T||_F^2 / n_u I``. On a plant ``Y = T_p U + D``
+the update error obeys ``E_{j+1} = (I - a (T^H T + R)^-1 T^H T_p) E_j``: it converges iff
+that matrix has spectral radius < 1 (with ``T = T_p``, ``R = 0``: ``|1 - a| < 1``, one
+update cancels a steady disturbance at ``a = 1``). ``R`` only shapes the step: the fixed
+point is ``T^H Y = 0`` (the least-squares cancelling force) whatever ``rho``; it is NOT the
+control-effort penalty of a weighted least-squares cost ``Y^H Y + U^H R U`` (whose recursive
+form adds ``R U_j`` inside the bracket and leaves a residual), which is the version Dyer et
+al. [4]_ recommend for robustness. Both facts are tested (``test/beyond/test_baselines.py``).
+
+What eq. B.1 rests on, and what could not be checked
+~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~
+* The thesis (section 1.1; chapter 9) describes [1] as "an open-loop
+  technique to eliminate synchronous vibration" and Knospe et al. as "adaptive open-loop
+  control methods updating control currents on a cyclic basis": a 1 x force updated once
+  per cycle (window) from the measured 1 x response, as here.
+* The abstract of [2] (the stored copy reachable here had the abstract only, not the
+  equations) names three algorithms of this "adaptive open loop" class: a non-recursive
+  law with simultaneous estimation, a recursive law with simultaneous estimation, and a
+  recursive law with gain scheduling by speed. Eq. B.1 is a recursive law with ``T``
+  identified beforehand by trial injections (no simultaneous estimation; one speed, so
+  no schedule): the third algorithm at one speed is the closest; the first two, which
+  re-estimate ``T`` on line, are not implemented.
+* The least-squares direction ``(T^H T)^-1 T^H`` for more sensors than axes and the
+  trial-injection identification are the standard influence-coefficient method (the
+  abstract of [4] calls the traditional law "weighted least squares optimal control").
+* Not checked: the exact equations, symbols and gain ranges of [1] and [2] (neither text
+  was available); eq. B.1 is the form the issue specifies, derived here, not copied.
 
 (b) Sampled-harmonic transient control (``controller = "harmonic"``)
 --------------------------------------------------------------------
@@ -46,14 +71,21 @@ prescribed closed-loop decay ``alpha(z)`` of a step disturbance::
 
     U(z) = -z^-i G_h^*(z) (1 / (alpha(z)(z - 1)) - 1) Q(z)                      (B.2)
 
-which is the thesis's eq. 8.10 with the Haar coefficients replaced by Fourier ones (the
-thesis, section 8.1, presents its controller as the wavelet generalisation of [3]). It is
-realised with :class:`~amb_controller.transient.TransientController` on the Markov
-parameters of ``G_h`` (:func:`harmonic_model`, exact sampled projection of the FE model's
-PID closed loop, :func:`~amb_controller.wavelet_dynamics.wavelet_markov`).
+which is the thesis's eq. 8.10 (with eq. 8.1, ``U = -L Q``) with the Haar coefficients
+replaced by the 1 x Fourier ones. It is realised with
+:class:`~amb_controller.transient.TransientController` on the Markov parameters of ``G_h``
+(:func:`harmonic_model`, exact sampled projection of the FE model's PID closed loop,
+:func:`~amb_controller.wavelet_dynamics.wavelet_markov`).
 
-The equations above are written as we know them; they were not checked against the
-original papers in this environment (no access to them).
+What eq. B.2 rests on, and what could not be checked: the thesis's own account of [3]
+(section 8.1): "a multi-state transient controller evaluated from sampled harmonics ...
+essentially a steady state controller embedded with transient system dynamics ...
+further enhanced through a prescribed transient response dictating the desired system
+behaviour to step changes in disturbance", and its statement that chapter 8 is the
+wavelet version of it; eq. B.2 is therefore eq. 8.3-8.10 on harmonic coefficients. The
+text of [3] was not available (searched: stored web pages, documentation, code): its
+exact model form, which harmonics it samples (here 1 x only) and its inverse are not
+checked.
 
 References
 ----------
@@ -63,6 +95,9 @@ References
    of unbalance response using magnetic bearings", Mechatronics 5(4) (1995) 385-400.
 .. [3] P. S. Keogh, M. O. T. Cole, C. R. Burrows, "Multi-state transient rotor vibration
    control using sampled harmonics", ASME J. Vib. Acoust. 124(2) (2002) 186-197.
+.. [4] S. W. Dyer, J. Ni, J. Shi, K.-K. Shin, "Robust optimal influence-coefficient
+   control of multiple-plane active rotor balancing systems", ASME J. Dyn. Syst. Meas.
+   Control 124 (2002), doi:10.1115/1.1435622 (abstract read).
 """
 
 from __future__ import annotations
@@ -111,7 +146,8 @@ class BaselineSettings:
     window : int
         Periods per update of the synchronous controller (eq. B.1), >= 1.
     rho : float
-        Relative Tikhonov weight ``R = rho ||T||_F^2 / n_u I`` of eq. B.1, >= 0.
+        Relative step weight ``R = rho ||T||_F^2 / n_u I`` of eq. B.1, >= 0 (shapes the
+        update direction; does not change its fixed point, module docstring).
     trial_force : float
         Amplitude of the 1 x trial force per axis in N for :func:`influence_by_trials`.
     trial_settle : int
@@ -460,7 +496,7 @@ class InfluenceCoefficientController:
     window : int
         Periods averaged per update.
     rho : float
-        Relative Tikhonov weight.
+        Relative step weight ``rho`` of ``R`` (eq. B.1).
 
     """
 

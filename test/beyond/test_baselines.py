@@ -94,6 +94,53 @@ def test_influence_update_converges_to_the_closed_form_cancelling_force():
     assert np.abs(y).max() < 1e-8 * np.abs(d).max()
 
 
+def _windowed_updates(ctl, t_plant, d, n_updates):
+    """Static plant Y = T_p U + D; the force of each update as applied (window 2, delay 1)."""
+    applied = {}
+    forces = []
+    for k in range(2 * n_updates):
+        u = applied.get(k, np.zeros(t_plant.shape[1], complex))
+        step = ctl.step(k, real_from_complex(t_plant @ u + d))
+        applied[step.target_period] = complex_from_real(step.coefficients)
+        if k % 2 == 1:
+            forces.append(complex_from_real(step.coefficients))
+    return np.array(forces)
+
+
+@pytest.mark.parametrize("rho", [0.0, 0.3])
+def test_influence_update_error_follows_the_closed_form_iteration_matrix(rho):
+    # 8 sensors, 4 axes, model T off the plant by a gain/phase error and a random part
+    rng = np.random.default_rng(7)
+    t_plant = rng.normal(size=(8, 4)) + 1j * rng.normal(size=(8, 4))
+    t_model = 1.2 * np.exp(0.4j) * t_plant + 0.2 * (rng.normal(size=(8, 4)) + 0j)
+    d = rng.normal(size=8) + 1j * rng.normal(size=8)
+    a = 0.5
+    ctl = InfluenceCoefficientController(t_model, gain=a, delay=1, window=2, rho=rho)
+    forces = _windowed_updates(ctl, t_plant, d, 60)
+    # closed form: E_{j+1} = (I - a (T^H T + R)^-1 T^H T_p) E_j around the fixed point
+    # T^H (T_p U* + D) = 0, which R does not move
+    th = t_model.conj().T
+    r = rho * np.sum(np.abs(t_model) ** 2) / 4 * np.eye(4)
+    m = np.eye(4) - a * np.linalg.solve(th @ t_model + r, th @ t_plant)
+    u_star = -np.linalg.solve(th @ t_plant, th @ d)
+    errors = forces - u_star
+    for j in range(len(errors) - 1):
+        np.testing.assert_allclose(errors[j + 1], m @ errors[j], rtol=1e-7, atol=1e-12)
+    radius = np.abs(np.linalg.eigvals(m)).max()
+    assert radius < 1
+    assert np.abs(errors[-1]).max() < 2 * radius**59 * np.abs(errors[0]).max() + 1e-12
+
+
+def test_influence_update_diverges_when_the_closed_form_radius_exceeds_one():
+    t_plant = np.array([[1.0 + 0.5j, 0.2], [0.1j, 0.8 - 0.3j]])
+    t_model = t_plant * np.exp(1j * np.radians(100))  # 100 deg phase error: Re < 0
+    m = np.eye(2) - 0.5 * np.linalg.solve(t_model.conj().T @ t_model, t_model.conj().T @ t_plant)
+    assert np.abs(np.linalg.eigvals(m)).max() > 1
+    ctl = InfluenceCoefficientController(t_model, gain=0.5, delay=1, window=2)
+    forces = _windowed_updates(ctl, t_plant, np.array([1.0, 1.0j]), 40)
+    assert np.abs(forces[-1]).max() > 10 * np.abs(forces[0]).max()
+
+
 def test_influence_controller_refuses_bad_settings():
     with pytest.raises(ControllerValueError, match=r"gain a must lie in \(0, 2\)"):
         InfluenceCoefficientController(np.eye(2), gain=2.5, delay=1)
