@@ -14,15 +14,31 @@ an input no check foresaw) is logged with its traceback (throttled), counted in 
 ``callback_errors`` attribute (the nodes report it on ``/diagnostics``) and spinning goes on.
 Every input the nodes know to be invalid is rejected before it gets that far; this is the last
 line, so that a peer's garbage never takes the rotor's control loop down.
+
+Profiling (opt-in, for ``bench/``): with ``AMB_CPU_LOG=DIR`` in the environment the node writes,
+at shutdown, ``DIR/<node name>.cpu.json``: the user and system CPU seconds of the process spent
+while spinning (``os.times()``), the wall seconds spun, and a timeline of (monotonic s, CPU s)
+sampled every 0.1 s by a daemon thread, so that the CPU a node spends per sample can be measured
+over any window of a run (``bench/pipeline_profile.py`` takes the plant's first to last
+sample). ``AMB_PROFILE=DIR`` does the same and also runs the spin loop under :mod:`cProfile`,
+written to ``DIR/<node name>.prof`` (pstats; the profiler itself inflates the CPU times, and
+with the ``EventsExecutor``, whose callbacks enter Python from C++, waiting time is charged to
+whatever Python frame was current: read the callbacks' own functions). Without either variable
+nothing changes.
 """
 
 from __future__ import annotations
 
+import cProfile
+import json
 import os
 import signal
 import sys
+import threading
+import time
 import traceback
 from collections.abc import Callable, Sequence
+from pathlib import Path
 from types import FrameType
 
 import rclpy
@@ -123,6 +139,7 @@ def run_node(
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     previous = {s: signal.signal(s, _request_stop) for s in (signal.SIGINT, signal.SIGTERM)}
     node = None
+    profiler = None
     try:
         try:
             node = factory()
@@ -132,6 +149,9 @@ def run_node(
         spinner = make_executor(executor)
         spinner.add_node(node)
         node.callback_errors = 0
+        profiler = _Profiler.from_environment()
+        if profiler is not None:
+            profiler.start()
         while not stop and rclpy.ok() and not getattr(node, "done", False):
             try:
                 spinner.spin_once(timeout_sec=spin_timeout)
@@ -148,6 +168,8 @@ def run_node(
     except (KeyboardInterrupt, ExternalShutdownException):
         return 0
     finally:
+        if profiler is not None:
+            profiler.dump(node.get_name())
         if node is not None:
             on_shutdown = getattr(node, "on_shutdown", None)
             if on_shutdown is not None:
@@ -156,3 +178,50 @@ def run_node(
         rclpy.try_shutdown()
         for sig, handler in previous.items():
             signal.signal(sig, handler)
+
+
+class _Profiler:
+    """CPU times of the spin loop, optionally under cProfile (``AMB_CPU_LOG``, ``AMB_PROFILE``)."""
+
+    def __init__(self, folder: Path, cprofile: bool) -> None:
+        self.folder = folder
+        self.profile = cProfile.Profile() if cprofile else None
+
+    @classmethod
+    def from_environment(cls) -> _Profiler | None:
+        if folder := os.environ.get("AMB_PROFILE"):
+            return cls(Path(folder), cprofile=True)
+        if folder := os.environ.get("AMB_CPU_LOG"):
+            return cls(Path(folder), cprofile=False)
+        return None
+
+    def start(self) -> None:
+        self._cpu0 = os.times()
+        self._wall0 = time.monotonic()
+        self._timeline: list[tuple[float, float]] = []
+        self._stop = threading.Event()
+        threading.Thread(target=self._sample, daemon=True).start()
+        if self.profile is not None:
+            self.profile.enable()
+
+    def _sample(self) -> None:
+        while not self._stop.wait(0.1):
+            cpu = os.times()
+            self._timeline.append((time.monotonic(), cpu.user + cpu.system))
+
+    def dump(self, name: str) -> None:
+        if self.profile is not None:
+            self.profile.disable()
+        self._stop.set()
+        cpu = os.times()
+        self.folder.mkdir(parents=True, exist_ok=True)
+        if self.profile is not None:
+            self.profile.dump_stats(self.folder / f"{name}.prof")
+        usage = {
+            "user_s": cpu.user - self._cpu0.user,
+            "system_s": cpu.system - self._cpu0.system,
+            "wall_s": time.monotonic() - self._wall0,
+            "end_monotonic_s": time.monotonic(),
+            "timeline": self._timeline,
+        }
+        (self.folder / f"{name}.cpu.json").write_text(json.dumps(usage) + "\n")

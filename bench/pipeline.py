@@ -33,15 +33,15 @@ COMPLETE = re.compile(
 )
 
 
-def _run(cmd: list[str]) -> subprocess.CompletedProcess:
-    out = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT)
+def _run(cmd: list[str], env: dict | None = None) -> subprocess.CompletedProcess:
+    out = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT, env=env)
     if out.returncode != 0:
         raise SystemExit(f"failed: {' '.join(cmd)}\n{out.stdout}\n{out.stderr}")
     return out
 
 
-def case(hz: float, spr: int, duration: float, work: Path) -> dict:
-    """Run one speed/sampling case; return the plant's measured numbers."""
+def prepare(hz: float, spr: int, duration: float, work: Path) -> tuple[Path, Path]:
+    """Write the case's scenario and its FE wavelet model; return both paths."""
     scenario = work / f"bench_{hz:g}hz.yaml"
     scenario.write_text(
         yaml.safe_dump(
@@ -59,14 +59,32 @@ def case(hz: float, spr: int, duration: float, work: Path) -> dict:
     _run([sys.executable, "-m", "amb_controller.sim_cli", "--scenario", str(scenario),
           "--controller", "transient", "--model", "fe", "--duration", "0.5", "--no-bag",
           "--out", str(model_dir)])  # fmt: skip
+    return scenario, model_dir / "model.npz"
+
+
+def run_mode(
+    scenario: Path,
+    model: Path,
+    mode: str,
+    out: Path,
+    env: dict | None = None,
+    extra: list[str] | tuple[str, ...] = (),
+) -> Path:
+    """``amb-run`` the four nodes and the recorder in ``mode``; return the run folder."""
+    sets = [f"wavelet_controller.model_file:={model}", "wavelet_controller.start_mode:=active",
+            f"plant_sim.mode:={mode}", *extra]  # fmt: skip
+    _run([sys.executable, "-m", "amb_tools.run_cli", "--scenario", str(scenario),
+          "--out", str(out), "--controller", "transient", "--quiet",
+          *[a for s in sets for a in ("--set", s)]], env=env)  # fmt: skip
+    return out
+
+
+def case(hz: float, spr: int, duration: float, work: Path) -> dict:
+    """Run one speed/sampling case; return the plant's measured numbers."""
+    scenario, model = prepare(hz, spr, duration, work)
     result = {"hz": hz, "samples_per_rev": spr, "fs": hz * spr}
     for mode in ("lockstep", "realtime"):
-        out = work / f"{mode}_{hz:g}"
-        _run([sys.executable, "-m", "amb_tools.run_cli", "--scenario", str(scenario),
-              "--out", str(out), "--controller", "transient", "--quiet",
-              "--set", f"wavelet_controller.model_file:={model_dir / 'model.npz'}",
-              "--set", "wavelet_controller.start_mode:=active",
-              "--set", f"plant_sim.mode:={mode}"])  # fmt: skip
+        out = run_mode(scenario, model, mode, work / f"{mode}_{hz:g}")
         log = (out / "logs" / "plant_sim.log").read_text()
         m = COMPLETE.search(log)
         if m is None:

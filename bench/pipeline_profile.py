@@ -1,0 +1,90 @@
+"""Profile of the four-node loop over DDS: CPU per sample of each node, and where it goes.
+
+Runs one lock-step case of ``bench/pipeline.py`` (same scenario, model and nodes) with
+``AMB_CPU_LOG`` (or, with ``--cprofile``, ``AMB_PROFILE``) set, so that every node writes its
+process CPU timeline at shutdown (:mod:`amb_tools.node_main`); prints, per node, the CPU
+seconds used between the plant's first and last sample (start-up and discovery excluded), CPU
+microseconds per sample and the share of that wall time, then (``--cprofile``) the top functions
+of each node by own time and by cumulative time. cProfile inflates Python-heavy code by up to
+about 2x: read its table for where the time goes, the ``AMB_CPU_LOG`` run for how much.
+
+    python bench/pipeline_profile.py [--case 67:32] [--duration 4] [--cprofile] [--top 15]
+        [--keep DIR] [--set NODE.PARAM:=VALUE ...]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import pstats
+import shutil
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from pipeline import COMPLETE, prepare, run_mode
+
+
+def cpu_in_window(usage: dict, t0: float, t1: float) -> float:
+    """CPU s a node used between monotonic times ``t0`` and ``t1`` (timeline interpolated)."""
+    timeline = np.asarray(usage["timeline"], dtype=float).reshape(-1, 2)
+    if timeline.shape[0] < 2:
+        return float("nan")
+    t, cpu = timeline[:, 0], timeline[:, 1]
+    return float(np.interp(t1, t, cpu) - np.interp(t0, t, cpu))
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--case", default="67:32", help="speed_hz:samples_per_rev")
+    ap.add_argument("--duration", type=float, default=4.0, help="simulated s")
+    ap.add_argument("--mode", default="lockstep", choices=("lockstep", "realtime"))
+    ap.add_argument("--cprofile", action="store_true", help="also cProfile every node")
+    ap.add_argument("--top", type=int, default=15, help="functions listed per node")
+    ap.add_argument("--keep", type=Path, default=None, help="keep the run folder here")
+    ap.add_argument("--set", action="append", default=[], help="extra amb-run --set")
+    args = ap.parse_args()
+    hz, spr = args.case.split(":")
+    work = Path(tempfile.mkdtemp(prefix="amb_profile_"))
+    try:
+        scenario, model = prepare(float(hz), int(spr), args.duration, work)
+        prof = work / "profile"
+        env = dict(os.environ)
+        env.pop("AMB_PROFILE", None)
+        env.pop("AMB_CPU_LOG", None)
+        env["AMB_PROFILE" if args.cprofile else "AMB_CPU_LOG"] = str(prof)
+        out = run_mode(scenario, model, args.mode, work / args.mode, env=env, extra=args.set)
+        log = (out / "logs" / "plant_sim.log").read_text()
+        m = COMPLETE.search(log)
+        samples = round(float(hz) * int(spr) * args.duration)
+        print(f"case {hz} Hz x {spr} ({samples} samples), {args.mode}: {m.group(0) if m else '?'}")
+        wall = float(m.group("wall")) if m else float("nan")
+        plant = json.loads((prof / "plant_sim.cpu.json").read_text())
+        window = (plant["end_monotonic_s"] - wall, plant["end_monotonic_s"])
+        print(f"{'node':>20} {'cpu s':>7} {'us/sample':>10} {'cpu/wall':>9}")
+        total = 0.0
+        for f in sorted(prof.glob("*.cpu.json")):
+            cpu = cpu_in_window(json.loads(f.read_text()), *window)
+            total += cpu
+            print(
+                f"{f.name.split('.')[0]:>20} {cpu:7.2f} {cpu / samples * 1e6:10.1f} "
+                f"{cpu / wall:9.0%}"
+            )
+        print(f"{'all nodes':>20} {total:7.2f} {total / samples * 1e6:10.1f} {total / wall:9.0%}")
+        if args.cprofile:
+            for f in sorted(prof.glob("*.prof")):
+                for key in ("tottime", "cumulative"):
+                    print(f"\n===== {f.stem}: top {args.top} by {key}")
+                    pstats.Stats(str(f)).sort_stats(key).print_stats(args.top)
+    finally:
+        if args.keep is not None:
+            shutil.copytree(work, args.keep, dirs_exist_ok=True)
+        shutil.rmtree(work, ignore_errors=True)
+
+
+if __name__ == "__main__":
+    main()
