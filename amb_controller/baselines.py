@@ -89,6 +89,10 @@ checked.
 
 References
 ----------
+[2]: journal, volume and pages confirmed by its stored abstract; [4]: title, authors and DOI
+confirmed by its stored first page; [1] and [3]: as cited by the thesis (its bibliography is
+not in the text available here), volume and pages not verified.
+
 .. [1] C. R. Burrows, M. N. Sahinkaya, "Vibration control of multi-mode rotor-bearing
    systems", Proc. R. Soc. Lond. A 386 (1983) 77-94.
 .. [2] C. R. Knospe, R. W. Hope, S. J. Fedigan, R. D. Williams, "Experiments in the control
