@@ -81,7 +81,8 @@ from amb_tools.conversions import (
     NUM_AXES,
     MessageError,
     check_command,
-    measurement_msgs,
+    measurement_bytes,
+    stamp,
     stamp_seconds,
 )
 from amb_tools.node_main import ConfigurationError, descriptor, run_node
@@ -446,12 +447,15 @@ class PlantSimNode(Node):
 
     def _publish(self, block: MeasurementBlock, wf: np.ndarray, status: int) -> None:
         limit = self._sim.rig.amb.force_limit
-        for m in measurement_msgs(block, wf, status, self._spr, limit):
-            if m.status & Measurement.STATUS_FORCE_SATURATED:
-                self.counts["saturated_samples"] += 1
-            self._meas_pub.publish(m)
-            if m.sample_index % self._clock_every == 0:
-                self._clock_pub.publish(Clock(clock=m.header.stamp))
+        # serialised in one go (amb_tools.cdr): the same messages as measurement_msgs builds
+        messages, flags = measurement_bytes(block, wf, status, self._spr, limit)
+        self.counts["saturated_samples"] += int(
+            np.count_nonzero(flags & Measurement.STATUS_FORCE_SATURATED)
+        )
+        for raw, index, t in zip(messages, block.sample_index, block.time, strict=True):
+            self._meas_pub.publish(raw)
+            if index % self._clock_every == 0:
+                self._clock_pub.publish(Clock(clock=stamp(float(t))))
         last = int(block.sample_index[-1])
         self._last_stamp = float(block.time[-1])
         if last % self._N == self._N - 1:  # a period's last sample is out: latency starts

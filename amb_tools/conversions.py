@@ -11,6 +11,7 @@ instead of propagating it.
 
 from __future__ import annotations
 
+import math
 from array import array
 
 import numpy as np
@@ -114,6 +115,51 @@ def measurement_msgs(
     return out
 
 
+def measurement_bytes(
+    block, wavelet_force: np.ndarray, status, samples_per_rev: int, force_limit: float
+) -> tuple[list[bytes], np.ndarray]:
+    """Serialise the ``Measurement`` messages of a block (what :func:`measurement_msgs` builds).
+
+    The same fields, values and flags as :func:`measurement_msgs`, written as CDR bytes in a
+    few numpy operations (:func:`amb_tools.cdr.measurement_cdr_block`) for
+    ``Publisher.publish``.
+
+    Parameters
+    ----------
+    block, wavelet_force, status, samples_per_rev, force_limit
+        As :func:`measurement_msgs`.
+
+    Returns
+    -------
+    messages : list of bytes
+        One serialised ``Measurement`` per sample.
+    flags : numpy.ndarray
+        ``(n,)`` the ``status`` of each message (with ``STATUS_FORCE_SATURATED``).
+    """
+    from amb_msgs.msg import Measurement
+
+    from amb_tools.cdr import measurement_cdr_block
+
+    n = block.sample_index.size
+    flags = np.broadcast_to(np.asarray(status, dtype=np.int64), (n,)).copy()
+    saturated = np.any(np.abs(block.bearing_force) >= force_limit * (1 - 1e-9), axis=1)
+    flags[saturated] |= Measurement.STATUS_FORCE_SATURATED
+    messages = measurement_cdr_block(
+        sample_index=block.sample_index,
+        time_ns=np.round(np.asarray(block.time, dtype=float) * 1e9).astype(np.int64),
+        samples_per_rev=samples_per_rev,
+        rotor_angle=block.angle,
+        rotor_speed=block.omega,
+        displacement=block.displacement,
+        current=block.current,
+        bearing_force=block.bearing_force,
+        wavelet_force=wavelet_force,
+        status=flags,
+        frame_id="amb_rig",
+    )
+    return messages, flags
+
+
 def coefficients_msg(
     header,
     wavelet: str,
@@ -187,6 +233,60 @@ def coefficients_msg(
         samples_per_period=samples_per_period,
         channel_names=list(SENSOR_NAMES),
         sets=sets,
+    )
+
+
+def coefficients_bytes(
+    header,
+    wavelet: str,
+    samples_per_rev: int,
+    samples_per_period: int,
+    sample_index: int,
+    rotor_speed: float,
+    coefficients,
+    slots,
+) -> bytes:
+    """Serialise the ``WaveletCoefficients`` message :func:`coefficients_msg` would build.
+
+    Same parameters and the same fields and values, written as CDR bytes
+    (:func:`amb_tools.cdr.coefficients_cdr`) without building the rclpy message objects;
+    ``header`` may be an rclpy ``Header`` or a :class:`amb_tools.cdr.HeaderView`.
+
+    Returns
+    -------
+    bytes
+        For ``Publisher.publish``.
+    """
+    from amb_msgs.msg import CoefficientSet
+
+    from amb_tools.cdr import coefficients_cdr, header_view
+    from amb_wavelet.analysis import APPROXIMATION
+    from amb_wavelet.levels import pseudo_frequency
+
+    fs = samples_per_rev * rotor_speed / (2.0 * np.pi)
+    n = NUM_SENSORS
+    sets = []
+    for c in coefficients:
+        kind = (
+            CoefficientSet.KIND_APPROXIMATION
+            if c.kind == APPROXIMATION
+            else CoefficientSet.KIND_DETAIL
+        )
+        f_level = pseudo_frequency(c.level, fs) if fs > 0 else 0.0
+        for i, (frame, quad) in enumerate(slots):
+            sets.append(
+                (c.level, kind, frame, quad, c.translation_index, c.first_sample_index,
+                 c.last_sample_index, f_level, bool(c.settled), c.values[i * n : (i + 1) * n])
+            )  # fmt: skip
+    return coefficients_cdr(
+        header_view(header),
+        wavelet,
+        samples_per_rev,
+        sample_index,
+        sample_index // samples_per_period,
+        samples_per_period,
+        SENSOR_NAMES,
+        sets,
     )
 
 
@@ -377,6 +477,14 @@ STAMP_TOLERANCE = 4.0
 #: m, no displacement sensor of an AMB rig reads this far (clearances are ~1e-3 m): a larger
 #: value is a corrupt message, and would overflow the filters' state.
 MAX_DISPLACEMENT = 1.0
+#: The array fields of a ``Measurement`` and their lengths, in message order.
+MEASUREMENT_ARRAYS = (
+    ("displacement", NUM_SENSORS),
+    ("current", NUM_AXES),
+    ("bearing_force", NUM_AXES),
+    ("wavelet_force", NUM_AXES),
+)
+MEASUREMENT_VALUES = sum(n for _, n in MEASUREMENT_ARRAYS)
 
 
 def check_measurement(msg, samples_per_rev: int) -> None:
@@ -400,24 +508,27 @@ def check_measurement(msg, samples_per_rev: int) -> None:
     MessageError
         Naming the field, the expected and the actual value.
     """
-    for name, expected in (
-        ("displacement", NUM_SENSORS),
-        ("current", NUM_AXES),
-        ("bearing_force", NUM_AXES),
-        ("wavelet_force", NUM_AXES),
-    ):
-        values = from_float_array(getattr(msg, name))
-        check_length(name, values, expected)
-        check_finite(name, values)
+    arrays = [from_float_array(getattr(msg, name)) for name, _ in MEASUREMENT_ARRAYS]
+    # fast path (every sample of every consumer): one concatenation, one finiteness test; the
+    # field-by-field checks below only run to name the culprit of a bad message
+    try:
+        joined = np.concatenate(arrays)
+    except ValueError:  # not 1-D: the checks below report it
+        joined = None
+    if joined is None or joined.size != MEASUREMENT_VALUES or not np.isfinite(joined).all():
+        for (name, expected), values in zip(MEASUREMENT_ARRAYS, arrays, strict=True):
+            check_length(name, values, expected)
+            check_finite(name, values)
     if msg.samples_per_rev != samples_per_rev:
         raise MessageError(
             f"field 'samples_per_rev' = {msg.samples_per_rev}, expected {samples_per_rev}"
         )
-    if not (np.isfinite(msg.rotor_speed) and msg.rotor_speed > 0.0):
-        raise MessageError(f"field 'rotor_speed' = {msg.rotor_speed} rad/s, expected > 0")
+    speed = msg.rotor_speed
+    if not (math.isfinite(speed) and speed > 0.0):
+        raise MessageError(f"field 'rotor_speed' = {speed} rad/s, expected > 0")
     if not (0.0 <= msg.rotor_angle < 2.0 * np.pi):
         raise MessageError(f"field 'rotor_angle' = {msg.rotor_angle} rad, expected [0, 2 pi)")
-    peak = float(np.max(np.abs(from_float_array(msg.displacement))))
+    peak = float(np.abs(arrays[0]).max())
     if peak > MAX_DISPLACEMENT:
         raise MessageError(
             f"field 'displacement' reaches {peak:g} m, expected |x| <= {MAX_DISPLACEMENT} m"
