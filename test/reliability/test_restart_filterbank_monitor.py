@@ -251,7 +251,9 @@ def test_fault_monitor_killed_reloads_its_log_and_detects_after_restart(
     lines = [json.loads(x) for x in log.read_text().splitlines()]
     assert [d["event_id"] for d in lines] == list(range(1, len(lines) + 1))
     assert any(d["fault_type"] == "MASS_LOSS" and d["event_id"] == new.event_id for d in lines)
-    assert diag.get(name, "restarts") == "0" and diag.get(name, "callback_errors") == "0"
+    assert diag.get(name, "restarts") == "0" and diag.get(name, "callback_errors") == "0", str(
+        diag.values[name]
+    )
     assert second.returncode is None and plant.returncode is None, second.log()
 
 
