@@ -21,7 +21,10 @@ Run modes (ARCHITECTURE.md, "Time")
 ``realtime``
     Samples are produced on the wall clock (times ``time_scale``); a command is applied if it
     arrived before its period starts, else the period runs with zero force and the command is
-    counted late. This is how a rig behaves.
+    counted late. This is how a rig behaves: each period is simulated when it starts (its
+    wavelet force is fixed then) and each of its samples is published at its own instant, from
+    a timer at the sample interval, so that the last sample of a period leaves at the period's
+    end and the command latency (``latency_summary``) is measured from there.
 
 A command is rejected (counted, reported, never applied) if its period has already started
 (``late``), if it is malformed (:func:`amb_tools.conversions.check_command`: sizes, indices,
@@ -171,7 +174,10 @@ class PlantSimNode(Node):
         self._status_timer = self.create_timer(
             self.get_parameter("status_period").value, self._publish_status
         )
-        self._timer = self.create_timer(0.002, self._tick)
+        # lockstep: a poll (commands also step the loop); realtime: the wall-clock sample timer
+        tick = 0.002 if self._mode == "lockstep" else max(1.0 / self._sim.fs, 2.0e-4)
+        self._timer = self.create_timer(tick, self._tick)
+        self._outbox: deque[tuple[float, int, bytes]] = deque()  # realtime: (t, index, CDR)
         self._commands: dict[int, np.ndarray] = {}
         self._period_end_wall: dict[int, float] = {}
         self._latency: deque[float] = deque(maxlen=100_000)
@@ -414,9 +420,13 @@ class PlantSimNode(Node):
 
     def _tick_realtime(self) -> None:
         due = (time.monotonic() - self._wall0) * self.get_parameter("time_scale").value
-        while self._remaining() > 0 and self._sim.time <= due:
-            self._run_period(self._sim.sample_index // self._N)
-        if self._remaining() <= 0:
+        while True:
+            while self._outbox and self._outbox[0][0] <= due:
+                self._release(*self._outbox.popleft())
+            if self._outbox or self._remaining() <= 0 or self._sim.time > due:
+                break
+            self._run_period(self._sim.sample_index // self._N)  # the period starts: simulate it
+        if self._remaining() <= 0 and not self._outbox:
             self._finish()
 
     def _run_period(self, k: int) -> None:
@@ -452,15 +462,22 @@ class PlantSimNode(Node):
         self.counts["saturated_samples"] += int(
             np.count_nonzero(flags & Measurement.STATUS_FORCE_SATURATED)
         )
-        for raw, index, t in zip(messages, block.sample_index, block.time, strict=True):
-            self._meas_pub.publish(raw)
-            if index % self._clock_every == 0:
-                self._clock_pub.publish(Clock(clock=stamp(float(t))))
-        last = int(block.sample_index[-1])
-        self._last_stamp = float(block.time[-1])
-        if last % self._N == self._N - 1:  # a period's last sample is out: latency starts
-            self._period_end_wall[last // self._N] = time.monotonic()
-            self._period_end_wall.pop(last // self._N - 64, None)
+        samples = zip(block.time.tolist(), block.sample_index.tolist(), messages, strict=True)
+        if self._mode == "realtime":
+            self._outbox.extend(samples)  # released at their instants by _tick_realtime
+            return
+        for sample in samples:
+            self._release(*sample)
+
+    def _release(self, t: float, index: int, raw: bytes) -> None:
+        """Publish one serialised sample (and ``/clock``); a period's last one starts latency."""
+        self._meas_pub.publish(raw)
+        if index % self._clock_every == 0:
+            self._clock_pub.publish(Clock(clock=stamp(t)))
+        self._last_stamp = t
+        if index % self._N == self._N - 1:
+            self._period_end_wall[index // self._N] = time.monotonic()
+            self._period_end_wall.pop(index // self._N - 64, None)
 
     def latency_summary(self) -> dict[str, float]:
         """Wall latency from a period's last sample to the command based on it (s).

@@ -6,6 +6,8 @@ with the same forces: the node must add nothing and lose nothing (bit-for-bit eq
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 import pytest
 import yaml
@@ -60,6 +62,7 @@ class _Loop:
     def __init__(self, ros, skip=(), corrupt=()) -> None:
         self.node = ros.node("amb_test_controller")
         self.samples: list[Measurement] = []
+        self.arrivals: list[float] = []  # s, monotonic wall time of each sample's arrival
         self.diag: dict[str, str] = {}
         self.skip, self.corrupt = set(skip), set(corrupt)
         self.pub = self.node.create_publisher(ControlCommand, "/amb/control/command", COMMAND_QOS)
@@ -69,6 +72,7 @@ class _Loop:
         self.node.create_subscription(DiagnosticArray, "/diagnostics", self.on_diag, 10)
 
     def on_measurement(self, m: Measurement) -> None:
+        self.arrivals.append(time.monotonic())
         self.samples.append(m)
         if m.sample_index % SPR == SPR - 1:
             target = m.sample_index // SPR + DELAY
@@ -139,6 +143,25 @@ def test_missing_command_times_out_to_zero_force(ros, node_process, tmp_path) ->
     assert all(m.status & Measurement.STATUS_COMMAND_MISSING for m in period4)
     assert all(not np.any(m.wavelet_force) for m in period4)
     assert "missing 1" in plant.log()
+
+
+def test_realtime_publishes_each_sample_at_its_instant(ros, node_process, tmp_path) -> None:
+    """A rig does not send a period's samples in one burst: they leave at the sample rate."""
+    loop = _Loop(ros)
+    plant = _start_plant(node_process, tmp_path, mode="realtime")
+    assert ros.spin_until(lambda: len(loop.samples) == 10 * SPR, 60.0), plant.log()
+    assert plant.wait(20) == 0, plant.log()
+    assert [m.sample_index for m in loop.samples] == list(range(10 * SPR))
+    fs = SPR * SCENARIO["speed"]["hz"]
+    arrivals = np.array(loop.arrivals).reshape(10, SPR)
+    spread = arrivals[:, -1] - arrivals[:, 0]  # s, first to last sample of each period
+    # (SPR - 1) / fs = 47 ms at the sample instants; a burst arrives within a few ms
+    assert np.median(spread) > 0.5 * (SPR - 1) / fs, spread
+    run = arrivals[-1, -1] - arrivals[0, 0]
+    assert run > 0.8 * (10 * SPR - 1) / fs, run  # the whole run took its real time
+    for k in range(10):  # each period ran with its command or, if that was late, none
+        wf = np.array([m.wavelet_force for m in loop.samples[k * SPR : (k + 1) * SPR]])
+        assert not wf.any() or (k >= DELAY and np.array_equal(wf, _force(k))), k
 
 
 def test_fault_injection_service(ros, node_process, tmp_path) -> None:
