@@ -58,6 +58,66 @@ def test_force_metrics_peak_of_the_bearing_resultant_and_rms_after_fault():
     assert m["rms_force"] == pytest.approx(math.sqrt((30.0**2 + 40.0**2) / 4))
 
 
+def test_1x_settling_is_measured_apart_from_a_harmonic_left_after_it():
+    # 1 x decays as 0.5^k from 100 um; a steady 3 x of 15 um (15 % of the peak) stays
+    n_rev = 32
+    env = np.concatenate([[0.0, 0.0], 100e-6 * 0.5 ** np.arange(n_rev - 2)])
+    run = _run(env)
+    theta = 2 * np.pi * np.arange(n_rev * SPR) / SPR
+    run.displacement[2 * SPR :, 2] += 15e-6 * np.cos(3 * theta[2 * SPR :])
+    m = run_metrics(run, speed_hz=1.0)
+    assert m["revs_to_10"] is None  # the displacement never falls below 10 % of its peak
+    assert m["revs_to_10_1x"] == 4  # the 1 x amplitude does, as 0.5^k: k = 0..3 above 10 %
+    assert m["peak_1x"] == pytest.approx(100e-6, rel=1e-9)
+
+
+def _row(peak, revs, revs_1x, residual, force=40.0, radius=None, peak_1x=None):
+    return {
+        "peak": peak, "revs_to_10": revs, "revs_to_10_1x": revs_1x, "residual_um": residual,
+        "peak_force": force, "peak_1x": peak if peak_1x is None else peak_1x,
+        "model_radius": radius,
+    }  # fmt: skip
+
+
+def test_verdict_says_where_the_wavelet_controller_wins_and_loses_and_why():
+    from amb_controller.compare_cli import verdict
+
+    table = {
+        "mass_loss_1st": {
+            "pid": _row(141e-6, None, None, 0.8),
+            "wavelet_i1": _row(94.7e-6, None, 12, 12.2, radius=0.798, peak_1x=87.0e-6),
+            "harmonic_i1": _row(91.1e-6, 10, 10, 0.87, radius=0.783, peak_1x=85.4e-6),
+            "synchronous_i1": _row(111.4e-6, 9, 9, 0.86),
+        },
+        "sync_150N_3rd": {"wavelet_i1": _row(1e-3, None, None, 1.0)},
+    }
+    text = "\n".join(verdict(table, 1000.0))
+    assert "vs harmonic_i1: peak 94.7 vs 91.1 um, LOSES by 4.0 %" in text
+    assert "1 x amplitude: 87.0 vs 85.4 um" in text and "0.798 vs 0.783" in text
+    assert "vs synchronous_i1: peak 94.7 vs 111.4 um, WINS by 15.0 %" in text
+    assert "settles to 10 % in 12 revolutions (harmonic_i1: 10)" in text
+    assert "12.2 um of non-1 x displacement" in text and "above 10 % of its peak (9.5 um)" in text
+    assert "the limit was not reached" in text
+    assert "sync_150N_3rd" not in text  # only the mass-loss cases carry the target
+    table["mass_loss_1st"]["wavelet_i1"]["peak_force"] = 1000.0
+    assert "the limit was reached" in "\n".join(verdict(table, 1000.0))
+
+
+def test_rows_whose_own_model_predicts_divergence_are_flagged():
+    from amb_controller.compare_cli import _notes
+
+    rows = {
+        "pid": _row(1e-4, None, None, 1.0),
+        "wavelet_i1": _row(3e-2, None, None, 1.0, radius=1.027),
+        "wavelet_i1_8sensors": _row(1e-5, 5, 5, 1.0, radius=0.76),
+    }
+    text = "\n".join(_notes("sync_150N_3rd", rows))
+    assert "wavelet_i1: exact closed-loop spectral radius 1.027 >= 1" in text
+    assert "wavelet_i1_8sensors 0.760" in text and "8 sensors" in text
+    assert "wavelet_i1_8sensors: exact" not in text
+    assert _notes("mass_loss_1st", {"wavelet_i1": _row(1e-4, 3, 3, 1.0, radius=0.8)}) == []
+
+
 def _pair_model():
     rng = np.random.default_rng(0)
     markov = rng.normal(size=(3, 2, 2))
@@ -132,3 +192,17 @@ def test_residual_after_1x_is_the_third_harmonic_left_on_a_1x_orbit():
     x[:, 5] = 30e-6 * np.sin(theta)
     run = SimpleNamespace(samples_per_rev=SPR, displacement=x)
     assert residual_after_1x(run) == pytest.approx(4e-6, rel=1e-9)
+
+
+def test_model_radius_predicts_the_third_critical_divergence_and_8_sensor_stability():
+    # reference: the simulator, in which every inner-sensor eq.-8.10 controller diverges at
+    # the third critical speed (amb-compare: 35.9 mm) and the 8-sensor one does not
+    from amb_controller.compare_cli import Matrix, model_radius
+    from amb_tools.paths import config_file
+
+    matrix = Matrix(config_file("scenarios"), 32, None, True)
+    assert model_radius(matrix, "wavelet_i1", "sync_150N_3rd") > 1.0
+    assert model_radius(matrix, "wavelet_i1_8sensors", "sync_150N_3rd") < 0.9
+    assert 0.667 < model_radius(matrix, "wavelet_i1", "mass_loss_1st") < 0.9  # ideal 2/3
+    assert model_radius(matrix, "pid", "mass_loss_1st") is None
+    assert model_radius(matrix, "synchronous_i1", "mass_loss_1st") is None
