@@ -451,6 +451,11 @@ def load_rig(path: str | Path | None = None) -> Rig:
     p = Path(path) if path is not None else DEFAULT_RIG_PATH
     if not p.is_file():
         raise RigError(f"rig file not found: {p}; pass the path of config/rig.yaml")
-    with p.open(encoding="utf-8") as fh:
-        data = yaml.safe_load(fh)
+    try:
+        with p.open(encoding="utf-8") as fh:
+            data = yaml.safe_load(fh)
+    except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:
+        raise RigError(f"rig file {p} is not readable YAML: {exc}") from exc
+    if not isinstance(data, dict):
+        raise RigError(f"rig file {p}: expected a mapping of rig keys, got {type(data).__name__}")
     return rig_from_dict(data, source=str(p))

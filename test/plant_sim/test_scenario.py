@@ -95,3 +95,16 @@ def test_rig_validation_messages():
         rig_from_dict(data)
     with pytest.raises(RigError, match="not found"):
         load_rig("/nonexistent/rig.yaml")
+
+
+@pytest.mark.parametrize(
+    ("text", "words"),
+    [("shaft: [unclosed\n", "not readable YAML"), ("- just\n- a list\n", "expected a mapping")],
+)
+def test_malformed_rig_file_raises_rig_error(tmp_path, text, words):
+    # A malformed file must surface as RigError (the nodes turn it into exit code 2), not as
+    # the YAML parser's own exception.
+    bad = tmp_path / "rig.yaml"
+    bad.write_text(text)
+    with pytest.raises(RigError, match=words):
+        load_rig(bad)
