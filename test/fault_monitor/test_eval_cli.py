@@ -42,3 +42,30 @@ def test_eval_cli_base_motion_and_contacts_in_mass_loss_ringing(tmp_path, capsys
     assert out["confusion"]["AUX_BEARING_CONTACT"]["AUX_BEARING_CONTACT"] == 1
     contact = out["delays"]["AUX_BEARING_CONTACT"]
     assert 0 <= contact["detection_revs_max"] < 1.5  # within the ringing, after the first hit
+
+
+def test_eval_cli_several_wavelets_share_one_simulation(tmp_path, capsys):
+    shutil.copy(SUITE / "mass_loss_29hz_430gcm_000.yaml", tmp_path / "ml.yaml")
+    status = main(["--scenarios", str(tmp_path), "--json", "--wavelet", "haar,db2"])
+    out = json.loads(capsys.readouterr().out)
+    assert status == 0
+    assert sorted(out["wavelets"]) == ["db2", "haar"]
+    for w, part in out["wavelets"].items():
+        assert part["confusion"]["MASS_LOSS"]["MASS_LOSS"] == 1, w
+        assert part["before_calibration"] == 0
+        assert part["cases"][0]["wavelet"] == w
+
+
+def test_fault_inside_the_calibration_window_is_flagged(tmp_path, capsys):
+    """At 11 Hz a fault at 1.0 s (11 rev) comes before db4 calibration ends (~32 rev)."""
+    text = (SUITE / "mass_loss_11hz_430gcm_000.yaml").read_text()
+    text = text.replace("time: 4.0", "time: 1.0").replace("duration: 7.0", "duration: 3.0")
+    (tmp_path / "early.yaml").write_text(text)
+    status = main(["--scenarios", str(tmp_path), "--json", "--wavelet", "db4"])
+    out = json.loads(capsys.readouterr().out)
+    assert status == 1
+    assert out["before_calibration"] == 1
+    (match,) = out["cases"][0]["matches"]
+    assert match["before_calibration"] is True
+    end = out["cases"][0]["calibration_end_sample"]  # None: the fault kept it unsettled
+    assert end is None or end > match["true_onset_sample"]
