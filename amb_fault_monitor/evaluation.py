@@ -22,7 +22,7 @@ A fault scenario is an ``amb_plant_sim`` scenario file (speed, duration, noise, 
 
 ``expect: []`` (or no ``expect``) declares a healthy run: every event is a false alarm. The
 ``fault`` names are those of :class:`~amb_fault_monitor.events.FaultType`. ``from: contact``
-takes the true onset from the simulator's truth (first sample with a contact force), so
+takes the true onset from the simulator's truth (first sample after a contact force), so
 contact cases need no guessed time; the run must then contain a contact or the case is
 reported as ``NO_TRUTH``. To add a case, copy a file, change the events and the
 expectation, and run ``amb-fault-eval --scenarios DIR``.
@@ -34,8 +34,10 @@ lies within ``match_revs`` revolutions after (or one revolution before) the true
 failing that to the earliest event of any class in that window (a confusion), failing that it
 is ``MISSED``. Events matched to nothing are false alarms. Detection delay is
 ``detection - true onset``, the onset error ``estimated onset - true onset``. The true onset
-of ``from: contact`` is the first sample whose interval has a contact force > 0 (the
-simulator's truth, however light the touch); its peak force is reported with the match. A
+of ``from: contact`` is the first sample instant at or after the first contact force > 0
+(the simulator's truth, however light the touch; its truth row ``s`` holds the force over
+the interval after sample ``s``, so the onset is ``s + 1``, as ``ceil(time * fs)`` for a
+timed fault); the peak force of that first touch is reported with the match. A
 fault that comes before the monitor finished calibrating (its healthy window is
 ``calibration_revs`` plus the support of the deepest level, about 33 revolutions with db4
 at 32 samples per revolution) is flagged ``before_calibration`` and counted in the summary:
@@ -145,7 +147,9 @@ def _truth_onset(exp: Expectation, truth: dict, fs: float, after: float) -> int 
         return math.ceil(exp.time * fs - 1e-9)
     contact = truth["contact"].any(axis=1)
     idx = np.flatnonzero(contact & (np.arange(contact.size) >= after * fs))
-    return int(idx[0]) if idx.size else None
+    # truth row s holds the contact force over (t_s, t_s+1]: the sample at t_s was taken
+    # before the touch, the first sample at or after it is s + 1 (as ceil(time * fs) above)
+    return int(idx[0]) + 1 if idx.size else None
 
 
 def _first_burst_peak(truth: dict, first: int, gap: int = 2) -> float:
@@ -286,7 +290,7 @@ def run_case(
         cal = monitor.calibration_end
         row["before_calibration"] = cal is None or true < cal
         if exp.source == "contact":
-            row["first_contact_peak_n"] = _first_burst_peak(block.truth, true)
+            row["first_contact_peak_n"] = _first_burst_peak(block.truth, true - 1)
         lo, hi = true - spr, true + match_revs * spr
         window = [
             (i, e)
