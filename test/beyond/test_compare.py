@@ -71,12 +71,29 @@ def test_1x_settling_is_measured_apart_from_a_harmonic_left_after_it():
     assert m["peak_1x"] == pytest.approx(100e-6, rel=1e-9)
 
 
-def _row(peak, revs, revs_1x, residual, force=40.0, radius=None, peak_1x=None):
+def _row(peak, revs, revs_1x, non1x, force=40.0, radius=None, peak_1x=None):
     return {
-        "peak": peak, "revs_to_10": revs, "revs_to_10_1x": revs_1x, "residual_um": residual,
-        "peak_force": force, "peak_1x": peak if peak_1x is None else peak_1x,
-        "model_radius": radius,
+        "peak": peak, "revs_to_10": revs, "revs_to_10_1x": revs_1x, "non1x_um": non1x,
+        "harmonics_um": {"2x": 0.2, "3x": 6.6, "5x": 2.2, "7x": 2.5}, "peak_force": force,
+        "peak_1x": peak if peak_1x is None else peak_1x, "model_radius": radius,
+        "contacts": 0, "rms_force": 10.0,
     }  # fmt: skip
+
+
+def test_harmonic_content_removes_a_decaying_1x_revolution_by_revolution():
+    from amb_controller.compare_cli import harmonic_content
+
+    n_rev = 12
+    theta = 2 * np.pi * np.arange(n_rev * SPR) / SPR
+    decay = np.repeat(80e-6 * 0.7 ** np.arange(n_rev), SPR)  # 1 x still decaying
+    x = np.zeros((n_rev * SPR, 8))
+    x[:, 2] = decay * np.cos(theta) + 5e-6 * np.cos(3 * theta + 0.4) + 2e-6 * np.sin(5 * theta)
+    h = harmonic_content(SimpleNamespace(samples_per_rev=SPR, displacement=x))
+    assert h["harmonics_um"]["3x"] == pytest.approx(5.0, rel=1e-9)
+    assert h["harmonics_um"]["5x"] == pytest.approx(2.0, rel=1e-9)
+    assert h["harmonics_um"]["2x"] == pytest.approx(0.0, abs=1e-9)
+    peak = np.abs(5e-6 * np.cos(3 * theta + 0.4) + 2e-6 * np.sin(5 * theta)).max() * 1e6
+    assert h["non1x_um"] == pytest.approx(peak, rel=1e-9)
 
 
 def test_verdict_says_where_the_wavelet_controller_wins_and_loses_and_why():
@@ -97,6 +114,7 @@ def test_verdict_says_where_the_wavelet_controller_wins_and_loses_and_why():
     assert "vs synchronous_i1: peak 94.7 vs 111.4 um, WINS by 15.0 %" in text
     assert "settles to 10 % in 12 revolutions (harmonic_i1: 10)" in text
     assert "12.2 um of non-1 x displacement" in text and "above 10 % of its peak (9.5 um)" in text
+    assert "odd harmonics (3x 6.6, 5x 2.2, 7x 2.5 um)" in text
     assert "the limit was not reached" in text
     assert "sync_150N_3rd" not in text  # only the mass-loss cases carry the target
     table["mass_loss_1st"]["wavelet_i1"]["peak_force"] = 1000.0
@@ -111,10 +129,13 @@ def test_rows_whose_own_model_predicts_divergence_are_flagged():
         "wavelet_i1": _row(3e-2, None, None, 1.0, radius=1.027),
         "wavelet_i1_8sensors": _row(1e-5, 5, 5, 1.0, radius=0.76),
     }
+    rows["harmonic_i1"] = _row(6e-3, None, None, 1.0, radius=0.991)
     text = "\n".join(_notes("sync_150N_3rd", rows))
     assert "wavelet_i1: exact closed-loop spectral radius 1.027 >= 1" in text
+    assert "predicted before the run (peak 30.00 mm in the run)" in text
+    assert "harmonic_i1: radius 0.991 on its own FE model, stable only by 0.009" in text
     assert "wavelet_i1_8sensors 0.760" in text and "8 sensors" in text
-    assert "wavelet_i1_8sensors: exact" not in text
+    assert "wavelet_i1_8sensors: exact" not in text and "harmonic_i1 0.991" not in text
     assert _notes("mass_loss_1st", {"wavelet_i1": _row(1e-4, 3, 3, 1.0, radius=0.8)}) == []
 
 
