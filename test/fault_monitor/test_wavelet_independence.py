@@ -10,7 +10,7 @@ takes minutes per wavelet and is run by ``amb-fault-eval --wavelet haar,db2,db4`
 subset holds the cases the thesis shows:
 
 - 430 g cm loss at 67 Hz that leads to contacts half a revolution later (figures 5.1-5.6,
-  5.19-5.26; the contacts inside the loss's first revolution were missed with db2);
+  5.19-5.26, and the contacts a loss leads to, figure 5.27 case 2);
 - a bearing contact at 67 Hz and one at 29 Hz (figures 5.4-5.6, 5.16-5.18);
 - 430 g cm losses at 18 and 29 Hz (figures 5.7-5.12);
 - the 516 g cm loss at 19 Hz, figure 5.27 case 1.
@@ -56,9 +56,10 @@ def test_thesis_cases_detected_and_classified_with_each_wavelet(simulated, wavel
     assert summary["before_calibration"] == 0
     # mass loss: detected within one revolution of the true onset (issue 5)
     assert 0 <= summary["delays"]["MASS_LOSS"]["detection_revs_max"] < 1.0
-    # the contacts of the 430 g cm loss are found within the loss's ring-down, after the
-    # first touch (0.5 revolution after the loss)
+    # the first touch of the 430 g cm loss, 0.5 revolution after it and inside its ring-down,
+    # is found within a quarter revolution (issue 5 contact target; was 0.9 rev with haar,
+    # missed with db2, 4.9 rev with db4)
     (ml,) = [r for r in results if r.name == "mass_loss_67hz_430gcm_250"]
     contact = next(m for m in ml.matches if m["expected"] == "AUX_BEARING_CONTACT")
     assert contact["predicted"] == "AUX_BEARING_CONTACT"
-    assert 0 <= contact["detection_delay_revs"] < 2.0
+    assert 0 <= contact["detection_delay_revs"] < 0.25
