@@ -9,16 +9,21 @@ For each case (running speed, samples per revolution): a wavelet model from the 
 2. realtime: the same nodes with ``plant_sim.mode:=realtime``; plant_sim measures, for each
    command, the wall time from the last sample of the period it is based on to its arrival
    (median, p99, as a fraction of the control period).
-Numbers come from one run per case on whatever else the machine is doing: read them as
-ratios to the target, not as absolutes.
+Each case is run ``--repeat`` times (the model is made once); every run is printed with the
+plant's command counts (``missing``: no command by the period's start; ``late``: arrived after)
+and the machine's 1-minute load average at its end, then the median over the runs. Numbers
+depend on whatever else the machine is doing: read them as ratios to the target, and compare
+runs made under the same load.
 
-    python bench/pipeline.py [--duration 8] [--cases 11:64,67:32]
+    python bench/pipeline.py [--duration 8] [--cases 11:64,67:32] [--repeat 3]
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import re
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -27,6 +32,9 @@ from pathlib import Path
 import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
+COUNTS = re.compile(
+    r"commands: applied (?P<applied>\d+), missing (?P<missing>\d+), late (?P<late>\d+)"
+)
 COMPLETE = re.compile(
     r"in (?P<wall>[\d.]+) s wall, real-time factor (?P<rtf>[\d.]+)"
     r"(?:; command latency p50 (?P<p50>[\d.]+) ms, p99 (?P<p99>[\d.]+) ms \((?P<frac>[\d.]+)%)?"
@@ -79,38 +87,67 @@ def run_mode(
     return out
 
 
-def case(hz: float, spr: int, duration: float, work: Path) -> dict:
-    """Run one speed/sampling case; return the plant's measured numbers."""
+def case(hz: float, spr: int, duration: float, work: Path, repeat: int = 1) -> list[dict]:
+    """Run one speed/sampling case ``repeat`` times; return the plant's numbers of each run."""
     scenario, model = prepare(hz, spr, duration, work)
-    result = {"hz": hz, "samples_per_rev": spr, "fs": hz * spr}
-    for mode in ("lockstep", "realtime"):
-        out = run_mode(scenario, model, mode, work / f"{mode}_{hz:g}")
-        log = (out / "logs" / "plant_sim.log").read_text()
-        m = COMPLETE.search(log)
-        if m is None:
-            raise SystemExit(f"no completion line in {out / 'logs' / 'plant_sim.log'}")
-        result[mode] = {k: float(v) for k, v in m.groupdict().items() if v is not None}
-    return result
+    runs = []
+    for i in range(repeat):
+        result = {"hz": hz, "samples_per_rev": spr, "fs": hz * spr}
+        for mode in ("lockstep", "realtime"):
+            out = run_mode(scenario, model, mode, work / f"{mode}_{hz:g}_{i}")
+            log = (out / "logs" / "plant_sim.log").read_text()
+            m = COMPLETE.search(log)
+            if m is None:
+                raise SystemExit(f"no completion line in {out / 'logs' / 'plant_sim.log'}")
+            result[mode] = {k: float(v) for k, v in m.groupdict().items() if v is not None}
+            counts = COUNTS.search(log)
+            result[mode].update(
+                {k: int(v) for k, v in counts.groupdict().items()} if counts else {}
+            )
+        result["load"] = os.getloadavg()[0]
+        runs.append(result)
+    return runs
+
+
+def _row(label: str, r: dict) -> str:
+    rt, nan = r["realtime"], float("nan")
+    return (
+        f"{label:>16} {r['lockstep']['rtf']:>13.2f} {rt.get('p50', nan):>10.2f} "
+        f"{rt.get('p99', nan):>8.2f} {rt.get('frac', nan) / 100:>11.1%} "
+        f"{rt.get('missing', -1):>8d} {rt.get('late', -1):>5d} {r['load']:>6.1f}"
+    )
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--duration", type=float, default=8.0, help="simulated s per run")
     ap.add_argument("--cases", default="11:64,67:32", help="speed_hz:samples_per_rev,...")
+    ap.add_argument("--repeat", type=int, default=1, help="runs per case (median printed)")
     args = ap.parse_args()
     cases = [tuple(c.split(":")) for c in args.cases.split(",")]
-    print(f"{'case':>14} {'fs Hz':>7} {'lockstep RTF':>13} {'realtime p50 ms':>16} "
-          f"{'p99 ms':>8} {'p99/period':>11}")  # fmt: skip
+    print(f"{'case / run':>16} {'lockstep RTF':>13} {'rt p50 ms':>10} {'p99 ms':>8} "
+          f"{'p99/period':>11} {'missing':>8} {'late':>5} {'load':>6}")  # fmt: skip
     with tempfile.TemporaryDirectory() as tmp:
         for hz, spr in cases:
-            r = case(float(hz), int(spr), args.duration, Path(tmp))
-            rt = r["realtime"]
-            print(
-                f"{hz:>5} Hz x {spr:>3} {r['fs']:>7.0f} {r['lockstep']['rtf']:>13.2f} "
-                f"{rt.get('p50', float('nan')):>16.2f} {rt.get('p99', float('nan')):>8.2f} "
-                f"{rt.get('frac', float('nan')) / 100:>11.1%}",
-                flush=True,
-            )
+            runs = case(float(hz), int(spr), args.duration, Path(tmp), args.repeat)
+            for i, r in enumerate(runs):
+                print(_row(f"{hz} Hz x {spr} #{i + 1}", r), flush=True)
+            if len(runs) > 1:
+                med = {
+                    "lockstep": {"rtf": statistics.median(r["lockstep"]["rtf"] for r in runs)},
+                    "realtime": {
+                        k: statistics.median(r["realtime"].get(k, float("nan")) for r in runs)
+                        for k in ("p50", "p99", "frac")
+                    },
+                    "load": statistics.median(r["load"] for r in runs),
+                }
+                med["realtime"]["missing"] = round(
+                    statistics.median(r["realtime"].get("missing", -1) for r in runs)
+                )
+                med["realtime"]["late"] = round(
+                    statistics.median(r["realtime"].get("late", -1) for r in runs)
+                )
+                print(_row(f"{hz} Hz x {spr} median", med), flush=True)
     print("targets: lock-step RTF >= 1.0 at both speeds; realtime p99 < 10% of the period at 67 Hz")
 
 
