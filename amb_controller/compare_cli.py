@@ -682,9 +682,9 @@ def _notes(key: str, rows: dict) -> list[str]:
     if key == "sync_150N_3rd":
         lines.append(
             "- Third critical speed: with the 4 inner sensors the steady-state gain G(1) of "
-            "the x_{1,1} model is nearly singular there (the mode has a node near the inner "
-            "sensors), so the 5th-order inverse is poor; measuring all 8 sensors makes it "
-            "invertible"
+            "the x_{1,1} model is nearly singular there (smallest singular value 0.0035 of "
+            "the largest at 64 samples/rev, module docstring), so the 5th-order inverse is "
+            "poor; measuring all 8 sensors makes it invertible"
             + (
                 f" (stable rows: {', '.join(f'{n} {r:.3f}' for n, r in good.items())})."
                 if good
