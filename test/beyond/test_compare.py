@@ -135,6 +135,10 @@ def test_rows_whose_own_model_predicts_divergence_are_flagged():
     assert "predicted before the run (peak 30.00 mm in the run)" in text
     assert "harmonic_i1: radius 0.991 on its own FE model, stable only by 0.009" in text
     assert "wavelet_i1_8sensors 0.760" in text and "8 sensors" in text
+    rows["wavelet_i2"] = _row(12e-3, None, None, 1.0, radius=0.928)  # diverged, model stable
+    notes = "\n".join(_notes("contact_case2", rows))
+    assert "wavelet_i2: peak 12.00 mm in the run although its own FE model gives" in notes
+    assert "no dynamic model" not in notes
     assert "wavelet_i1_8sensors: exact" not in text and "harmonic_i1 0.991" not in text
     assert _notes("mass_loss_1st", {"wavelet_i1": _row(1e-4, 3, 3, 1.0, radius=0.8)}) == []
 
