@@ -43,6 +43,7 @@ from types import FrameType
 
 import rclpy
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
@@ -144,6 +145,11 @@ def run_node(
         try:
             node = factory()
         except ConfigurationError as exc:
+            print(f"[ERROR] configuration: {exc}", file=sys.stderr, flush=True)
+            return EXIT_CONFIGURATION_ERROR
+        except ParameterException as exc:
+            # rclpy's own refusal of a -p / params-file value against its descriptor (range,
+            # type): its message names the value, the reason (range) and the parameter.
             print(f"[ERROR] configuration: {exc}", file=sys.stderr, flush=True)
             return EXIT_CONFIGURATION_ERROR
         spinner = make_executor(executor)
