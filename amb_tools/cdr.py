@@ -246,7 +246,10 @@ def _deserialise(raw: bytes, name: str):
     import amb_msgs.msg
     from rclpy.serialization import deserialize_message
 
-    return deserialize_message(bytes(raw), getattr(amb_msgs.msg, name))
+    try:
+        return deserialize_message(bytes(raw), getattr(amb_msgs.msg, name))
+    except Exception as exc:  # rclpy raises RMWError (not a ValueError) on a garbled buffer
+        raise ValueError(f"{name} of {len(raw)} bytes: {exc}") from exc
 
 
 def _measurement_from_msg(msg) -> MeasurementView:

@@ -125,3 +125,20 @@ def test_truncated_buffers_are_refused_with_a_value_error() -> None:
         read_measurement(m[:40])
     with pytest.raises(ValueError):
         read_coefficients(raw[: len(raw) - 9])
+
+
+def test_garbled_encapsulation_is_refused_with_a_value_error() -> None:
+    # A buffer whose encapsulation bytes are not little-endian CDR goes through rclpy's
+    # deserialiser; its RMWError must surface as the ValueError the nodes count as a rejected
+    # message (the filterbank fuzz test saw it as a callback error instead).
+    from amb_msgs.msg import Measurement, WaveletCoefficients
+    from rclpy.serialization import serialize_message
+
+    for msg, read in (
+        (Measurement(), read_measurement),
+        (WaveletCoefficients(), read_coefficients),
+    ):
+        raw = bytearray(serialize_message(msg))
+        raw[0:2] = b"\x00\x00"  # big-endian CDR header on a little-endian body
+        with pytest.raises(ValueError):
+            read(bytes(raw[:12]))
