@@ -29,6 +29,7 @@ from amb_wavelet.node import FRAME_CODES, QUAD_CODES, stream_qos
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "reliability"))
 from reliability_helpers import Diagnostics, get_parameter, set_parameters
+from ros_harness import configuration_refusals
 
 pytestmark = pytest.mark.ros
 
@@ -108,14 +109,7 @@ def test_invalid_start_up_values_exit_2_naming_parameter_value_and_range(
             k: v.format(bad=bad_files) if isinstance(v, str) else v for k, v in params.items()
         }
         procs.append((params, words, node_process("fault_monitor", params=params)))
-    failures = []
-    for params, words, proc in procs:
-        code = proc.wait(240)  # start-up alone took 7-20 s on the loaded 2-core machine
-        log = proc.log()
-        line = next((x for x in log.splitlines() if "[ERROR] configuration" in x), "")
-        missing = [w for w in words if w not in line]
-        if code != 2 or missing:
-            failures.append(f"{params}: exit {code}, missing {missing} in {line!r}\n{log[-800:]}")
+    failures = configuration_refusals([(str(params), proc, words) for params, words, proc in procs])
     assert not failures, "\n".join(failures)
 
 

@@ -10,6 +10,8 @@ traceback ended the process with exit code 1.
 
 from __future__ import annotations
 
+from ros_harness import configuration_refusals
+
 CASES = [
     # (node, parameters, words the error line must contain)
     ("wavelet_filterbank", {"levels": 99}, ("levels", "99", "Max: 16")),
@@ -22,13 +24,6 @@ CASES = [
 
 def test_descriptor_and_type_refusals_exit_2_with_the_parameter_and_value(node_process) -> None:
     """All cases start at once (start-up dominates the wall time), then are checked."""
-    procs = [(n, p, w, node_process(n, params=p)) for n, p, w in CASES]
-    failures = []
-    for name, params, words, proc in procs:
-        code = proc.wait(240)
-        log = proc.log()
-        line = next((x for x in log.splitlines() if "[ERROR] configuration" in x), "")
-        missing = [w for w in words if w not in line]
-        if code != 2 or missing:
-            failures.append(f"{name} {params}: exit {code}, missing {missing} in {line!r}")
+    cases = [(f"{n} {p}", node_process(n, params=p), w) for n, p, w in CASES]
+    failures = configuration_refusals(cases)
     assert not failures, "\n".join(failures)

@@ -196,3 +196,23 @@ def _param_text(value: object) -> str:
     if isinstance(value, (list, tuple)):
         return "[" + ",".join(_param_text(v) for v in value) + "]"
     return str(value)
+
+
+def configuration_refusals(cases: list[tuple[str, NodeProcess, tuple[str, ...]]]) -> list[str]:
+    """Check node processes that must refuse their configuration at start-up.
+
+    Each case is ``(label, process, words)``: the process must exit with code 2 (the
+    configuration-error exit of :func:`amb_tools.node_main.run_node`) and its
+    ``[ERROR] configuration`` line must contain every word. Returns one line per failed case
+    (empty if all refused as expected). Waits up to 240 s per process: start-up alone took
+    7-20 s on a loaded 2-core machine.
+    """
+    failures = []
+    for label, proc, words in cases:
+        code = proc.wait(240)
+        log = proc.log()
+        line = next((x for x in log.splitlines() if "[ERROR] configuration" in x), "")
+        missing = [w for w in words if w not in line]
+        if code != 2 or missing:
+            failures.append(f"{label}: exit {code}, missing {missing} in {line!r}\n{log[-800:]}")
+    return failures
