@@ -223,10 +223,29 @@ def test_plant_survives_random_and_garbled_commands(ros, node_process, tmp_path)
     diag = Diagnostics(node)
     assert ros.spin_until(lambda: len(samples) > 0, 30.0), plant.log()
 
+    # Well-formed commands, by the message definition (not by the plant's own check): the only
+    # source a non-zero wavelet force may come from. period -> forces (SPR, 4) sent for it (the
+    # message is axis-major: all samples of b1x, then b1y, ...).
+    wellformed: dict[int, list[np.ndarray]] = {}
+
     @FUZZ
     @given(batch=st.lists(commands(), min_size=1, max_size=6), raw=st.lists(garbling, max_size=3))
     def throw(batch, raw) -> None:
-        for c in batch:
+        # one well-formed command for a period still ahead, so that forces are applied and the
+        # check below has something to check
+        k = (samples[-1].sample_index // SPR if samples else 0) + 3
+        good = ControlCommand(period_index=k, samples_per_period=SPR, start_sample_index=k * SPR)
+        good.based_on_period = k - 2
+        good.force = to_float_array(np.linspace(-2e3, 2e3, 4 * SPR))
+        for c in [good, *batch]:
+            force = np.asarray(c.force, dtype=float)
+            if (
+                c.samples_per_period == SPR
+                and force.size == 4 * SPR
+                and np.all(np.isfinite(force))
+                and c.start_sample_index == c.period_index * SPR
+            ):
+                wellformed.setdefault(int(c.period_index), []).append(force.reshape(4, SPR).T)
             pub.publish(c)
         for how, where, byte in raw:
             pub.publish(garble(serialize_message(batch[0]), how, where, byte))
@@ -241,7 +260,20 @@ def test_plant_survives_random_and_garbled_commands(ros, node_process, tmp_path)
     for m in samples:
         assert np.all(np.isfinite(m.displacement)) and np.all(np.isfinite(m.wavelet_force))
         assert np.all(np.abs(m.wavelet_force) <= limit)
-    assert np.max(np.abs([m.displacement for m in samples])) < 0.5e-3
+    # Random well-formed commands at the force limit may shake the rotor into its retainers
+    # (0.97 mm once, in a fresh-clone run): a displacement bound is not this test's property.
+    # What is: no force that a well-formed command for that period did not ask for (clipped
+    # to the limit; the bearing's own saturation may only reduce it).
+    for m in samples:
+        applied = np.asarray(m.wavelet_force, dtype=float)
+        if not np.any(applied):
+            continue
+        k, j = divmod(int(m.sample_index), SPR)
+        rows = [np.clip(f[j], -limit, limit) for f in wellformed.get(k, [])]
+        assert any(
+            np.all(np.abs(applied) <= np.abs(r) + 1e-9) and np.all(applied * r >= 0) for r in rows
+        ), f"sample {m.sample_index}: force {applied} not asked for by a well-formed command"
+    assert any(np.any(m.wavelet_force) for m in samples), "no command was ever applied"
     assert diag.number("plant_sim", "rejected") + diag.number("plant_sim", "late") > 0
     assert diag.get("plant_sim", "callback_errors") == "0", plant.log()
 

@@ -24,6 +24,7 @@ import math
 import signal
 import subprocess
 import sys
+import time
 
 import numpy as np
 import pytest
@@ -131,8 +132,20 @@ def test_filterbank_killed_and_restarted_mid_run(ros, node_process, tmp_path) ->
     assert ros.spin_until(lambda: first.returncode is not None, 10.0)
     # the observer lags the plant: what it holds at the kill is no measure of where the kill
     # was; the break in the coefficient indices is (last of the old, first of the new process)
-    seen = len(samples)
-    assert ros.spin_until(lambda: len(samples) >= seen + 6 * SPR, 120.0), plant.log()
+    # The dead phase is measured in plant samples after the old process's last coefficient:
+    # wait until no coefficient has come for 1 s (the observer has drained the old process's
+    # backlog), then until the observer holds samples six revolutions past that last one. (The
+    # observer's own sample count at the kill is not a measure: it may still be working off
+    # samples made before the kill, which once left a 60-sample dead phase.)
+    quiet = (len(coefficients), time.monotonic())
+    while time.monotonic() - quiet[1] < 1.0:
+        ros.spin_for(0.1)
+        if len(coefficients) != quiet[0]:
+            quiet = (len(coefficients), time.monotonic())
+    last_old = coefficients[-1]
+    assert ros.spin_until(
+        lambda: samples and samples[-1].sample_index >= last_old + 6 * SPR + 2, 120.0
+    ), plant.log()
     second = node_process("wavelet_filterbank", params={"samples_per_rev": SPR})
     assert ros.spin_until(lambda: jumps, 120.0), second.log()
     last_before, resumed = jumps[0]
