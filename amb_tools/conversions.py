@@ -160,6 +160,36 @@ def measurement_bytes(
     return messages, flags
 
 
+def _coefficient_set_fields(coefficients, slots, samples_per_rev: int, rotor_speed: float):
+    """Return the ``CoefficientSet`` fields of :func:`coefficients_msg` as tuples.
+
+    ``(level, kind, frame, quadrature, translation_index, first_sample_index,
+    last_sample_index, pseudo_frequency, settled, values)``, one per coefficient and slot, in
+    message order (the layout :func:`amb_tools.cdr.coefficients_cdr` takes).
+    """
+    from amb_msgs.msg import CoefficientSet
+
+    from amb_wavelet.analysis import APPROXIMATION
+    from amb_wavelet.levels import pseudo_frequency
+
+    fs = samples_per_rev * rotor_speed / (2.0 * np.pi)
+    n = NUM_SENSORS
+    sets = []
+    for c in coefficients:
+        kind = (
+            CoefficientSet.KIND_APPROXIMATION
+            if c.kind == APPROXIMATION
+            else CoefficientSet.KIND_DETAIL
+        )
+        f_level = pseudo_frequency(c.level, fs) if fs > 0 else 0.0
+        for i, (frame, quad) in enumerate(slots):
+            sets.append(
+                (c.level, kind, frame, quad, c.translation_index, c.first_sample_index,
+                 c.last_sample_index, f_level, bool(c.settled), c.values[i * n : (i + 1) * n])
+            )  # fmt: skip
+    return sets
+
+
 def coefficients_msg(
     header,
     wavelet: str,
@@ -196,34 +226,23 @@ def coefficients_msg(
     """
     from amb_msgs.msg import CoefficientSet, WaveletCoefficients
 
-    from amb_wavelet.analysis import APPROXIMATION
-    from amb_wavelet.levels import pseudo_frequency
-
-    fs = samples_per_rev * rotor_speed / (2.0 * np.pi)
-    sets = []
-    n = NUM_SENSORS
-    for c in coefficients:
-        kind = (
-            CoefficientSet.KIND_APPROXIMATION
-            if c.kind == APPROXIMATION
-            else CoefficientSet.KIND_DETAIL
+    sets = [
+        CoefficientSet(
+            level=level,
+            kind=kind,
+            frame=frame,
+            quadrature=quad,
+            translation_index=translation,
+            first_sample_index=first,
+            last_sample_index=last,
+            pseudo_frequency=f_level,
+            settled=settled,
+            values=to_float_array(values),
         )
-        f_level = pseudo_frequency(c.level, fs) if fs > 0 else 0.0
-        for i, (frame, quad) in enumerate(slots):
-            sets.append(
-                CoefficientSet(
-                    level=c.level,
-                    kind=kind,
-                    frame=frame,
-                    quadrature=quad,
-                    translation_index=c.translation_index,
-                    first_sample_index=c.first_sample_index,
-                    last_sample_index=c.last_sample_index,
-                    pseudo_frequency=f_level,
-                    settled=c.settled,
-                    values=to_float_array(c.values[i * n : (i + 1) * n]),
-                )
-            )
+        for level, kind, frame, quad, translation, first, last, f_level, settled, values in (
+            _coefficient_set_fields(coefficients, slots, samples_per_rev, rotor_speed)
+        )
+    ]
     return WaveletCoefficients(
         header=header,
         wavelet=wavelet,
@@ -257,27 +276,9 @@ def coefficients_bytes(
     bytes
         For ``Publisher.publish``.
     """
-    from amb_msgs.msg import CoefficientSet
-
     from amb_tools.cdr import coefficients_cdr, header_view
-    from amb_wavelet.analysis import APPROXIMATION
-    from amb_wavelet.levels import pseudo_frequency
 
-    fs = samples_per_rev * rotor_speed / (2.0 * np.pi)
-    n = NUM_SENSORS
-    sets = []
-    for c in coefficients:
-        kind = (
-            CoefficientSet.KIND_APPROXIMATION
-            if c.kind == APPROXIMATION
-            else CoefficientSet.KIND_DETAIL
-        )
-        f_level = pseudo_frequency(c.level, fs) if fs > 0 else 0.0
-        for i, (frame, quad) in enumerate(slots):
-            sets.append(
-                (c.level, kind, frame, quad, c.translation_index, c.first_sample_index,
-                 c.last_sample_index, f_level, bool(c.settled), c.values[i * n : (i + 1) * n])
-            )  # fmt: skip
+    sets = _coefficient_set_fields(coefficients, slots, samples_per_rev, rotor_speed)
     return coefficients_cdr(
         header_view(header),
         wavelet,
