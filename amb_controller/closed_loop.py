@@ -331,11 +331,12 @@ _SENSORS = ("x1", "y1", "x2", "y2", "x3", "y3", "x4", "y4")
 class _Monitor:
     """The ``amb_fault_monitor`` core fed from the filterbank records (optional)."""
 
-    def __init__(self, samples_per_rev: int, labels) -> None:
+    def __init__(self, samples_per_rev: int, wavelet: str) -> None:
         from amb_fault_monitor.monitor import FaultMonitor, MonitorConfig
 
         self.core = FaultMonitor(MonitorConfig(samples_per_rev=samples_per_rev))
         self.spr = samples_per_rev
+        self.wavelet = wavelet
         self.slots = []
         for frame in FRAMES:
             for quad in QUADRATURES:
@@ -359,7 +360,7 @@ class _Monitor:
             for r in records
             for frame, quad, i0 in self.slots
         )
-        events = self.core.step(SampleCoefficients(n, omega, sets))
+        events = self.core.step(SampleCoefficients(n, omega, sets, self.wavelet))
         out = []
         for e in events:
             d = e.to_dict()
@@ -433,7 +434,7 @@ def run_closed_loop(
     """
     monitor = None
     if fault_monitor:
-        monitor = _Monitor(config.samples_per_rev, None)
+        monitor = _Monitor(config.samples_per_rev, config.wavelet)
     loop = _Loop(rig, scenario, config, model, seed, recorder, monitor, baseline)
     loop.engage_on = tuple(int(c) for c in engage_on)
     if controller is not None:

@@ -35,9 +35,9 @@ class FaultEvent:
     ----------
     fault_type : FaultType
     onset_sample_index : int
-        Estimated onset: the first crossing back-dated to the start of the support of the
-        wavelet that saw it, narrowed by the crossings that overlap it (see
-        :func:`amb_fault_monitor.monitor.estimate_onset`).
+        Estimated onset: the first crossing back-dated within the support of the wavelet
+        that saw it, to the time centre of its atom (the strongest of the coefficients that
+        crossed first; see :func:`amb_fault_monitor.monitor.estimate_onset`).
     detection_sample_index : int
         The sample at which the detection was confirmed (alarm).
     decision_sample_index : int

@@ -98,7 +98,9 @@ from amb_fault_monitor.errors import FaultMonitorError, RecordError
 from amb_fault_monitor.events import FaultEvent, FaultType
 from amb_fault_monitor.records import N_SENSORS, SampleCoefficients
 from amb_wavelet.analysis import DETAIL
-from amb_wavelet.levels import revolution_level
+from amb_wavelet.filters import get_filters
+from amb_wavelet.levels import revolution_level, support_length
+from amb_wavelet.synthesis import atom_time_centre
 
 __all__ = ["Crossing", "FaultMonitor", "MonitorConfig", "estimate_onset"]
 
@@ -253,12 +255,29 @@ class MonitorConfig:
 
 
 class Crossing(tuple):
-    """``(level, frame, plane, first_sample_index, last_sample_index, ratio)`` of a crossing."""
+    """
+    ``(level, frame, plane, first, last, ratio, centre)`` of a threshold crossing.
+
+    ``first`` and ``last`` are the sample indices of the coefficient's support, ``centre`` the
+    time centre of its atom (sample index, :func:`amb_wavelet.synthesis.atom_time_centre`;
+    ``first`` when the wavelet is not known).
+    """
 
     __slots__ = ()
 
-    def __new__(cls, level: int, frame: str, plane: int, first: int, last: int, ratio: float):
-        return super().__new__(cls, (level, frame, plane, first, last, ratio))
+    def __new__(
+        cls,
+        level: int,
+        frame: str,
+        plane: int,
+        first: int,
+        last: int,
+        ratio: float,
+        centre: float | None = None,
+    ):
+        return super().__new__(
+            cls, (level, frame, plane, first, last, ratio, first if centre is None else centre)
+        )
 
     level = property(lambda s: s[0])
     frame = property(lambda s: s[1])
@@ -266,22 +285,32 @@ class Crossing(tuple):
     first = property(lambda s: s[3])
     last = property(lambda s: s[4])
     ratio = property(lambda s: s[5])
+    centre = property(lambda s: s[6])
 
 
 def estimate_onset(crossings: list[Crossing]) -> int:
     """
-    Onset sample from the crossings of an episode (back-dated by the wavelet support).
+    Onset sample from the crossings of an episode (back-dated within the wavelet support).
 
-    The first crossing (earliest completion; among equals the shortest support) bounds the
-    onset to its support ``[first, last]``: the change that made it cross lies inside.
-    Crossings whose supports overlap the current bound narrow it (intersection), so a
-    fine-level crossing shortly after a coarse one sharpens the estimate to that finer
-    support. The estimate is the earliest sample of the final bound.
+    The coefficients that crossed first (the earliest completion sample) bound the onset:
+    the change that made them cross lies in their supports. Among them the strongest (largest
+    ratio to its threshold) is the one whose support surely holds the change, and within that
+    support the estimate is the time centre of its atom (the earlier sample when it falls
+    between two), where the coefficient is most sensitive to a change of its input
+    (:func:`amb_wavelet.synthesis.atom_time_centre`). Thesis section 5.2 back-dates by the
+    support; the centre is its best single sample.
+
+    Measured on the scenario suite (``amb-fault-eval``, 32 samples per revolution, 41 cases,
+    haar / db2 / db4), largest onset error of the mass-loss cases in finest-level supports:
+    1.0 / 0.75 / 0.88 with this rule, 1.0 / 1.5 / 1.75 with the support's first sample
+    narrowed by overlapping later crossings (the earlier rule: a response that keeps growing
+    makes later, finer coefficients cross whose supports begin after the onset), 1.0 / 1.25 /
+    1.75 with the first crossing's first sample alone.
 
     Parameters
     ----------
     crossings : list of Crossing
-        In order of completion.
+        Of one episode, any order.
 
     Returns
     -------
@@ -290,12 +319,9 @@ def estimate_onset(crossings: list[Crossing]) -> int:
     """
     if not crossings:
         raise FaultMonitorError("estimate_onset needs at least one crossing")
-    ordered = sorted(crossings, key=lambda c: (c.last, c.last - c.first))
-    lo, hi = ordered[0].first, ordered[0].last
-    for c in ordered[1:]:
-        if c.first <= hi and c.last >= lo:
-            lo, hi = max(lo, c.first), min(hi, c.last)
-    return lo
+    first = min(c.last for c in crossings)
+    strongest = max((c for c in crossings if c.last == first), key=lambda c: c.ratio)
+    return math.ceil(strongest.centre - 0.5)
 
 
 @dataclass
@@ -366,6 +392,8 @@ class FaultMonitor:
         self.config = config
         self._R = revolution_level(config.samples_per_rev)
         self._finest = min(config.levels) if config.levels else 1
+        self._wavelet = ""
+        self._centres: dict[tuple[str, int, str, int], float] = {}
         self.reset()
 
     # ------------------------------------------------------------------ public
@@ -450,6 +478,7 @@ class FaultMonitor:
         self._last_index = n
         self.samples += 1
         self._omega = float(record.omega)
+        self._wavelet = record.wavelet
         events: list[FaultEvent] = []
         if not record.sets:
             self._advance(n, events)
@@ -641,7 +670,7 @@ class FaultMonitor:
             ep.p_ref = self._reference_phasor(s.first_sample_index)
             ep.strong_only = n < self._rearm_until
         if level == self._finest:
-            self._contact_burst(n, s.first_sample_index, ratio, frame, s.values)
+            self._contact_burst(n, s, ratio, frame)
         if ep.decided is not None:  # tail
             if crossed.any():
                 ep.last_crossing = n
@@ -652,10 +681,11 @@ class FaultMonitor:
         if not crossed.any():
             return
         ep.last_crossing = n
+        centre = self._centre(s)
         for p in np.flatnonzero(crossed):
             ep.crossings.append(
                 Crossing(level, frame, int(p) + 1, s.first_sample_index, s.last_sample_index,
-                         float(ratio[p]))
+                         float(ratio[p]), centre)
             )  # fmt: skip
         ep.keys.add(key)
         if frame == "fixed":
@@ -691,9 +721,7 @@ class FaultMonitor:
             ep.low_energy += d.size * float(d @ d)
         ep.low_peak = max(ep.low_peak, float(np.abs(delta).max()))
 
-    def _contact_burst(
-        self, n: int, first: int, ratio: np.ndarray, frame: str, values: np.ndarray
-    ) -> None:
+    def _contact_burst(self, n: int, s, ratio: np.ndarray, frame: str) -> None:
         """
         Rise test for a contact inside an episode (module notes, step 4).
 
@@ -742,7 +770,7 @@ class FaultMonitor:
         step = 0.0
         if frame == "fixed":
             median = _window_median(ep.fixed_history, n, spr, r)
-            c = self._norm(self._finest, values) * self._mask
+            c = self._norm(self._finest, s.values) * self._mask
             if ep.prev_fine is not None:
                 d = c - ep.prev_fine
                 step = float(np.hypot(d[0::2], d[1::2]).max())
@@ -762,11 +790,32 @@ class FaultMonitor:
         gap = cfg.burst_gap_revs * spr
         if ep.tail_first < 0 or n - ep.tail_first > gap:
             ep.tail_contacts += 1
-            if ep.tail_onset < 0:
-                ep.tail_onset, ep.tail_detect = first, n
+            if ep.tail_onset < 0:  # at the time centre of the coefficient (estimate_onset)
+                ep.tail_onset, ep.tail_detect = math.ceil(self._centre(s) - 0.5), n
         ep.tail_first = n
         ep.tail_peak = max(ep.tail_peak, r)
         ep.tail_plane_peak = np.maximum(ep.tail_plane_peak, ratio)
+
+    def _centre(self, s) -> float:
+        """
+        Time centre (sample index) of the atom of coefficient set ``s`` (``estimate_onset``).
+
+        The first sample of the support when the stream's wavelet is unknown or its atom does
+        not span the support (a filterbank other than ``amb_wavelet``'s).
+        """
+        level = s.level if s.kind == DETAIL else s.level - 1  # approximations: see step()
+        size = s.last_sample_index - s.first_sample_index + 1
+        key = (self._wavelet, level, s.kind, size)
+        offset = self._centres.get(key)
+        if offset is None:
+            offset = 0.0
+            try:
+                if support_length(level, get_filters(self._wavelet).length) == size:
+                    offset = atom_time_centre(self._wavelet, level, s.kind)
+            except ValueError:  # not a PyWavelets name (WaveletNameError)
+                pass
+            self._centres[key] = offset
+        return s.first_sample_index + offset
 
     def _reference_phasor(self, before: int) -> np.ndarray | None:
         for _first, last, p in reversed(self._phasors):

@@ -209,7 +209,7 @@ def record_from_msg(msg: WaveletCoefficients, omega: float) -> SampleCoefficient
         )
         for s in msg.sets
     )
-    return SampleCoefficients(int(msg.sample_index), float(omega), sets)
+    return SampleCoefficients(int(msg.sample_index), float(omega), sets, str(msg.wavelet))
 
 
 def check_runtime_value(name: str, value: object) -> str | None:

@@ -73,11 +73,16 @@ class SampleCoefficients(NamedTuple):
         Running speed at that sample, rad/s.
     sets : tuple of CoefficientSet
         Possibly empty (even sample indices complete no coefficient).
+    wavelet : str
+        PyWavelets name of the mother wavelet (the message's ``wavelet``); ``""`` if unknown
+        (the monitor then back-dates a crossing to the first sample of its support instead of
+        its atom's time centre).
     """
 
     sample_index: int
     omega: float
     sets: tuple[CoefficientSet, ...]
+    wavelet: str = ""
 
 
 class FilterbankAdapter:
@@ -169,4 +174,4 @@ class FilterbankAdapter:
                         c.settled,
                     )
                 )
-        return SampleCoefficients(int(sample_index), float(omega), tuple(sets))
+        return SampleCoefficients(int(sample_index), float(omega), tuple(sets), self.wavelet)

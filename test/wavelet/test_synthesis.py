@@ -8,7 +8,12 @@ import pywt
 
 from amb_wavelet.analysis import AnalysisFilterbank, Decomposition, analyze_block
 from amb_wavelet.filters import get_filters
-from amb_wavelet.synthesis import SynthesisFilterbank, basis_function, synthesize_block
+from amb_wavelet.synthesis import (
+    SynthesisFilterbank,
+    atom_time_centre,
+    basis_function,
+    synthesize_block,
+)
 
 
 def _delay(level: int, wavelet: str) -> int:
@@ -124,3 +129,43 @@ def test_future_coefficient_places_basis(rng: np.random.Generator) -> None:
     np.testing.assert_allclose(y[start : start + g.size], 2.0 * g, atol=1e-15)
     y[start : start + g.size] = 0.0
     np.testing.assert_array_equal(y, 0.0)
+
+
+def _streamed_atom(wavelet: str, level: int, kind: str) -> np.ndarray:
+    """Weights of one coefficient's support samples, from impulses through the analysis bank."""
+    S = (2**level - 1) * (pywt.Wavelet(wavelet).dec_len - 1) + 1
+    end = 2**level * (S // 2**level + 2) - 1  # a coefficient of `level` completes here
+    weights = np.zeros(S)
+    for t in range(S):
+        bank = AnalysisFilterbank(wavelet, level, 1)
+        x = np.zeros(end + 1)
+        x[end - S + 1 + t] = 1.0
+        for n, v in enumerate(x):
+            for c in bank.step([v], n):
+                if c.level == level and c.kind == kind and c.last_sample_index == end:
+                    assert c.first_sample_index == end - S + 1
+                    weights[t] = c.values[0]
+    return weights
+
+
+@pytest.mark.parametrize("wavelet", ["haar", "db2", "db4", "sym4", "coif1"])
+@pytest.mark.parametrize("level", [1, 2, 3])
+@pytest.mark.parametrize("kind", ["detail", "approximation"])
+def test_atom_time_centre_of_the_streamed_coefficient(wavelet: str, level: int, kind: str) -> None:
+    # reference: the energy centroid of the weights the streaming analysis gives each sample
+    # of the support (impulse responses), and of pywt.upcoef's atom
+    w = _streamed_atom(wavelet, level, kind)
+    assert np.linalg.norm(w) == pytest.approx(1.0, abs=1e-9)
+    t = np.arange(w.size)
+    ref = float(t @ w**2)
+    assert atom_time_centre(wavelet, level, kind) == pytest.approx(ref, abs=1e-9)
+    up = pywt.upcoef("d" if kind == "detail" else "a", [1.0], wavelet, level=level)[: w.size]
+    assert atom_time_centre(wavelet, level, kind) == pytest.approx(float(t @ up**2), abs=1e-9)
+
+
+def test_daubechies_atoms_lean_to_the_recent_samples() -> None:
+    # extremal phase: energy on the latest samples of the support; haar symmetric
+    assert atom_time_centre("haar", 1) == pytest.approx(0.5)
+    assert atom_time_centre("haar", 3) == pytest.approx(3.5)
+    for wavelet, S in (("db2", 4), ("db4", 8)):
+        assert atom_time_centre(wavelet, 1) > (S - 1) / 2
