@@ -4,7 +4,8 @@
 Usage::
 
     amb-fault-eval --scenarios config/scenarios/faults [--json] [--wavelet haar,db2,db4]
-                   [--samples-per-rev 32] [--rig config/rig.yaml]
+                   [--samples-per-rev 32] [--rig config/rig.yaml] [--match STR]
+                   [--figures DIR]
 
 Prints the confusion matrix (expected class per row, reported class per column; row ``NONE``
 holds false alarms), detection delay (ms and revolutions), decision delay, onset-time error
@@ -14,6 +15,14 @@ scenario once and run the monitor once per wavelet; the report (and the JSON, un
 ``wavelets``) then has one part per wavelet. Exit status 0 when every expected fault is
 classified correctly and there is no false alarm (with every wavelet), 1 otherwise, 2 on bad
 input.
+
+``--figures DIR`` also writes PNG figures (:mod:`amb_fault_monitor.eval_figures`): one per
+scenario and wavelet, ``DIR/<file stem>_<wavelet>.png`` (displacement at the four planes and
+the monitor's detection ratio per level and frame around the first true onset, with the true
+onsets and each event's estimated onset, detection and decision), and ``DIR/summary.png``
+(detection delay and onset error of every matched case against the targets, false alarms per
+hour). The paths written are printed after the tables (to stderr with ``--json``, whose
+stdout stays JSON); the exit status does not depend on them.
 """
 
 from __future__ import annotations
@@ -39,6 +48,12 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--samples-per-rev", type=int, default=None, help="override (power of two)")
     p.add_argument("--match", default="", help="only files whose name contains this")
     p.add_argument("--json", action="store_true", help="print JSON instead of tables")
+    p.add_argument(
+        "--figures",
+        default=None,
+        metavar="DIR",
+        help="also write PNG figures there: one per scenario and wavelet, and summary.png",
+    )
     return p
 
 
@@ -97,12 +112,26 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     rig = load_rig(args.rig) if args.rig else load_rig()
     wavelets = [w.strip() for w in args.wavelet.split(",")] if args.wavelet else [None]
+    fig_dir = Path(args.figures) if args.figures else None
+    if fig_dir is not None:
+        try:
+            fig_dir.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            print(f"--figures {fig_dir}: {exc}", file=sys.stderr)
+            return 2
+        from amb_fault_monitor import eval_figures
+    written: list[Path] = []
     results: dict[str | None, list] = {w: [] for w in wavelets}
     for f in files:
         try:
             case = simulate_case(f, rig, samples_per_rev=args.samples_per_rev)
             for w in wavelets:
-                results[w].append(run_case(case, w))
+                trace: list | None = [] if fig_dir is not None else None
+                res = run_case(case, w, trace=trace)
+                results[w].append(res)
+                if fig_dir is not None:
+                    png = fig_dir / f"{f.stem}_{res.wavelet}.png"
+                    written.append(eval_figures.case_figure(case, res, trace, png))
         except ValueError as exc:
             print(f"{f}: {exc}", file=sys.stderr)
             return 2
@@ -137,6 +166,13 @@ def main(argv: Sequence[str] | None = None) -> int:
             if len(wavelets) > 1:
                 print(f"== wavelet {w}")
             print(_table(summary, res))
+    if fig_dir is not None:
+        named = {(res[0].wavelet if res else str(w)): part for w, part in parts.items()}
+        written.append(eval_figures.summary_figure(named, fig_dir / "summary.png"))
+        out = sys.stderr if args.json else sys.stdout
+        print("figures written:", file=out)
+        for png in written:
+            print(f"  {png}", file=out)
     return 0 if ok else 1
 
 

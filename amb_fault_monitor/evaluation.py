@@ -221,7 +221,10 @@ def simulate_case(
 
 
 def run_case(
-    case: SimulatedCase, wavelet: str | None = None, match_revs: float = 20.0
+    case: SimulatedCase,
+    wavelet: str | None = None,
+    match_revs: float = 20.0,
+    trace: list | None = None,
 ) -> CaseResult:
     """
     Run the filterbank core and the monitor on a simulated scenario and score the events.
@@ -233,6 +236,9 @@ def run_case(
         Overrides the file (default ``haar``).
     match_revs : float
         Matching window after the true onset, revolutions.
+    trace : list, optional
+        When given, the monitor's feature ratios are appended to it
+        (:attr:`FaultMonitor.trace <amb_fault_monitor.monitor.FaultMonitor>`).
 
     Returns
     -------
@@ -257,6 +263,7 @@ def run_case(
     t0 = time.perf_counter()
     adapter = FilterbankAdapter(spr, wav)
     monitor = FaultMonitor(cfg)
+    monitor.trace = trace
     events: list[FaultEvent] = []
     for i in range(block.sample_index.size):
         rec = adapter.step(

@@ -380,6 +380,15 @@ class FaultMonitor:
     ----------
     config : MonitorConfig
 
+    Attributes
+    ----------
+    trace : list or None
+        ``None`` (default, no cost) or a list the caller sets: every monitored feature after
+        calibration is then appended as ``(sample_index, level, frame, first, last, ratio)``,
+        ``ratio`` the (4,) plane ratios feature / threshold (dimensionless) of the coefficient
+        completed at ``sample_index`` whose support is samples ``first..last``. Kept across
+        :meth:`reset`.
+
     Notes
     -----
     Feed one :class:`~amb_fault_monitor.records.SampleCoefficients` per sample with
@@ -394,6 +403,7 @@ class FaultMonitor:
         self._finest = min(config.levels) if config.levels else 1
         self._wavelet = ""
         self._centres: dict[tuple[str, int, str, int], float] = {}
+        self.trace: list[tuple[int, int, str, int, int, np.ndarray]] | None = None
         self.reset()
 
     # ------------------------------------------------------------------ public
@@ -528,6 +538,10 @@ class FaultMonitor:
         if thr is None:
             return  # a feature that appeared after calibration: not monitored
         ratio = planes / thr
+        if self.trace is not None:
+            self.trace.append(
+                (n, level, frame, s.first_sample_index, s.last_sample_index, ratio.copy())
+            )
         self._evidence(n, level, frame, s, ratio, delta, thr)
 
     def _frame_mask(self, frame: str) -> np.ndarray:
