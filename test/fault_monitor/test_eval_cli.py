@@ -1,10 +1,15 @@
-"""amb-fault-eval on two simulator scenarios of the suite (mass loss 430 g cm, sensor offset)."""
+"""amb-fault-eval on simulator scenarios of the suite (mass loss, sensor offset, base motion), its
+--figures and the monitor's recorded ratios."""
 
 import json
 import shutil
 from pathlib import Path
 
+import matplotlib.image as mpimg
+
 from amb_fault_monitor.eval_cli import main
+from amb_fault_monitor.evaluation import run_case, simulate_case
+from amb_plant_sim.rig import load_rig
 
 SUITE = Path(__file__).resolve().parents[2] / "config" / "scenarios" / "faults"
 
@@ -69,3 +74,82 @@ def test_fault_inside_the_calibration_window_is_flagged(tmp_path, capsys):
     assert match["before_calibration"] is True
     end = out["cases"][0]["calibration_end_sample"]  # None: the fault kept it unsettled
     assert end is None or end > match["true_onset_sample"]
+
+
+def test_eval_cli_figures_are_written_and_readable(tmp_path, capsys):
+    """--figures: one PNG per scenario and wavelet plus summary.png, listed on stdout; the
+    exit status and the tables are those of a run without figures."""
+    fig_dir = tmp_path / "figures"
+    status = main(
+        [
+            "--scenarios",
+            str(SUITE),
+            "--match",
+            "mass_loss_67hz_100gcm_000",
+            "--wavelet",
+            "haar,db2",
+            "--figures",
+            str(fig_dir),
+        ]
+    )
+    out = capsys.readouterr().out
+    assert status == 0
+    assert "correct 1/1, false alarms 0" in out
+    expected = [
+        fig_dir / "mass_loss_67hz_100gcm_000_haar.png",
+        fig_dir / "mass_loss_67hz_100gcm_000_db2.png",
+        fig_dir / "summary.png",
+    ]
+    assert sorted(fig_dir.iterdir()) == sorted(expected)
+    for png in expected:
+        assert str(png) in out
+        image = mpimg.imread(png)
+        assert image.ndim == 3 and image.shape[0] > 300 and image.shape[1] > 800, png.name
+        assert image.std() > 0.05, png.name  # drawn, not a blank canvas
+
+
+def test_eval_cli_figures_keep_json_on_stdout(tmp_path, capsys):
+    status = main(
+        [
+            "--scenarios",
+            str(SUITE),
+            "--match",
+            "mass_loss_67hz_100gcm_000",
+            "--json",
+            "--figures",
+            str(tmp_path),
+        ]
+    )
+    captured = capsys.readouterr()
+    assert status == 0
+    assert json.loads(captured.out)["correct"] == 1
+    assert str(tmp_path / "summary.png") in captured.err
+
+
+def test_trace_holds_a_crossing_at_every_detection_sample():
+    """The recorded ratios are the monitor's: at each event's detection sample some recorded
+    feature is above its threshold (ratio > 1; an alarm is raised by a crossing, a contact in
+    the ringing by a finest-level ratio >= confirm_ratio), and nothing crosses before the first
+    true onset. Recording does not change the events."""
+    rig = load_rig()
+    case = simulate_case(SUITE / "mass_loss_67hz_430gcm_000.yaml", rig)
+    trace: list = []
+    res = run_case(case, "haar", trace=trace)
+    assert [e["fault_type"] for e in res.events] == ["MASS_LOSS", "AUX_BEARING_CONTACT"]
+    assert res.events == run_case(case, "haar").events
+    assert trace and trace[0][0] >= res.calibration_end_sample
+    at: dict[int, float] = {}
+    for n, _level, frame, first, last, ratio in trace:
+        assert frame in ("fixed", "rotating") and first <= last <= n and ratio.shape == (4,)
+        at[n] = max(at.get(n, 0.0), float(ratio.max()))
+    for e in res.events:
+        assert at.get(e["detection_sample_index"], 0.0) > 1.0, e["fault_type"]
+    contact = res.events[1]
+    finest = [
+        float(r.max())
+        for n, level, _f, _a, _b, r in trace
+        if n == contact["detection_sample_index"] and level == 1
+    ]
+    assert max(finest) >= 3.0  # MonitorConfig.confirm_ratio default
+    first_true = min(m["true_onset_sample"] for m in res.matches)
+    assert max(v for n, v in at.items() if n < first_true) <= 1.0
