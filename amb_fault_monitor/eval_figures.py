@@ -103,15 +103,19 @@ def _ratio_series(trace: list, frame: str) -> dict[int, tuple[np.ndarray, np.nda
 
 
 def _match_line(m: dict[str, Any], finest_support: int) -> str:
+    """One expected fault's outcome for a title (two lines when long)."""
     head = f"{m['expected']}: reported {m['predicted']}"
+    if "first_contact_peak_n" in m:
+        head += f" (first simulated contact peak {m['first_contact_peak_n']:.0f} N)"
     if "detection_delay_revs" not in m:
         return head
     onset_supports = m["onset_error_samples"] / finest_support
-    return (
-        f"{head}, detection {m['detection_delay_revs']:+.2f} rev "
-        f"({m['detection_delay_ms']:.1f} ms), onset error {onset_supports:+.2f} finest supports "
-        f"({m['onset_error_ms']:+.2f} ms), decision {m['decision_delay_revs']:+.1f} rev"
+    tail = (
+        f"detection {m['detection_delay_revs']:+.2f} rev ({m['detection_delay_ms']:.1f} ms), "
+        f"onset error {onset_supports:+.2f} finest supports ({m['onset_error_ms']:+.2f} ms), "
+        f"decision {m['decision_delay_revs']:+.1f} rev"
     )
+    return f"{head}, {tail}" if len(head) + len(tail) < 140 else f"{head}:\n{tail}"
 
 
 def _tag(ax, t: float, text: str, colour: str, i: int) -> None:
@@ -379,11 +383,18 @@ def summary_figure(parts: dict[str, tuple[dict, list[CaseResult]]], path: str | 
                         color="tab:red",
                     )
             if target is not None:
-                ax.axhline(target, color="k", ls="--", lw=1.0, label=f"target {target:g}")
-                ax.legend(fontsize=7, loc="upper right")
+                ax.axhline(target, color="k", ls="--", lw=1.0)
+                ax.annotate(
+                    f"target {target:g}",
+                    (0.0, target),
+                    xycoords=("axes fraction", "data"),
+                    xytext=(3, 2),
+                    textcoords="offset points",
+                    fontsize=7,
+                )
             ax.set_xticks(range(len(wavelets)), wavelets)
             ax.set_xlim(-0.6, len(wavelets) - 0.4)
-            ax.set_ylim(bottom=0.0)
+            ax.set_ylim(0.0, 1.12 * max(ax.get_ylim()[1], target or 0.0))
             ax.set_title(f"{cls}: {what}", fontsize=9)
             ax.set_ylabel(unit, fontsize=8)
             ax.grid(alpha=0.3)
