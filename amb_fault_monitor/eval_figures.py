@@ -33,7 +33,7 @@ import numpy as np
 from matplotlib.lines import Line2D
 
 from amb_fault_monitor.evaluation import CaseResult, SimulatedCase
-from amb_tools.report_figures import PLANE_NOTE, UM, _save
+from amb_tools.report_figures import PLANE_NOTE, UM, save_figure
 from amb_wavelet.levels import revolution_level
 
 __all__ = ["case_figure", "case_window", "summary_figure"]
@@ -308,7 +308,7 @@ def case_figure(case: SimulatedCase, result: CaseResult, trace: list, path: str 
         lines.append("healthy run, no event")
     fig.suptitle("\n".join(lines), fontsize=9)
     fig.tight_layout()
-    return _save(fig, Path(path))
+    return save_figure(fig, Path(path))
 
 
 def summary_figure(parts: dict[str, tuple[dict, list[CaseResult]]], path: str | Path) -> Path:
@@ -415,4 +415,4 @@ def summary_figure(parts: dict[str, tuple[dict, list[CaseResult]]], path: str | 
         fontsize=9,
     )
     fig.tight_layout()
-    return _save(fig, Path(path))
+    return save_figure(fig, Path(path))

@@ -88,7 +88,7 @@ def _colour(i: int) -> str:
     return COLOURS[i % len(COLOURS)]
 
 
-def _save(fig, path: Path) -> Path:
+def save_figure(fig, path: Path) -> Path:
     """Write ``fig`` as a palette PNG (256 adaptive colours: a third of the RGBA size)."""
     import io
 
@@ -165,7 +165,7 @@ def displacement_figure(runs: list[Run], path: Path) -> Figure:
     axes[0, 0].legend(loc="upper left", fontsize=8, ncol=2)
     fig.suptitle(title + " (thesis fig. 8.11 style)", fontsize=11)
     fig.tight_layout()
-    return Figure("displacement", title, _save(fig, path))
+    return Figure("displacement", title, save_figure(fig, path))
 
 
 def one_x_figure(runs: list[Run], path: Path) -> Figure:
@@ -239,7 +239,7 @@ def one_x_figure(runs: list[Run], path: Path) -> Figure:
         fontsize=10,
     )
     fig.tight_layout()
-    return Figure("coefficients_1x", title, _save(fig, path))
+    return Figure("coefficients_1x", title, save_figure(fig, path))
 
 
 def levels_figure(run: Run, path: Path) -> Figure:
@@ -283,7 +283,7 @@ def levels_figure(run: Run, path: Path) -> Figure:
         f"{title}: fixed frame, even channel, inner x sensors (thesis figs. 5.1-5.18)", fontsize=10
     )
     fig.tight_layout()
-    return Figure(f"levels_{run.label}", title, _save(fig, path))
+    return Figure(f"levels_{run.label}", title, save_figure(fig, path))
 
 
 def force_figure(runs: list[Run], path: Path) -> Figure:
@@ -339,7 +339,7 @@ def force_figure(runs: list[Run], path: Path) -> Figure:
     sub = "; ".join(notes)
     fig.suptitle(title + " (thesis fig. 8.12 style)" + (f"\n{sub}" if sub else ""), fontsize=10)
     fig.tight_layout()
-    return Figure("forces", title, _save(fig, path))
+    return Figure("forces", title, save_figure(fig, path))
 
 
 def _orbit_windows(run: Run) -> list[tuple[str, np.ndarray, dict]]:
@@ -420,7 +420,7 @@ def orbit_figure(runs: list[Run], path: Path) -> Figure:
         fontsize=10,
     )
     fig.tight_layout()
-    return Figure("orbits", title, _save(fig, path))
+    return Figure("orbits", title, save_figure(fig, path))
 
 
 def revolution_envelope(data: BagData) -> tuple[np.ndarray, np.ndarray]:
@@ -518,4 +518,4 @@ def timeline_figure(runs: list[Run], path: Path) -> Figure:
         fontsize=10,
     )
     fig.tight_layout()
-    return Figure("fault_timeline", title, _save(fig, path))
+    return Figure("fault_timeline", title, save_figure(fig, path))
