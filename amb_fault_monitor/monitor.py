@@ -101,9 +101,10 @@ Episodes
    a force step nothing changes. The price: a fault that begins while a control transient's
    episode is open (its decision wait and its ring-down) is decided with it and not
    reported unless its bursts rise above the ring-down envelope (simulated AB1 contact by a
-   misalignment at 29 Hz, a 20 N step 12 or fewer revolutions before the first touch:
-   missed with haar, db2 and db4; 16 revolutions before: found with haar and db2). Before,
-   that merged episode was reported only because the step itself was taken for a fault.
+   misalignment at 29 Hz, whose ramp starts 6 revolutions before the first touch, after a
+   one-revolution drop of a 20 N force: drop 0-12 revolutions before the touch, missed with
+   haar, db2 and db4; 16-20, found with haar and db2; 24, found with each). Before, that
+   merged episode was reported only because the step itself was taken for a fault.
 
 Sensor channels found faulty are masked (their plane feature uses the partner channel only)
 until :meth:`FaultMonitor.reset`. A channel whose finest-level coefficient stays below
