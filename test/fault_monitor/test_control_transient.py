@@ -115,13 +115,14 @@ def test_the_controllers_reaction_to_a_fault_does_not_excuse_it(wavelet):
     scenario = scenario_from_dict(scen, rig)
     n = round(scenario.duration * scenario.speed_hz * SPR)
     loss = int(np.ceil(expect[0].time * scenario.speed_hz * SPR))
+    step = (loss // SPR + 1) * SPR  # delay_periods 1, the shortest: 11 samples after the loss
     force = synchronous(np.array([50.0, 0.0]), n)
-    force[: (loss // SPR + 2) * SPR] = 0.0  # delay_periods 1, the shortest
+    force[:step] = 0.0
     block = PlantSimulator(rig, scenario, SPR, 0).advance(n, wavelet_force=force)
     monitor, events = _run(block, wavelet, force)
     assert [e.fault_type for e in events] == [
         FaultType.MASS_LOSS,
         FaultType.AUX_BEARING_CONTACT,  # the contacts the loss leads to (figure 5.27 case 2)
     ]
-    assert abs(events[0].onset_sample_index - loss) < SPR  # the loss, not the step after it
+    assert loss - SPR // 4 <= events[0].onset_sample_index < step  # the loss, not the step
     assert monitor.control_transients == 0
