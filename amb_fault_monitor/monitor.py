@@ -77,6 +77,38 @@ Episodes
    finest-level coefficient from one coefficient to the next (figure 5.30 c-d, "the change in
    wavelet coefficients with each sample"), which separates a contact in the first
    revolution with each wavelet (:meth:`FaultMonitor._contact_burst`).
+5. *Control transients*: the controller's wavelet force moves the rotor too, and a change
+   of it from one revolution to the next excites the same transient features as a fault: in
+   a soak run a steady 65 N synchronous force answered by zero for one period (a late
+   command) moved the inner sensors from 2 to 34 um and was called a contact. The node tells
+   the monitor the force applied in each sample (:meth:`FaultMonitor.control_force`); it is
+   compared with the force one revolution earlier (the lag of the features: a steady force
+   periodic in the revolution changes nothing), and the samples where an axis changed by
+   more than ``control_step`` (N) form step runs (joined across gaps under half a
+   revolution; a one-revolution drop is a two-revolution run, the drop and the return). An
+   episode is a *control transient* when a step run began before its first crossing
+   completed and its estimated onset lies in the run or at most ``control_window_revs``
+   after it (or before it by less than the shortest crossing support, the estimate's own
+   back-dating). Its decision emits no event, whatever the class: it is counted
+   (``control_transients``) and kept (``last_control_transient``: the step, the onset and
+   the class it would have had). The step must come first: the controller's reaction to a
+   disturbance begins at the earliest with the period after the one that measured it
+   (``delay_periods`` >= 1, 2 by default: a period later still), so it begins after the
+   disturbance's onset and does not excuse it (a 430 g cm loss at 67 Hz with a 50 N force
+   stepped in 11 samples after it: still a loss). Only with ``delay_periods`` 1 and a
+   disturbance in the last samples of a period (fewer than the shortest crossing support, 2
+   with haar, up to 8 with db4 at 32 samples per revolution) can the two not be told
+   apart. Within such an episode, the contact bursts of step 4 inside a step run or up to
+   ``control_window_revs`` after it are the response to that step (a second late command
+   a few revolutions on re-excites the finest level like an impulse: a contact with haar)
+   and are not counted; bursts outside are contacts and reported as in any episode. Without
+   a force step nothing changes. The price: a fault that begins while a control transient's
+   episode is open (its decision wait and its ring-down) is decided with it and not
+   reported unless its bursts rise above the ring-down envelope (simulated AB1 contact by a
+   misalignment at 29 Hz, whose ramp starts 6 revolutions before the first touch, after a
+   one-revolution drop of a 20 N force: drop 0-12 revolutions before the touch, missed with
+   haar, db2 and db4; 16-20, found with haar and db2; 24, found with each). Before, that
+   merged episode was reported only because the step itself was taken for a fault.
 
 Sensor channels found faulty are masked (their plane feature uses the partner channel only)
 until :meth:`FaultMonitor.reset`. A channel whose finest-level coefficient stays below
@@ -178,6 +210,22 @@ class MonitorConfig:
         spike does not inflate (module notes, step 4).
     dead_fraction, dead_revs
         Stuck/zero channel test (module notes).
+    control_step : float
+        N, change of the applied control force on an axis from one revolution to the next
+        that makes a control step (module notes, step 5). Measured at 67 Hz (unbalance of
+        the soak run, 1 kg mm on D1; the transient controller holds the inner sensors at 2 um
+        with 65 N): in steady control the force changes by at most 0.4 N per revolution
+        (median 0.23 N). With a synchronous force that nulls the inner sensors answered by
+        zero for one revolution, a drop of 0.8 N made no event, 2.1-2.5 N an UNKNOWN event
+        (haar, db2, db4), 4 N a contact with haar and db2, 8 N and more a contact with each.
+        2 N lies between: 5 times the steady adjustments, below the smallest drop that made
+        an event.
+    control_window_revs : float
+        How long after a step run an episode's estimated onset may lie to be its transient
+        (module notes, step 5). Measured on the one-revolution drops above: onsets 0-66
+        samples after the drop began, at most 3 samples after its two-revolution run; one
+        revolution (one control period) leaves a margin and keeps short the time in which a
+        real fault would be taken for the step.
     """
 
     samples_per_rev: int
@@ -208,6 +256,8 @@ class MonitorConfig:
     tail_rise_median: float = 3.0
     dead_fraction: float = 0.02
     dead_revs: float = 1.0
+    control_step: float = 2.0
+    control_window_revs: float = 1.0
 
     def __post_init__(self) -> None:
         spr = self.samples_per_rev
@@ -224,7 +274,7 @@ class MonitorConfig:
             "calibration_revs", "settle_ratio", "k", "confirm_ratio", "confirm_revs", "quiet_revs",
             "decision_revs", "max_tail_revs", "isolation", "sync_change", "burst_gap_revs",
             "tail_rise", "tail_rise_median", "dead_revs", "base_coherence", "base_dominance",
-            "rearm_revs",
+            "rearm_revs", "control_step", "control_window_revs",
         )  # fmt: skip
         for name in positive:
             if not getattr(self, name) > 0:
@@ -349,6 +399,7 @@ class _Episode:
     tail_detect: int = -1
     contact_reported: bool = False
     strong_only: bool = False
+    control: list | bool | None = None  # step run explaining it (step 5); False: none
     low_coherent: float = 0.0
     low_energy: float = 0.0
     low_peak: float = 0.0
@@ -392,9 +443,11 @@ class FaultMonitor:
     Notes
     -----
     Feed one :class:`~amb_fault_monitor.records.SampleCoefficients` per sample with
-    :meth:`step`, in increasing ``sample_index``. The first ``calibration_revs`` revolutions
-    of settled coefficients calibrate the thresholds (they must be healthy); events are
-    emitted afterwards. :meth:`reset` starts again (new calibration).
+    :meth:`step`, in increasing ``sample_index``, and the control force applied in each sample
+    with :meth:`control_force` (module notes, step 5; without it no transient is attributed to
+    control). The first ``calibration_revs`` revolutions of settled coefficients calibrate the
+    thresholds (they must be healthy); events are emitted afterwards. :meth:`reset` starts
+    again (new calibration).
     """
 
     def __init__(self, config: MonitorConfig) -> None:
@@ -430,6 +483,12 @@ class FaultMonitor:
         self.samples = 0
         self.calibration_retries = 0
         self.calibration_end: int | None = None
+        spr = self.config.samples_per_rev
+        self._force = np.zeros((spr, 4))
+        self._force_at = np.full(spr, -(2**62), dtype=np.int64)
+        self._force_steps: deque[list] = deque(maxlen=32)  # [first, last, largest change N]
+        self.control_transients = 0
+        self.last_control_transient: dict | None = None
 
     @property
     def calibrated(self) -> bool:
@@ -460,6 +519,43 @@ class FaultMonitor:
     def alarm(self) -> bool:
         """True from a confirmed detection until the episode ends."""
         return self._episode is not None and self._episode.alarm is not None
+
+    def control_force(self, sample_index: int, force: np.ndarray) -> None:
+        """
+        Record the control (wavelet) force applied during one sample (module notes, step 5).
+
+        Parameters
+        ----------
+        sample_index : int
+            The sample during which ``force`` was applied (the measurement's index).
+        force : numpy.ndarray
+            Shape ``(4,)``, N per axis ``[b1x, b1y, b2x, b2y]``.
+
+        Notes
+        -----
+        Compared with the force of ``sample_index - samples_per_rev`` (if recorded): a change
+        of more than ``control_step`` on an axis extends the current step run, or starts one.
+        Samples may come in any order relative to :meth:`step` (an episode is attributed at
+        its decision, revolutions later; a contact burst when it is found, so the force of a
+        sample should come before the coefficients it completes, as the measurement comes
+        before the filterbank's message); a missing sample only leaves a gap in the
+        comparison.
+        """
+        n = int(sample_index)
+        spr = self.config.samples_per_rev
+        slot = n % spr
+        f = np.asarray(force, dtype=float)
+        if self._force_at[slot] == n - spr:
+            change = float(np.abs(f - self._force[slot]).max())
+            if change > self.config.control_step:
+                steps = self._force_steps
+                if steps and steps[-1][0] <= n <= steps[-1][1] + spr // 2:
+                    run = steps[-1]
+                    run[1], run[2] = n, max(run[2], change)
+                else:
+                    steps.append([n, n, change])
+        self._force[slot] = f
+        self._force_at[slot] = n
 
     def step(self, record: SampleCoefficients) -> list[FaultEvent]:
         """
@@ -799,6 +895,8 @@ class FaultMonitor:
             if any(abs(m + spr - n) <= 2 for m in ep.rise_at):
                 return  # the one-revolution lag of the feature echoes a burst 1 rev later
         ep.rise_at.append(n)
+        if self._control_window(ep, n):
+            return  # the response to a control step (module notes, step 5)
         if ep.decided is not None:
             ep.last_crossing = n
         gap = cfg.burst_gap_revs * spr
@@ -858,7 +956,11 @@ class FaultMonitor:
             )
             if status is not None or due:
                 ev = self._decide(n, ep)
+                ep.control = self._control_run(ep) or False
                 ep.decided = ev
+                if ep.control:
+                    self._control_transient(ep, ev, n, events, quiet)
+                    return
                 events.append(ev)
                 if ev.fault_type == FaultType.SENSOR_FAULT and ev.channel >= 0:
                     self._mask[ev.channel] = False
@@ -881,6 +983,57 @@ class FaultMonitor:
         if quiet or n - ep.decided.decision_sample_index >= cfg.max_tail_revs * spr:
             self._end_tail(n, events)
 
+    def _control_run(self, ep: _Episode) -> list | None:
+        """
+        The control step run that explains episode ``ep``, or None (module notes, step 5).
+
+        The run began before the episode's first crossing completed (a step at sample ``s``
+        moves the rotor from ``s + 1``), and the estimated onset lies in the run or at most
+        ``control_window_revs`` after it, or before it by less than the shortest crossing
+        support (the estimate is the earliest sample the change can be at).
+        """
+        if ep.control is not None or ep.decided is not None:
+            return ep.control or None
+        if not ep.crossings or not self._force_steps:
+            return None
+        window = self.config.control_window_revs * self.config.samples_per_rev
+        onset = estimate_onset(ep.crossings)
+        support = min(c.last - c.first + 1 for c in ep.crossings)
+        for run in self._force_steps:
+            if run[0] < ep.start and run[0] < onset + support and onset <= run[1] + window:
+                return run
+        return None
+
+    def _control_window(self, ep: _Episode, n: int) -> bool:
+        """True if ``ep`` is a control transient and sample ``n`` within a step's window."""
+        if not self._control_run(ep):
+            return False
+        window = self.config.control_window_revs * self.config.samples_per_rev
+        return any(run[0] < n <= run[1] + window for run in self._force_steps)
+
+    def _control_transient(
+        self, ep: _Episode, ev: FaultEvent, n: int, events: list[FaultEvent], quiet: bool
+    ) -> None:
+        """
+        Count a decided episode explained by a control step instead of emitting ``ev``.
+
+        Contact bursts found outside the step's window are reported as after any decision.
+        """
+        first, last, change = ep.control
+        self.control_transients += 1
+        self.last_control_transient = {
+            "onset_sample_index": int(ev.onset_sample_index),
+            "decision_sample_index": int(ev.decision_sample_index),
+            "step_first_sample_index": int(first),
+            "step_last_sample_index": int(last),
+            "step_n": float(change),
+            "classified_as": ev.fault_type.name,
+        }
+        if ep.tail_contacts:
+            self._report_contacts(n, events)
+        if quiet:
+            self._end_tail(n, events)
+
     def _end_tail(self, n: int, events: list[FaultEvent]) -> None:
         ep = self._episode
         self._episode = None
@@ -896,6 +1049,7 @@ class FaultMonitor:
         ep.contact_reported = True
         plane = int(np.argmax(ep.tail_plane_peak)) + 1
         r = ep.tail_peak
+        after = "CONTROL_TRANSIENT" if ep.control else ep.decided.fault_type.name
         events.append(
             FaultEvent(
                 FaultType.AUX_BEARING_CONTACT,
@@ -909,14 +1063,14 @@ class FaultMonitor:
                 confidence=float(min(max(1.0 - math.exp(-(r - 1.0)), 0.0), 1.0)),
                 count=ep.tail_contacts,
                 evidence={
-                    "after": ep.decided.fault_type.name,
+                    "after": after,
                     "bursts": ep.tail_contacts,
                     "peak_ratio_finest_level": r,
                     "rule": f"finest level >= {self.config.tail_rise:g} x its ring-down envelope",
                 },
                 description=(
                     f"{ep.tail_contacts} contact burst(s) at the finest level above the "
-                    f"envelope of the {ep.decided.fault_type.name.lower()} transient"
+                    f"envelope of the {'control' if ep.control else after.lower()} transient"
                 ),
             )
         )

@@ -5,14 +5,19 @@ A thin ROS layer over :class:`amb_fault_monitor.monitor.FaultMonitor`. Each
 :class:`~amb_fault_monitor.records.SampleCoefficients`; the events the core decides are
 numbered and written to the JSON-lines event log (``event_log`` parameter, reloaded at start
 with its contact counters) and published as ``amb_msgs/FaultEvent`` on ``/amb/fault/events``.
-``Measurement`` messages feed two trips per plane with hysteresis
-(:mod:`amb_fault_monitor.trips`): the radial displacement and the 1 x orbit semi-major axis
-over the last revolution. Their levels default to fractions (``trip_displacement_fraction``,
-``trip_1x_fraction``) of the clearance of the nearest clearance bearing read from the rig file
-(``rig`` parameter, default ``config/rig.yaml``); ``trip_displacement`` / ``trip_1x`` > 0
-override them in m. A trip is an ERROR on ``/diagnostics`` and a ``TRIP`` event.
-``/diagnostics`` carries one status per sensor plane (OK / WARN while an episode is open /
-ERROR when tripped) and one for the monitor.
+``Measurement`` messages give the monitor the wavelet force applied in each sample
+(``wavelet_force``, :meth:`~amb_fault_monitor.monitor.FaultMonitor.control_force`): a
+transient that a step of it explains (``control_step``, N per axis from one revolution to the
+next; the monitor's module notes, step 5) is no event but counted on ``/diagnostics``
+(``control_transients``, ``last_control_transient``, ``control_step_n`` in use; the monitor
+status turns WARN with the message "transient from control action ..."). They also feed two
+trips per plane with hysteresis (:mod:`amb_fault_monitor.trips`): the radial displacement and
+the 1 x orbit semi-major axis over the last revolution. Their levels default to fractions
+(``trip_displacement_fraction``, ``trip_1x_fraction``) of the clearance of the nearest
+clearance bearing read from the rig file (``rig`` parameter, default ``config/rig.yaml``);
+``trip_displacement`` / ``trip_1x`` > 0 override them in m. A trip is an ERROR on
+``/diagnostics`` and a ``TRIP`` event. ``/diagnostics`` carries one status per sensor plane
+(OK / WARN while an episode is open / ERROR when tripped) and one for the monitor.
 
 Black box (``blackbox_dir`` non-empty): every accepted measurement and coefficient message is
 serialised (``rclpy.serialization.serialize_message``) into a ring buffer of
@@ -45,18 +50,19 @@ of messages, so that it lags rather than loses (a loss would be a gap, and a rec
 Parameters
 ----------
 Structural parameters are read-only. ``trip_displacement``, ``trip_displacement_fraction``,
-``trip_1x``, ``trip_1x_fraction``, ``trip_hysteresis`` and ``status_period`` may be set at run
-time: the on-set callback checks the whole change (finite, in the declared range, trip levels
-computable) and refuses it with a reason naming the parameter, the value and the range (the old
-values stay); the post-set callback applies it. At start-up an out-of-range or mistyped value,
-an unknown frame, a level the filterbank cannot publish, a missing or malformed rig file or
-event log stop the node with exit status 2 and the same kind of message
+``trip_1x``, ``trip_1x_fraction``, ``trip_hysteresis``, ``control_step`` and ``status_period``
+may be set at run time: the on-set callback checks the whole change (finite, in the declared
+range, trip levels computable) and refuses it with a reason naming the parameter, the value and
+the range (the old values stay); the post-set callback applies it. At start-up an out-of-range
+or mistyped value, an unknown frame, a level the filterbank cannot publish, a missing or
+malformed rig file or event log stop the node with exit status 2 and the same kind of message
 (:class:`amb_tools.node_main.ConfigurationError`).
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import yaml
@@ -115,6 +121,22 @@ FLOATS: dict[str, tuple[float, str, float, float, bool]] = {
         False,
     ),
     "quiet_revs": (2.0, "hold-off: quiet revolutions that end an episode", 0.25, 1e3, False),
+    "tail_rise_median": (
+        3.0,
+        "contact burst: finest-level ratio (or its change) over its median since the episode "
+        "began",
+        1.0,
+        100.0,
+        False,
+    ),
+    "control_step": (
+        2.0,
+        "control step: change of the applied wavelet force on an axis from one revolution to "
+        "the next, N",
+        1e-3,
+        1e5,
+        True,
+    ),
     "trip_displacement": (
         0.0, "radial trip level, m (0 = from the rig clearances)", 0.0, 0.1, True,
     ),
@@ -263,6 +285,8 @@ class FaultMonitorNode(Node):
                 decision_revs=p("decision_revs").value,
                 quiet_revs=p("quiet_revs").value,
                 decision_max_revs=p("decision_max_revs").value,
+                tail_rise_median=p("tail_rise_median").value,
+                control_step=p("control_step").value,
             )
         except FaultMonitorError as exc:
             raise ConfigurationError(f"fault_monitor parameters: {exc}") from exc
@@ -283,6 +307,8 @@ class FaultMonitorNode(Node):
         self._coef_seq = SampleSequencer(self._spr // 2)
         self._omega = 0.0
         self.received = self.restarts = self.bags_written = 0
+        self.control_transients = 0
+        self._last_control: dict | None = None
         self.counts = dict.fromkeys(("measurements_rejected", "coefficients_rejected"), 0)
         self._last_reason = ""
         self.add_on_set_parameters_callback(self._on_set)
@@ -400,6 +426,9 @@ class FaultMonitorNode(Node):
             self._trip_1x.set_level(self._level(p("trip_1x").value, "1x"))
         if "trip_hysteresis" in names:
             self._trip.hysteresis = self._trip_1x.hysteresis = p("trip_hysteresis").value
+        if "control_step" in names:
+            config = replace(self._monitor.config, control_step=p("control_step").value)
+            self._monitor.config = config
         if "status_period" in names:
             self._status_timer.cancel()
             self._status_timer = self.create_timer(p("status_period").value, self._publish_status)
@@ -447,6 +476,7 @@ class FaultMonitorNode(Node):
         self._record(self._meas_sub, "amb_msgs/msg/Measurement", msg)
         self._omega = float(msg.rotor_speed)
         n = int(msg.sample_index)
+        self._monitor.control_force(n, from_float_array(msg.wavelet_force))
         d = from_float_array(msg.displacement)
         amp = self._sync_amp.step(d, float(msg.rotor_angle))
         found = [("displacement", pl, self._trip) for pl in self._trip.step(d)]
@@ -484,13 +514,28 @@ class FaultMonitorNode(Node):
             self._restart(f"coefficient stream discontinuous at sample {msg.sample_index}")
         self._record(self._coef_sub, "amb_msgs/msg/WaveletCoefficients", msg)
         self.received += 1
+        counted = self._monitor.control_transients
         try:
             events = self._monitor.step(record_from_msg(msg, self._omega))
         except RecordError as exc:  # not expected after the checks above: the last line
             self._restart(str(exc))
             return
+        if self._monitor.control_transients != counted:
+            self._control_transient(self._monitor.last_control_transient)
         for ev in events:
             self._emit(ev, msg.header.stamp, int(msg.sample_index))
+
+    def _control_transient(self, info: dict) -> None:
+        """Report a transient the monitor attributed to a control step (no event)."""
+        self.control_transients += 1
+        self._last_control = info
+        self._last_reason = (
+            f"transient from control action: onset at sample {info['onset_sample_index']}, "
+            f"after a {info['step_n']:.3g} N step of the wavelet force from sample "
+            f"{info['step_first_sample_index']}; not reported as "
+            f"{info['classified_as']}"
+        )
+        self.get_logger().warning(self._last_reason, throttle_duration_sec=5.0)
 
     def _restart(self, why: str) -> None:
         """Reset the monitor (it calibrates again) and report why."""
@@ -563,14 +608,19 @@ class FaultMonitorNode(Node):
             "restarts": self.restarts,
             "blackbox_bags": self.bags_written,
             "masked_channels": self._monitor.masked_channels,
+            "control_transients": self.control_transients,
+            "control_step_n": self._monitor.config.control_step,
+            "last_control_transient": self._last_control or "",
             **{f"contacts_bearing_{b}": c for b, c in sorted(self._log.contacts.items())},
             **self.counts,
             **{f"samples_{k}": v for k, v in self._meas_seq.counts.items()},
             **{f"coefficients_{k}": v for k, v in self._coef_seq.counts.items()},
             "callback_errors": getattr(self, "callback_errors", 0),
         }
-        problems = any(self.counts.values()) or any(
-            seq.counts[k] for seq in (self._meas_seq, self._coef_seq) for k in REFUSED
+        problems = (
+            any(self.counts.values())
+            or self.control_transients
+            or any(seq.counts[k] for seq in (self._meas_seq, self._coef_seq) for k in REFUSED)
         )
         ok = self._monitor.calibrated and not problems
         statuses.append(

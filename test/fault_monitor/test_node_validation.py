@@ -92,6 +92,8 @@ STARTUP_CASES = [
     ({"levels": [9]}, ("'levels'", "[9]", "1..7")),  # samples_per_rev 32: 1 .. log2(32) + 2
     ({"frames": ["fixed", "spinning"]}, ("'frames'", "spinning", "'rotating'")),
     ({"decision_max_revs": 4.0}, ("decision_max_revs", "4.0", ">= decision_revs")),
+    ({"control_step": 0.0}, ("'control_step'", "0.0", "0.001..100000")),
+    ({"tail_rise_median": 0.5}, ("'tail_rise_median'", "0.5", "1..100")),
     ({"rig": "/nonexistent/rig.yaml"}, ("'rig'", "/nonexistent/rig.yaml", "not found")),
     ({"rig": "{bad}/rig.yaml"}, ("'rig'", "rig.yaml", "flow")),
     ({"event_log": "{bad}/events.jsonl"}, ("'event_log'", "events.jsonl", ":1")),
@@ -138,6 +140,8 @@ def test_run_time_changes_are_checked_kept_or_applied(ros, node_process) -> None
         ("trip_1x", -1e-6, ("trip_1x", "-1e-06", "Min: 0.0")),
         ("trip_1x_fraction", math.inf, ("trip_1x_fraction", "inf", "Max: 1.0")),
         ("status_period", 0.0, ("status_period", "0.0", "0.05")),
+        ("control_step", math.inf, ("control_step", "inf", "Max: 100000.0")),
+        ("tail_rise_median", 4.0, ("tail_rise_median", "read-only")),
         ("k", 10.0, ("k", "read-only")),
     ):
         (result,) = set_parameters(ros, node, target, {name: value})
@@ -152,6 +156,9 @@ def test_run_time_changes_are_checked_kept_or_applied(ros, node_process) -> None
     assert ok.successful, ok.reason
     assert ros.spin_until(lambda: plane_level("trip_1x_level_m") != level_half, 10.0)
     assert plane_level("trip_1x_level_m") == pytest.approx(level_half / 2, rel=1e-5)
+    (ok,) = set_parameters(ros, node, target, {"control_step": 5.0})
+    assert ok.successful, ok.reason
+    assert ros.spin_until(lambda: diag.get(target, "control_step_n") == "5.0", 10.0), diag.values
     (ok,) = set_parameters(ros, node, target, {"trip_displacement": 3e-4})
     assert ok.successful, ok.reason
     assert ros.spin_until(lambda: plane_level("trip_level_m") == 3e-4, 10.0), diag.values

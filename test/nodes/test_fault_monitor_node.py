@@ -14,6 +14,9 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from amb_wavelet.node import stream_qos
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "fault_monitor"))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "reliability"))
+import late_command
+from reliability_helpers import Diagnostics, get_parameter, set_parameters
 from synthetic import HZ, SPR, make_run
 
 pytestmark = pytest.mark.ros
@@ -77,6 +80,52 @@ def test_mass_loss_event_published_and_logged(ros, node_process, tmp_path) -> No
     assert ros.spin_until(lambda: diag.get("events_logged") == "1", timeout=10.0), diag
     lines = log.read_text().splitlines()
     assert json.loads(lines[0])["fault_type"] == "MASS_LOSS"
+
+
+def test_control_transient_is_counted_on_diagnostics_not_published(ros, node_process) -> None:
+    """The soak's late command (late_command.py) with its wavelet force: a WARN, no event."""
+    spr = late_command.SPR
+    block, force = late_command.late_command_run(1.6, [70])  # zero force in period 70
+    fb = node_process(
+        "-m amb_wavelet.node", params={"wavelet": "haar", "samples_per_rev": spr, "levels": 6}
+    )
+    fm = node_process(
+        "-m amb_fault_monitor.node", params={"samples_per_rev": spr, "status_period": 0.2}
+    )
+    node = ros.node("amb_test_fm_control")
+    pub = node.create_publisher(Measurement, "/amb/measurement", stream_qos(spr))
+    events: list[FaultEvent] = []
+    node.create_subscription(FaultEvent, "/amb/fault/events", events.append, 100)
+    diag = Diagnostics(node)
+    assert ros.spin_until(
+        lambda: (
+            pub.get_subscription_count() >= 2
+            and node.count_subscribers("/amb/wavelet/coefficients") >= 1
+            and "fault_monitor" in diag.values
+        ),
+        timeout=30.0,
+    ), (fb.log(), fm.log())
+    assert get_parameter(ros, node, "fault_monitor", "control_step") == 2.0
+    assert get_parameter(ros, node, "fault_monitor", "tail_rise_median") == 3.0
+    (refused,) = set_parameters(ros, node, "fault_monitor", {"control_step": 0.0})
+    assert not refused.successful and "control_step" in refused.reason, refused.reason
+    for start in range(0, block.sample_index.size, 64):  # small bursts, as above
+        for i in range(start, min(start + 64, block.sample_index.size)):
+            m = Measurement(sample_index=i, samples_per_rev=spr, rotor_angle=block.angle[i])
+            m.rotor_speed = float(block.omega[i])
+            m.displacement = block.displacement[i]
+            m.wavelet_force = force[i]
+            m.header.stamp.sec, m.header.stamp.nanosec = divmod(round(block.time[i] * 1e9), 10**9)
+            pub.publish(m)
+        ros.spin_for(0.05)
+    counted = lambda: diag.get("fault_monitor", "control_transients") == "1"  # noqa: E731
+    assert ros.spin_until(counted, timeout=60.0), (diag.values, fm.log())
+    assert diag.levels["fault_monitor"] == int.from_bytes(DiagnosticStatus.WARN)
+    assert diag.messages["fault_monitor"].startswith("transient from control action")
+    assert "AUX_BEARING_CONTACT" in diag.get("fault_monitor", "last_control_transient")
+    every = str(block.sample_index.size // 2)  # one coefficient message per second sample
+    assert ros.spin_until(lambda: diag.get("fault_monitor", "messages") == every, 30.0)
+    assert events == []
 
 
 def test_invalid_samples_per_rev_exits_with_configuration_error(node_process) -> None:

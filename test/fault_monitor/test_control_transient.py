@@ -1,0 +1,128 @@
+"""A step of the applied control force is a control transient, not a fault (monitor step 5).
+
+The soak run's false contact rebuilt on the plant core (late_command.py: 67 Hz, the soak's
+unbalance, a synchronous wavelet force nulling the inner sensors' 1 x response, found from the
+plant's own responses, not from the monitor). One late command answers a period with zero
+force: the inner sensors jump from about 0.5 to 27 um and back with no contact (simulator
+truth). Told nothing, the monitor calls it a contact with each wavelet (the soak's
+AUX_BEARING_CONTACT); told the applied force, it reports nothing and counts one control
+transient. A real contact (the suite's AB1 contact at 29 Hz) is still found when the monitor
+is fed the (zero) wavelet force the simulation applied.
+"""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from late_command import HZ, SPR, late_command_run, synchronous
+
+from amb_fault_monitor.evaluation import load_case, simulate_case
+from amb_fault_monitor.events import FaultType
+from amb_fault_monitor.monitor import FaultMonitor, MonitorConfig
+from amb_fault_monitor.records import FilterbankAdapter
+from amb_plant_sim.rig import load_rig
+from amb_plant_sim.scenario import scenario_from_dict
+from amb_plant_sim.simulator import PlantSimulator
+
+SUITE = Path(__file__).resolve().parents[2] / "config" / "scenarios" / "faults"
+DURATION = 4.0  # s
+DROP_REV = round(2.5 * HZ)  # the period answered with zero force
+DROP = DROP_REV * SPR
+WAVELETS = ("haar", "db2", "db4")
+
+
+@pytest.fixture(scope="module")
+def late_command():
+    """The soak-like run with one period of zero force: (block, applied force)."""
+    return late_command_run(DURATION, [DROP_REV])
+
+
+def _run(
+    block, wavelet: str, force: np.ndarray | None, spr: int = SPR
+) -> tuple[FaultMonitor, list]:
+    adapter = FilterbankAdapter(spr, wavelet)
+    monitor = FaultMonitor(MonitorConfig(spr))
+    events = []
+    for i in range(block.sample_index.size):
+        n = int(block.sample_index[i])
+        if force is not None:
+            monitor.control_force(n, force[i])
+        rec = adapter.step(n, block.displacement[i], block.angle[i], block.omega[i])
+        events += monitor.step(rec)
+    return monitor, events
+
+
+def test_the_late_command_moves_the_rotor_as_in_the_soak_without_contact(late_command):
+    block, force = late_command
+    inner = np.hypot(block.displacement[:, 2], block.displacement[:, 3])
+    before, after = inner[DROP - SPR : DROP].max(), inner[DROP : DROP + 4 * SPR].max()
+    assert before < 2e-6 and after > 20e-6, (before, after)
+    assert 60.0 <= np.abs(force[DROP - SPR : DROP]).max() <= 90.0  # N, the soak's 65 N scale
+    assert not block.truth["contact"].any()
+
+
+@pytest.mark.parametrize("wavelet", WAVELETS)
+def test_one_late_command_is_a_control_transient_not_a_contact(late_command, wavelet):
+    block, force = late_command
+    _, blind = _run(block, wavelet, None)
+    assert [e.fault_type for e in blind] == [FaultType.AUX_BEARING_CONTACT]  # the soak's
+    monitor, events = _run(block, wavelet, force)
+    assert events == []
+    assert monitor.control_transients == 1
+    last = monitor.last_control_transient
+    assert last["classified_as"] == "AUX_BEARING_CONTACT"
+    # the drop and the return: the force differs from a revolution before for two periods
+    assert (last["step_first_sample_index"], last["step_last_sample_index"]) == (
+        DROP,
+        DROP + 2 * SPR - 1,
+    )
+    assert last["step_n"] == pytest.approx(np.abs(force[DROP - SPR : DROP]).max(), rel=1e-9)
+    assert DROP <= last["onset_sample_index"] <= DROP + 3 * SPR
+
+
+def test_a_second_late_command_in_the_ring_down_is_no_contact():
+    """Five periods later a second zero period re-excites the ring-down: no contact burst."""
+    block, force = late_command_run(DURATION, [DROP_REV, DROP_REV + 5])
+    assert not block.truth["contact"].any()
+    monitor, events = _run(block, "haar", force)
+    assert events == []
+    assert monitor.control_transients == 1
+
+
+@pytest.fixture(scope="module")
+def contact_case():
+    return simulate_case(SUITE / "contact_ab1_29hz_sync_force.yaml", load_rig())
+
+
+@pytest.mark.parametrize("wavelet", WAVELETS)
+def test_a_real_contact_is_still_found_with_the_force_fed(contact_case, wavelet):
+    block = contact_case.block
+    spr = contact_case.samples_per_rev
+    first = int(np.flatnonzero(block.truth["contact"].any(axis=1))[0]) + 1  # evaluation.py
+    force = np.zeros((block.sample_index.size, 4))  # the wavelet force the simulation applied
+    monitor, events = _run(block, wavelet, force, spr)
+    contacts = [e for e in events if e.fault_type == FaultType.AUX_BEARING_CONTACT]
+    assert contacts, [e.fault_type.name for e in events]
+    assert first - spr <= contacts[0].onset_sample_index <= first + 20 * spr  # the suite's match
+    assert monitor.control_transients == 0
+
+
+@pytest.mark.parametrize("wavelet", ["haar", "db4"])
+def test_the_controllers_reaction_to_a_fault_does_not_excuse_it(wavelet):
+    """A 50 N force stepped in at the start of the period after the loss's: still reported."""
+    rig = load_rig()
+    scen, expect, _ = load_case(SUITE / "mass_loss_67hz_430gcm_000.yaml")
+    scenario = scenario_from_dict(scen, rig)
+    n = round(scenario.duration * scenario.speed_hz * SPR)
+    loss = int(np.ceil(expect[0].time * scenario.speed_hz * SPR))
+    step = (loss // SPR + 1) * SPR  # delay_periods 1, the shortest: 11 samples after the loss
+    force = synchronous(np.array([50.0, 0.0]), n)
+    force[:step] = 0.0
+    block = PlantSimulator(rig, scenario, SPR, 0).advance(n, wavelet_force=force)
+    monitor, events = _run(block, wavelet, force)
+    assert [e.fault_type for e in events] == [
+        FaultType.MASS_LOSS,
+        FaultType.AUX_BEARING_CONTACT,  # the contacts the loss leads to (figure 5.27 case 2)
+    ]
+    assert loss - SPR // 4 <= events[0].onset_sample_index < step  # the loss, not the step
+    assert monitor.control_transients == 0
