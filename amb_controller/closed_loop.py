@@ -304,6 +304,9 @@ class _Loop:
             if meas is not None and records:
                 recorder.coefficients(meas[s], n, float(block.omega[s]), records)
             if self.monitor is not None:
+                # the applied force first, as the node gets the Measurement before the
+                # coefficients it completes (FaultMonitor.control_force)
+                self.monitor.core.control_force(n, force[s])
                 for event in self.monitor.step(n, float(block.omega[s]), records):
                     self.fault_events.append(event)
                     if recorder is not None:
