@@ -168,7 +168,7 @@ def loops(rig, first_critical):
     from amb_controller.closed_loop import run_closed_loop
     from amb_controller.metrics import compute_metrics, inner_summary
 
-    scenario = replace(first_critical, duration=5.0)
+    scenario = replace(first_critical, duration=7.0)
     omega = 2 * math.pi * scenario.speed_hz
     out = {}
     base = ControllerConfig(samples_per_rev=N, delay_periods=1, gain=0.5)

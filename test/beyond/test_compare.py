@@ -195,7 +195,7 @@ def test_engage_on_starts_off_and_engages_at_the_detected_mass_loss(rig, first_c
     from amb_controller.closed_loop import fe_model, run_closed_loop
     from amb_controller.pipeline import ControllerConfig
 
-    sc = replace(first_critical, duration=3.0)
+    sc = replace(first_critical, duration=5.0)
     cfg = ControllerConfig(samples_per_rev=32, delay_periods=1)
     model = fe_model(rig, 2 * math.pi * sc.speed_hz, cfg)
     res = run_closed_loop(rig, sc, cfg, model, fault_monitor=True, engage_on=(1,))

@@ -168,7 +168,7 @@ def mass_loss_runs(rig, first_critical):
     """PID, 1 level and per-level 1x+2x+4x on the first-critical mass loss (32 samples/rev)."""
     from amb_controller.closed_loop import fe_model, run_closed_loop
 
-    sc = replace(first_critical, duration=4.5)
+    sc = replace(first_critical, duration=6.5)
     omega = 2 * math.pi * sc.speed_hz
     base = ControllerConfig(
         samples_per_rev=32, delay_periods=1, force_limit=(rig.amb.force_limit,) * 4

@@ -160,7 +160,9 @@ def test_prescribed_response_needs_more_than_10_revolutions():
     r = runs("11Hz")
     k_f = r["fault_period"]
     designed = signal.lfilter([W, -W], [1.0, -V], _change_after_fault(r["none_phasor"], k_f), 0)
-    assert _settling(designed, k_f) == 14
+    # 14 periods with the loss at 2.0 s, 15 with it at 4.0 s (late in its control period: the
+    # period of the fault carries less of the change): more than 10 wherever it falls
+    assert 14 <= _settling(designed, k_f) <= 15
 
 
 @pytest.mark.parametrize("speed", SPEEDS)

@@ -19,7 +19,7 @@ SPR = 32
 def run_dir(tmp_path_factory):
     out = tmp_path_factory.mktemp("sim") / "run"
     code = sim_cli.main(
-        ["--scenario", str(SCENARIO), "--samples-per-rev", str(SPR), "--duration", "2.5",
+        ["--scenario", str(SCENARIO), "--samples-per-rev", str(SPR), "--duration", "4.5",
          "--fault-monitor", "--out", str(out)]
     )  # fmt: skip
     assert code == 0
@@ -72,7 +72,7 @@ def test_bag_has_the_pipeline_topics_and_every_message_deserialises(run_dir):
 def test_metrics_file_has_per_sensor_and_per_bearing_figures(run_dir):
     m = json.loads((run_dir / "metrics.json").read_text())
     assert set(m["sensors"]) == {"x1", "y1", "x2", "y2", "x3", "y3", "x4", "y4"}
-    assert m["fault_time"] == 2.0 and m["model_source"] == "fe"
+    assert m["fault_time"] == 4.0 and m["model_source"] == "fe"
     for s in m["sensors"].values():
         assert s["peak_after_fault"] >= s["steady_1x_amplitude"] > 0
     assert m["bearings"]["1"]["peak_total_force"] >= m["bearings"]["1"]["peak_wavelet_force"] > 0

@@ -15,7 +15,7 @@ from amb_controller import sim_cli
 ROOT = Path(__file__).resolve().parents[2]
 SCENARIO = ROOT / "config/scenarios/mass_loss_first_critical.yaml"
 SPR = 32
-DURATION = 4.0  # the fault monitor decides about 1.2 s after the 2.0 s mass loss
+DURATION = 6.0  # the fault monitor decides about 1.2 s after the 4.0 s mass loss
 
 
 def _sim(out: Path, controller: str, monitor: bool) -> Path:
