@@ -655,8 +655,12 @@ class FaultMonitor:
         (planes pooled) is at most ``settle_ratio`` times the median of the second half: a
         start-up or run-up transient that still decays fails the test, and the window slides
         on (the rotor may be started, or the monitor restarted, in a transient; thresholds
-        calibrated on it would be 10-100 times the noise-only ones). The test runs once per
-        revolution.
+        calibrated on it would be 10-100 times the noise-only ones). The window is refused too
+        while a feature of its last revolution exceeds the thresholds it gives: a disturbance
+        that began in the window's last revolutions moves neither half's median, and was
+        then reported once calibrated, with an onset at the calibration's end (the
+        first-critical mass loss 0.6-3.7 revolutions before calibration ended). The test
+        runs once per revolution.
         """
         cfg = self.config
         spr = cfg.samples_per_rev
@@ -682,7 +686,12 @@ class FaultMonitor:
             if np.median(first) > cfg.settle_ratio * max(np.median(second), cfg.threshold_floor):
                 self.calibration_retries += 1
                 return  # still settling
-        self._thr = {k: self._plane_thresholds(q) for k, q in self._calib.items()}
+        thr = {k: self._plane_thresholds(q) for k, q in self._calib.items()}
+        last = n - spr
+        if any(m > last and np.any(v > thr[k]) for k, q in self._calib.items() for m, v in q):
+            self.calibration_retries += 1
+            return  # a disturbance in the window's last revolution: not healthy yet
+        self._thr = thr
         self._sync_thr = robust_threshold(
             np.array([v for _m, v in self._sync_calib]), cfg.k, cfg.threshold_floor
         )

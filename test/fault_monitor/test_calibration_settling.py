@@ -67,6 +67,44 @@ def test_start_up_transient_is_waited_out():
     assert eager.thresholds[(6, "fixed")].max() > 10 * settled.thresholds[(6, "fixed")].max()
 
 
+def _late_disturbance(start_rev: int, n_revs: int = 80, seed: int = 0):
+    """Noise, then from ``start_rev`` a new 1 x level (10 um) and a 20 um ring-down (tau 2 rev)."""
+    n = n_revs * SPR
+    idx = np.arange(n)
+    t = idx / (SPR * OMEGA / (2 * np.pi))
+    xy = SIGMA * np.random.default_rng(seed).standard_normal((n, 8))
+    t0 = start_rev * 2 * np.pi / OMEGA
+    on = t >= t0
+    ring = np.where(on, 20e-6 * np.exp(-(t - t0) * OMEGA / (4 * np.pi)), 0.0)
+    step = np.where(on, 10e-6, 0.0)
+    for p in range(4):
+        xy[:, 2 * p] += ring * np.cos(0.6 * OMEGA * (t - t0)) + step * np.cos(OMEGA * t)
+        xy[:, 2 * p + 1] += ring * np.sin(0.6 * OMEGA * (t - t0)) + step * np.sin(OMEGA * t)
+    return xy, (2 * np.pi * idx / SPR) % (2 * np.pi), idx
+
+
+@pytest.mark.parametrize("start_rev", [12, 15])
+def test_a_disturbance_at_the_end_of_the_window_is_not_calibrated_on(start_rev):
+    # the window (16 revolutions of settled coefficients) would end at revolution 18: a
+    # disturbance in its last revolutions moves neither half's median; before, the monitor
+    # calibrated on it and then reported a MASS_LOSS whose onset was the calibration's end
+    # (2-6 revolutions after the true one)
+    xy, angle, idx = _late_disturbance(start_rev)
+    monitor = FaultMonitor(MonitorConfig(SPR))
+    events = run_monitor(monitor, xy, angle, idx)
+    assert monitor.calibration_end > (start_rev + 4) * SPR  # after the ring-down
+    assert events == []  # nothing to report: the disturbance came before the monitor was ready
+
+
+def test_a_disturbance_after_calibration_is_still_found_at_its_onset():
+    xy, angle, idx = _late_disturbance(30)
+    monitor = FaultMonitor(MonitorConfig(SPR))
+    events = run_monitor(monitor, xy, angle, idx)
+    assert monitor.calibration_end < 30 * SPR
+    assert [e.fault_type.name for e in events] == ["MASS_LOSS"]
+    assert abs(events[0].onset_sample_index - 30 * SPR) <= 1
+
+
 @pytest.mark.parametrize(
     ("kwargs", "match"),
     [({"settle_ratio": 0.5}, "settle_ratio"), ({"settle_revs": 1}, "settle_revs")],
