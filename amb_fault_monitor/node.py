@@ -17,7 +17,10 @@ the 1 x orbit semi-major axis over the last revolution. Their levels default to 
 clearance bearing read from the rig file (``rig`` parameter, default ``config/rig.yaml``);
 ``trip_displacement`` / ``trip_1x`` > 0 override them in m. A trip is an ERROR on
 ``/diagnostics`` and a ``TRIP`` event. ``/diagnostics`` carries one status per sensor plane
-(OK / WARN while an episode is open / ERROR when tripped) and one for the monitor.
+(OK / WARN while an episode is open / ERROR when tripped) and one for the monitor, whose
+``last_sample`` and ``last_coefficient_sample`` are the indices of the last measurement and
+coefficient message processed (``amb-run`` stops the monitor only once they reach the plant's
+last sample).
 
 Black box (``blackbox_dir`` non-empty): every accepted measurement and coefficient message is
 serialised (``rclpy.serialization.serialize_message``) into a ring buffer of
@@ -309,6 +312,10 @@ class FaultMonitorNode(Node):
         self.received = self.restarts = self.bags_written = 0
         self.control_transients = 0
         self._last_control: dict | None = None
+        # indices of the last measurement and coefficient message processed: on /diagnostics,
+        # so that amb-run stops the monitor only once it has caught up with the plant
+        self.last_sample: int | None = None
+        self.last_coefficient_sample: int | None = None
         self.counts = dict.fromkeys(("measurements_rejected", "coefficients_rejected"), 0)
         self._last_reason = ""
         self.add_on_set_parameters_callback(self._on_set)
@@ -477,6 +484,7 @@ class FaultMonitorNode(Node):
         self._omega = float(msg.rotor_speed)
         n = int(msg.sample_index)
         self._monitor.control_force(n, from_float_array(msg.wavelet_force))
+        self.last_sample = n
         d = from_float_array(msg.displacement)
         amp = self._sync_amp.step(d, float(msg.rotor_angle))
         found = [("displacement", pl, self._trip) for pl in self._trip.step(d)]
@@ -515,6 +523,7 @@ class FaultMonitorNode(Node):
         self._record(self._coef_sub, "amb_msgs/msg/WaveletCoefficients", msg)
         self.received += 1
         counted = self._monitor.control_transients
+        self.last_coefficient_sample = int(msg.sample_index)
         try:
             events = self._monitor.step(record_from_msg(msg, self._omega))
         except RecordError as exc:  # not expected after the checks above: the last line
@@ -604,6 +613,8 @@ class FaultMonitorNode(Node):
         values = {
             "calibrated": self._monitor.calibrated,
             "messages": self.received,
+            "last_sample": self.last_sample,
+            "last_coefficient_sample": self.last_coefficient_sample,
             "events_logged": len(self._log.events),
             "restarts": self.restarts,
             "blackbox_bags": self.bags_written,

@@ -503,6 +503,8 @@ class PlantSimNode(Node):
         self._meas_pub.wait_for_all_acked(Duration(seconds=10.0))
         wall = time.monotonic() - self._wall0
         self._publish_status()
+        # the last report (done, sample_index) tells amb-run how far the consumers must get
+        self._diag_pub.wait_for_all_acked(Duration(seconds=2.0))
         lat = self.latency_summary()
         period = self._N / self._sim.fs
         latency = (

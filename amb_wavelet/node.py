@@ -112,6 +112,7 @@ class WaveletFilterbankNode(Node):
             self.get_parameter("status_period").value, self._publish_status
         )
         self.samples = self.published = self.rejected = 0
+        self.last_sample: int | None = None  # index of the last sample processed (amb-run drains)
         self._last_reason = ""
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.get_logger().info(
@@ -214,6 +215,7 @@ class WaveletFilterbankNode(Node):
             self._front.reset()
             self._bank.reset(start_sample_index=index)
         self.samples += 1
+        self.last_sample = index
         coefficients = self._bank.step(self._front.step(xy, msg.rotor_angle), index)
         if not coefficients:
             return
@@ -242,6 +244,7 @@ class WaveletFilterbankNode(Node):
             level = DiagnosticStatus.WARN
         values = {
             "samples": self.samples,
+            "last_sample": self.last_sample,
             "messages_published": self.published,
             "gaps_reset": self.gaps,
             "repeats_dropped": self.repeats,
