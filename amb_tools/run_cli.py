@@ -8,9 +8,18 @@ What ``launch/amb_system.launch.py`` does on a full ROS 2 install, for environme
 nodes are stopped with SIGINT (the recorder last, after its queue has drained). Logs of every
 node are in ``OUT/logs``. The exit status is 0 only if every node stopped cleanly.
 
+Draining: a node that is behind the plant when the plant exits still has the end of the run in
+its subscription queues (the fault monitor, off the lock-step chain, may be many revolutions
+behind on a loaded machine, with a fault decision among them). Before they are stopped, the
+filterbank, the controller and the fault monitor are therefore waited for until the sample
+indices they report as processed on ``/diagnostics`` (:data:`DRAINED`) reach the plant's last
+sample, at most ``--drain-timeout`` wall seconds (progress printed each second). A node that has
+not caught up by then is stopped anyway, named with how far it got, and the exit status is 1:
+what it had not processed (events, commands, coefficients) is missing from the bag.
+
 Scheduling: the recorder, off the control loop, runs with a higher nice value
 (:data:`NICENESS`, ``--nice NODE=N`` to change, e.g. ``--nice fault_monitor=5`` as well: it
-then lags and may be stopped before it has decided on the run's last faults),
+then lags, and the end of the run waits for it to drain),
 so that when the CPU is short the plant, filterbank and controller, whose chain sets the
 lock-step pace and the command latency, are served first; the others catch up from their
 queues (reliable, thousands of messages deep). Measured with ``bench/pipeline.py``.
@@ -46,6 +55,16 @@ NODES = ("recorder", "wavelet_filterbank", "fault_monitor", "wavelet_controller"
 # fault_monitor is not niced by default: at +5 it lagged the demo's transient run by ~12
 # revolutions and was stopped with its mass-loss decision still in its queue (no event).
 NICENESS = {"recorder": 10}
+#: /diagnostics keys (sample indices processed) of the nodes drained before they are stopped
+#: (module notes). The filterbank publishes coefficients for odd samples only (its finest level
+#: completes every second sample), so ``last_coefficient_sample`` ends at the last odd sample.
+DRAINED = {
+    "wavelet_filterbank": ("last_sample",),
+    "wavelet_controller": ("last_sample",),
+    "fault_monitor": ("last_sample", "last_coefficient_sample"),
+}
+#: Default ``--drain-timeout``, wall s.
+DRAIN_TIMEOUT = 300.0
 STREAM_TYPES = {
     "/amb/measurement": "amb_msgs/msg/Measurement",
     "/amb/wavelet/coefficients": "amb_msgs/msg/WaveletCoefficients",
@@ -146,6 +165,13 @@ def build_parser() -> argparse.ArgumentParser:
         help=f"niceness added to a node's process (repeatable; default {NICENESS})",
     )
     p.add_argument("--timeout", type=float, default=3600.0, help="wall s before the run is aborted")
+    p.add_argument(
+        "--drain-timeout",
+        type=float,
+        default=DRAIN_TIMEOUT,
+        help="wall s to wait, after the plant's end, for the other nodes to process the last "
+        f"sample before they are stopped anyway (default {DRAIN_TIMEOUT:g})",
+    )
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     return p
 
@@ -180,7 +206,7 @@ def _overrides(args: argparse.Namespace, scenario: Path) -> dict[str, list[str]]
 
 
 class _Progress:
-    """Reads the plant's /diagnostics in a node of this process (simulated time, counts)."""
+    """Reads the nodes' /diagnostics in a node of this process (simulated time, counts)."""
 
     def __init__(self) -> None:
         import rclpy
@@ -189,8 +215,8 @@ class _Progress:
         self.context = rclpy.Context()
         rclpy.init(context=self.context)
         self.node = rclpy.create_node("amb_run_progress", context=self.context)
-        self.values: dict[str, str] = {}
-        self.node.create_subscription(DiagnosticArray, "/diagnostics", self._on_diag, 10)
+        self.statuses: dict[str, dict[str, str]] = {}  # status name -> its last key values
+        self.node.create_subscription(DiagnosticArray, "/diagnostics", self._on_diag, 100)
         from rclpy.executors import SingleThreadedExecutor
 
         self.executor = SingleThreadedExecutor(context=self.context)
@@ -198,8 +224,17 @@ class _Progress:
 
     def _on_diag(self, msg) -> None:
         for s in msg.status:
-            if s.name == "plant_sim":
-                self.values = {kv.key: kv.value for kv in s.values}
+            self.statuses[s.name] = {kv.key: kv.value for kv in s.values}
+
+    @property
+    def values(self) -> dict[str, str]:
+        """The plant's last report (empty before the first)."""
+        return self.statuses.get("plant_sim", {})
+
+    def processed(self, name: str, key: str) -> int | None:
+        """Sample index ``key`` last reported by node ``name`` (None if not reported yet)."""
+        value = self.statuses.get(name, {}).get(key)
+        return int(value) if value is not None and value.lstrip("-").isdigit() else None
 
     def spin(self, seconds: float) -> None:
         deadline = time.monotonic() + seconds
@@ -325,6 +360,8 @@ def run(args: argparse.Namespace) -> int:
                     f"commands missing {progress.values.get('missing', '?')}",
                     flush=True,
                 )
+        if status == 0 and plant.proc.returncode == 0:
+            status = _drain(progress, runs, args.drain_timeout, args.quiet)
     finally:
         progress.close()
         codes = {}
@@ -346,6 +383,86 @@ def run(args: argparse.Namespace) -> int:
             flush=True,
         )
     return status
+
+
+def _drain(progress: _Progress, runs: list[NodeRun], timeout: float, quiet: bool) -> int:
+    """Wait until the running nodes of :data:`DRAINED` have processed the plant's last sample.
+
+    Parameters
+    ----------
+    progress : _Progress
+        The /diagnostics reader (holds the plant's last report: ``sample_index`` samples).
+    runs : list of NodeRun
+        The run's nodes; those still running and named in :data:`DRAINED` are waited for.
+    timeout : float
+        Wall s to wait at most.
+    quiet : bool
+        No progress lines (the outcome is printed either way).
+
+    Returns
+    -------
+    int
+        0 when every node has caught up; 1 if the bound was hit, a node exited meanwhile, or
+        the plant's last report never arrived (the nodes are then stopped as they are).
+    """
+    progress.spin(0.2)  # the plant's last report, sent just before it exited
+    plant = progress.values
+    if plant.get("done") != "True" or not plant.get("sample_index", "").isdigit():
+        print(
+            "[amb-run] the plant's final report was not received: cannot tell whether the "
+            "other nodes processed its last sample; stopping them as they are",
+            file=sys.stderr,
+        )
+        return 1
+    last = int(plant["sample_index"]) - 1
+    targets = {
+        (r.name, key): last if key == "last_sample" or last % 2 else last - 1
+        for r in runs
+        if r.name in DRAINED
+        for key in DRAINED[r.name]
+    }
+    procs = {r.name: r.proc for r in runs}
+    start = time.monotonic()
+    last_print = -math.inf
+    first = True
+    while True:
+        gone = sorted({n for n, _ in targets if procs[n].poll() is not None})
+        if gone:
+            print(
+                f"[amb-run] {', '.join(gone)} exited before processing sample {last}, the "
+                "plant's last; see the logs",
+                file=sys.stderr,
+            )
+            return 1
+        at = {nk: progress.processed(*nk) for nk in targets}
+        behind = {nk: v for nk, v in at.items() if v is None or v < targets[nk]}
+        waited = time.monotonic() - start
+        shown = ", ".join(
+            f"{n} {k} {'-' if v is None else v}" for (n, k), v in (behind or at).items()
+        )
+        if first and not quiet:
+            print(f"[amb-run] plant done at sample {last}; {shown}", flush=True)
+            first = False
+        if not behind:
+            if not quiet:
+                print(
+                    f"[amb-run] drained in {waited:.1f} s: every node processed the plant's last "
+                    f"sample {last} ({shown})",
+                    flush=True,
+                )
+            return 0
+        if waited > timeout:
+            print(
+                f"[amb-run] drain timeout ({timeout:g} s, --drain-timeout): still behind the "
+                f"plant's last sample {last}: {shown}; stopped anyway, what they had not "
+                "processed is missing from the bag",
+                file=sys.stderr,
+            )
+            return 1
+        if not quiet and waited - last_print >= 1.0:
+            last_print = waited
+            print(f"[amb-run] draining ({waited:5.1f} s): {shown} of {last}", flush=True)
+        progress.spin(0.2)
 
 
 def _expected_subscribers(names: list[str]) -> dict[str, int]:
