@@ -29,10 +29,21 @@ held zero command). Coefficient messages are rejected if their wavelet or ``samp
 is not the controller's, their sample index lies before the stream or more than eight periods
 ahead of it, their stamp differs from their measurement's, or a set is malformed. If the
 coefficients of a sample have not arrived ``coefficient_timeout`` wall seconds after its
-measurement (a dead filterbank), the sample is processed without them: the period is answered
-with zero force, and the lock-step loop keeps running on the PID. If no measurement arrives for
+measurement and of the last coefficient message accepted (a dead filterbank), the sample is
+processed without them: the period is answered with zero force, and the lock-step loop keeps
+running on the PID. If neither a measurement nor a coefficient message arrives for
 ``measurement_timeout`` s, the controller reports it and forgets its history, so that it holds
-zero until the stream returns; it then resumes without a restart. A command the pipeline made
+zero until the stream returns; it then resumes without a restart.
+
+Why the timeouts count from the last coefficient message: in lock-step the plant publishes a
+period's samples at once and waits for the command, so a loaded filterbank that works through
+them slowly (each coefficient message still following the last within a fraction of a second)
+may deliver the period's last coefficients, and hold back its next measurements, longer than
+either timeout after the period's measurements arrived. Counted from the measurement, a 30-min
+lock-step soak at load average 17-28 answered three periods with zero force that way, a
+transient of the rotor. Counted from the stream's last message, only a filterbank silent for
+``coefficient_timeout`` (dead, or given no CPU for that long) is given up on, as before: its
+last message came before the measurement that waits. A command the pipeline made
 with a non-finite value (never expected) is replaced by a zero command. All of it is counted on
 ``/diagnostics``.
 
@@ -107,16 +118,19 @@ TUNABLES = ("w", "v", "rate", "gain", "force_limit")
 SETTINGS = {
     "measurement_timeout": (
         2.0,
-        "watchdog: wall s without a measurement before holding zero and reporting",
+        "watchdog: wall s without a measurement or coefficient message before holding zero "
+        "and reporting",
         0.05,
         600.0,
     ),
     "coefficient_timeout": (
         # 1 s: the restart tests (plant command_timeout 0.5 s) need the controller to answer a
-        # missing filterbank quickly. A 30-min lock-step soak at load 17-28 saw the hop take
-        # > 1 s three times (those periods answered with zero force): see issue 8's note.
+        # missing filterbank quickly. Counted from the later of the sample's measurement and
+        # the last coefficient message (module notes): a 30-min lock-step soak at load 17-28,
+        # when it counted from the measurement only, saw the wait exceed 1 s three times.
         1.0,
-        "wall s to wait for a sample's coefficients before processing it without them",
+        "wall s without a coefficient message (and since the sample's measurement) before "
+        "a sample is processed without its coefficients",
         0.01,
         600.0,
     ),
@@ -239,6 +253,7 @@ class WaveletControllerNode(Node):
         self._sequencer = SampleSequencer(self._pipe.config.samples_per_rev)
         self._last_processed: int | None = None
         self._last_wall: float | None = None
+        self._last_coefficient_wall: float | None = None  # wall s of the last one accepted
         self._stale = False
         self._pending_config: ControllerConfig | None = None
         self.counts = dict.fromkeys(
@@ -412,6 +427,7 @@ class WaveletControllerNode(Node):
             self._reject("coefficients_rejected", reason + "; dropped")
             return
         self._coefficients[n] = msg
+        self._last_coefficient_wall = time.monotonic()
         while len(self._coefficients) > 2 * horizon:  # bounded, whatever arrives
             del self._coefficients[min(self._coefficients)]
         self._drain()
@@ -428,7 +444,10 @@ class WaveletControllerNode(Node):
                 later = any(
                     n < k <= n + 2 * self._pipe.samples_per_period for k in self._coefficients
                 )
-                if not (force or later or now - received > timeout):
+                # the timeout is a silence of the coefficient stream, not the age of the
+                # measurement: a loaded filterbank working through a period (module notes)
+                since = max(received, self._last_coefficient_wall or received)
+                if not (force or later or now - since > timeout):
                     return  # wait for the coefficients of this sample
                 self.counts["coefficients_missing"] += 1
             self._pending.popleft()
@@ -448,7 +467,9 @@ class WaveletControllerNode(Node):
             self._drain()  # a dead filterbank: stop waiting after coefficient_timeout
         if self._last_wall is None or self._stale:
             return
-        silent = time.monotonic() - self._last_wall
+        # in lock-step the plant waits for our command: no measurement comes while the
+        # filterbank works through a period, but its coefficients do (module notes)
+        silent = time.monotonic() - max(self._last_wall, self._last_coefficient_wall or 0.0)
         if silent > self.get_parameter("measurement_timeout").value:
             self._stale = True
             self.counts["stalls"] += 1

@@ -109,3 +109,38 @@ def test_invalid_parameters_stop_the_node_with_a_reason(node_process, params, wo
     assert ctrl.wait(60) == 2, ctrl.log()
     log = ctrl.log()
     assert all(w in log for w in words), log
+
+
+def test_a_slow_filterbank_is_waited_for_while_its_coefficients_keep_coming(
+    ros, node_process
+) -> None:
+    """Lock-step under load: the coefficients of a period trickle in, the controller waits.
+
+    The plant publishes a period's measurements at once and waits for the command; a loaded
+    filterbank then needs longer than ``coefficient_timeout`` (1 s) to get through them, though
+    each coefficient message follows the last within a fraction of it. Here the measurements of
+    three periods arrive at once and their coefficients one every 0.1 s (2.4 s in all, also
+    longer than ``measurement_timeout``, 2 s): every period must be answered with a computed
+    command, none held for missing coefficients.
+    """
+    ctrl = _start(node_process, controller="transient")
+    node = ros.node("amb_test_slow_filterbank")
+    qos = stream_qos(SPR)
+    pm = node.create_publisher(Measurement, "/amb/measurement", qos)
+    pc = node.create_publisher(WaveletCoefficients, "/amb/wavelet/coefficients", qos)
+    commands: list[ControlCommand] = []
+    node.create_subscription(ControlCommand, "/amb/control/command", commands.append, COMMAND_QOS)
+    assert ros.spin_until(
+        lambda: pm.get_subscription_count() and pc.get_subscription_count(), 30.0
+    ), ctrl.log()
+    n_periods = 3
+    stream = _stream(n_periods)
+    for m, _c in stream:
+        pm.publish(m)
+    for _m, c in stream:
+        if c is not None:
+            ros.spin_for(0.1)
+            pc.publish(c)
+    assert ros.spin_until(lambda: len(commands) == n_periods, 30.0), ctrl.log()
+    assert [c.period_index for c in commands] == [k + DELAY for k in range(n_periods)]
+    assert [c.hold for c in commands] == [False] * n_periods, ctrl.log()
