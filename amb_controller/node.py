@@ -28,24 +28,26 @@ are dropped; a confirmed gap or restart makes the pipeline answer the broken per
 held zero command). Coefficient messages are rejected if their wavelet or ``samples_per_rev``
 is not the controller's, their sample index lies before the stream or more than eight periods
 ahead of it, their stamp differs from their measurement's, or a set is malformed. If the
-coefficients of a sample have not arrived ``coefficient_timeout`` wall seconds after its
-measurement and of the last coefficient message accepted (a dead filterbank), the sample is
-processed without them: the period is answered with zero force, and the lock-step loop keeps
-running on the PID. If neither a measurement nor a coefficient message arrives for
-``measurement_timeout`` s, the controller reports it and forgets its history, so that it holds
-zero until the stream returns; it then resumes without a restart.
+coefficients of a sample have not arrived ``coefficient_timeout`` wall seconds after the later
+of its measurement and the last coefficient message accepted for an earlier sample (a dead
+filterbank), the sample is processed without them: the period is answered with zero force, and
+the lock-step loop keeps running on the PID. (A message for a later sample is no progress
+towards this one: a filterbank restarted past it never sends it.) If neither a measurement nor
+a coefficient message arrives for ``measurement_timeout`` s, the controller reports it and
+forgets its history, so that it holds zero until the stream returns; it then resumes without a
+restart. A command the pipeline made with a non-finite value (never expected) is replaced by a
+zero command. All of it is counted on ``/diagnostics``.
 
 Why the timeouts count from the last coefficient message: in lock-step the plant publishes a
 period's samples at once and waits for the command, so a loaded filterbank that works through
 them slowly (each coefficient message still following the last within a fraction of a second)
-may deliver the period's last coefficients, and hold back its next measurements, longer than
-either timeout after the period's measurements arrived. Counted from the measurement, a 30-min
-lock-step soak at load average 17-28 answered three periods with zero force that way, a
-transient of the rotor. Counted from the stream's last message, only a filterbank silent for
+may deliver the period's last coefficients, and hold back the next measurements, longer than
+either timeout after the period's measurements arrived. Counted from the measurement only, a
+30-min lock-step soak at load average 17-28 answered three periods with zero force that way, a
+transient of the rotor. Counted from the stream's progress, only a filterbank silent for
 ``coefficient_timeout`` (dead, or given no CPU for that long) is given up on, as before: its
-last message came before the measurement that waits. A command the pipeline made
-with a non-finite value (never expected) is replaced by a zero command. All of it is counted on
-``/diagnostics``.
+last message came before the measurement that waits. The default stays 1 s: the restart tests
+(plant ``command_timeout`` 0.5 s) need a dead filterbank answered quickly.
 
 Parameters
 ----------
@@ -253,7 +255,7 @@ class WaveletControllerNode(Node):
         self._sequencer = SampleSequencer(self._pipe.config.samples_per_rev)
         self._last_processed: int | None = None
         self._last_wall: float | None = None
-        self._last_coefficient_wall: float | None = None  # wall s of the last one accepted
+        self._last_coefficient: tuple[int, float] | None = None  # last accepted: index, wall s
         self._stale = False
         self._pending_config: ControllerConfig | None = None
         self.counts = dict.fromkeys(
@@ -427,7 +429,7 @@ class WaveletControllerNode(Node):
             self._reject("coefficients_rejected", reason + "; dropped")
             return
         self._coefficients[n] = msg
-        self._last_coefficient_wall = time.monotonic()
+        self._last_coefficient = (n, time.monotonic())
         while len(self._coefficients) > 2 * horizon:  # bounded, whatever arrives
             del self._coefficients[min(self._coefficients)]
         self._drain()
@@ -444,9 +446,12 @@ class WaveletControllerNode(Node):
                 later = any(
                     n < k <= n + 2 * self._pipe.samples_per_period for k in self._coefficients
                 )
-                # the timeout is a silence of the coefficient stream, not the age of the
-                # measurement: a loaded filterbank working through a period (module notes)
-                since = max(received, self._last_coefficient_wall or received)
+                # the timeout is a silence of the coefficient stream on its way to n, not the
+                # age of the measurement: a loaded filterbank working through a period (module
+                # notes); a message beyond n is no progress (a filterbank restarted past n)
+                since = received
+                if self._last_coefficient is not None and self._last_coefficient[0] < n:
+                    since = max(since, self._last_coefficient[1])
                 if not (force or later or now - since > timeout):
                     return  # wait for the coefficients of this sample
                 self.counts["coefficients_missing"] += 1
@@ -469,7 +474,10 @@ class WaveletControllerNode(Node):
             return
         # in lock-step the plant waits for our command: no measurement comes while the
         # filterbank works through a period, but its coefficients do (module notes)
-        silent = time.monotonic() - max(self._last_wall, self._last_coefficient_wall or 0.0)
+        last = self._last_wall
+        if self._last_coefficient is not None:
+            last = max(last, self._last_coefficient[1])
+        silent = time.monotonic() - last
         if silent > self.get_parameter("measurement_timeout").value:
             self._stale = True
             self.counts["stalls"] += 1
