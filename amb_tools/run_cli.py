@@ -399,7 +399,7 @@ def _drain(progress: _Progress, runs: list[NodeRun], timeout: float, quiet: bool
     timeout : float
         Wall s to wait at most.
     quiet : bool
-        No progress lines (the outcome is printed either way).
+        No progress lines (a failure to drain is printed either way).
 
     Returns
     -------
