@@ -25,7 +25,7 @@ from diagnostic_msgs.msg import DiagnosticArray
 from amb_tools.conversions import coefficients_msg, to_float_array
 from amb_wavelet.analysis import AnalysisFilterbank
 from amb_wavelet.frontend import FRAMES, QUADRATURES, ChannelFrontEnd
-from amb_wavelet.node import FRAME_CODES, QUAD_CODES, stream_qos
+from amb_wavelet.node import FRAME_CODES, QUAD_CODES
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "reliability"))
 from reliability_helpers import Diagnostics, get_parameter, set_parameters
@@ -175,16 +175,11 @@ def test_run_time_changes_are_checked_kept_or_applied(ros, node_process) -> None
 def test_bad_messages_are_rejected_counted_and_never_reach_the_monitor(ros, node_process) -> None:
     fm = node_process("fault_monitor", params={"samples_per_rev": SPR, "status_period": 0.1})
     node = ros.node("amb_test_fm_messages")
-    qos = stream_qos(SPR)
-    pm = node.create_publisher(Measurement, "/amb/measurement", qos)
-    pc = node.create_publisher(WaveletCoefficients, "/amb/wavelet/coefficients", qos)
     events: list[FaultEvent] = []
     node.create_subscription(FaultEvent, "/amb/fault/events", events.append, 100)
     diag = Diagnostics(node)
-    assert ros.spin_until(
-        lambda: pm.get_subscription_count() and pc.get_subscription_count() and diag.values,
-        30.0,
-    ), fm.log()
+    pm, pc = ros.stream_writers(node, SPR, fm)
+    assert ros.spin_until(lambda: diag.values, 30.0), fm.log()
     name = "fault_monitor"
     n = 4 * SPR
     stream = _stream(0, n)

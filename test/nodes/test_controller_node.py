@@ -4,14 +4,14 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from amb_msgs.msg import ControlCommand, ControllerStatus, Measurement, WaveletCoefficients
+from amb_msgs.msg import ControlCommand, ControllerStatus, Measurement
 from amb_msgs.srv import SetControllerMode, StartIdentification
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from amb_tools.conversions import coefficients_msg
 from amb_wavelet.analysis import AnalysisFilterbank
 from amb_wavelet.frontend import FRAMES, QUADRATURES, ChannelFrontEnd
-from amb_wavelet.node import FRAME_CODES, QUAD_CODES, stream_qos
+from amb_wavelet.node import FRAME_CODES, QUAD_CODES
 
 pytestmark = pytest.mark.ros
 
@@ -52,16 +52,11 @@ def _start(node_process, **params):
 def test_one_command_per_period_and_mode_services(ros, node_process) -> None:
     ctrl = _start(node_process, controller="transient")
     node = ros.node("amb_test_driver")
-    qos = stream_qos(SPR)
-    pm = node.create_publisher(Measurement, "/amb/measurement", qos)
-    pc = node.create_publisher(WaveletCoefficients, "/amb/wavelet/coefficients", qos)
     commands: list[ControlCommand] = []
     statuses: list[ControllerStatus] = []
     node.create_subscription(ControlCommand, "/amb/control/command", commands.append, COMMAND_QOS)
     node.create_subscription(ControllerStatus, "/amb/control/status", statuses.append, 10)
-    assert ros.spin_until(
-        lambda: pm.get_subscription_count() and pc.get_subscription_count(), 30.0
-    ), ctrl.log()
+    pm, pc = ros.stream_writers(node, SPR, ctrl)
     n_periods = 6
     lost = 4 * SPR - 1  # the coefficients completing period 3 (its 1x level) are lost
     for m, c in _stream(n_periods, skip_coefficients_of=lost):
@@ -125,14 +120,9 @@ def test_a_slow_filterbank_is_waited_for_while_its_coefficients_keep_coming(
     """
     ctrl = _start(node_process, controller="transient")
     node = ros.node("amb_test_slow_filterbank")
-    qos = stream_qos(SPR)
-    pm = node.create_publisher(Measurement, "/amb/measurement", qos)
-    pc = node.create_publisher(WaveletCoefficients, "/amb/wavelet/coefficients", qos)
     commands: list[ControlCommand] = []
     node.create_subscription(ControlCommand, "/amb/control/command", commands.append, COMMAND_QOS)
-    assert ros.spin_until(
-        lambda: pm.get_subscription_count() and pc.get_subscription_count(), 30.0
-    ), ctrl.log()
+    pm, pc = ros.stream_writers(node, SPR, ctrl)
     n_periods = 3
     stream = _stream(n_periods)
     for m, _c in stream:

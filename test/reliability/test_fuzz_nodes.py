@@ -297,28 +297,13 @@ def coefficient_messages(draw) -> WaveletCoefficients:
     return c
 
 
-def stream_writers(ros, node, proc):
-    """Measurement and coefficient writers on ``node``, matched with the node under test.
-
-    Each test sends its valid stream after the fuzz from new writers: from a fuzz writer it was
-    sometimes not delivered at all (see the filterbank test).
-    """
-    qos = stream_qos(SPR)
-    pm = node.create_publisher(Measurement, "/amb/measurement", qos)
-    pc = node.create_publisher(WaveletCoefficients, "/amb/wavelet/coefficients", qos)
-    assert ros.spin_until(
-        lambda: pm.get_subscription_count() and pc.get_subscription_count(), 30.0
-    ), proc.log()
-    return pm, pc
-
-
 def test_controller_survives_random_measurements_and_coefficients(ros, node_process) -> None:
     ctrl = node_process(
         "wavelet_controller",
         params={"samples_per_rev": SPR, "coefficient_timeout": 0.2, "status_period": 0.1},
     )
     node = ros.node("amb_fuzz_ctrl")
-    pm, pc = stream_writers(ros, node, ctrl)
+    pm, pc = ros.stream_writers(node, SPR, ctrl)
     got: list[ControlCommand] = []
     node.create_subscription(ControlCommand, "/amb/control/command", got.append, COMMAND_QOS)
     diag = Diagnostics(node)
@@ -343,7 +328,7 @@ def test_controller_survives_random_measurements_and_coefficients(ros, node_proc
     throw()
     ros.spin_for(0.5)
     before = len(got)
-    pm, pc = stream_writers(ros, node, ctrl)  # new writers for the valid stream
+    pm, pc = ros.stream_writers(node, SPR, ctrl)  # new writers: from fuzz writers it was lost
     first = 1_000_000 * SPR
     for m, c in valid_stream(first, 6 * SPR):
         if c is not None:
@@ -372,7 +357,7 @@ def test_fault_monitor_survives_random_measurements_and_coefficients(ros, node_p
 
     fm = node_process("fault_monitor", params={"samples_per_rev": SPR, "status_period": 0.1})
     node = ros.node("amb_fuzz_fm")
-    pm, pc = stream_writers(ros, node, fm)
+    pm, pc = ros.stream_writers(node, SPR, fm)
     events: list[FaultEvent] = []
     node.create_subscription(FaultEvent, "/amb/fault/events", events.append, 100)
     diag = Diagnostics(node)
@@ -401,7 +386,7 @@ def test_fault_monitor_survives_random_measurements_and_coefficients(ros, node_p
     ros.spin_for(1.0)
     before = diag.number(name, "messages")
     # new writers for the valid stream (this test lost it once in a fresh-clone CI run)
-    pm, pc = stream_writers(ros, node, fm)
+    pm, pc = ros.stream_writers(node, SPR, fm)
     stream = valid_stream(1_000_000 * SPR, 6 * SPR)
     for m, c in stream:
         pm.publish(m)

@@ -81,6 +81,26 @@ class RosTestContext:
         """Spin until ``predicate()`` is true; return whether it became true in time."""
         return spin_until(self.executor, predicate, timeout, step)
 
+    def stream_writers(self, node, samples_per_rev: int, proc: NodeProcess):
+        """
+        Measurement and coefficient writers on ``node``, matched with the node under test.
+
+        Returns ``(measurement_publisher, coefficients_publisher)`` on ``/amb/measurement`` and
+        ``/amb/wavelet/coefficients`` with the streams' QoS, once ``proc`` subscribes to both
+        (30 s, else the assertion shows its log).
+        """
+        from amb_msgs.msg import Measurement, WaveletCoefficients
+
+        from amb_wavelet.node import stream_qos
+
+        qos = stream_qos(samples_per_rev)
+        pm = node.create_publisher(Measurement, "/amb/measurement", qos)
+        pc = node.create_publisher(WaveletCoefficients, "/amb/wavelet/coefficients", qos)
+        assert self.spin_until(
+            lambda: pm.get_subscription_count() and pc.get_subscription_count(), 30.0
+        ), proc.log()
+        return pm, pc
+
     def spin_for(self, seconds: float) -> None:
         """Spin for a fixed time."""
         deadline = time.monotonic() + seconds
