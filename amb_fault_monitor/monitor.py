@@ -371,7 +371,12 @@ def estimate_onset(crossings: list[Crossing]) -> int:
         raise FaultMonitorError("estimate_onset needs at least one crossing")
     first = min(c.last for c in crossings)
     strongest = max((c for c in crossings if c.last == first), key=lambda c: c.ratio)
-    return math.ceil(strongest.centre - 0.5)
+    return onset_sample(strongest.centre)
+
+
+def onset_sample(centre: float) -> int:
+    """The sample of an atom's time centre: the nearest, the earlier one when midway."""
+    return math.ceil(centre - 0.5)
 
 
 @dataclass
@@ -912,7 +917,7 @@ class FaultMonitor:
         if ep.tail_first < 0 or n - ep.tail_first > gap:
             ep.tail_contacts += 1
             if ep.tail_onset < 0:  # at the time centre of the coefficient (estimate_onset)
-                ep.tail_onset, ep.tail_detect = math.ceil(self._centre(s) - 0.5), n
+                ep.tail_onset, ep.tail_detect = onset_sample(self._centre(s)), n
         ep.tail_first = n
         ep.tail_peak = max(ep.tail_peak, r)
         ep.tail_plane_peak = np.maximum(ep.tail_plane_peak, ratio)
