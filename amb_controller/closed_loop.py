@@ -304,10 +304,7 @@ class _Loop:
             if meas is not None and records:
                 recorder.coefficients(meas[s], n, float(block.omega[s]), records)
             if self.monitor is not None:
-                # the applied force first, as the node gets the Measurement before the
-                # coefficients it completes (FaultMonitor.control_force)
-                self.monitor.core.control_force(n, force[s])
-                for event in self.monitor.step(n, float(block.omega[s]), records):
+                for event in self.monitor.step(n, float(block.omega[s]), records, force[s]):
                     self.fault_events.append(event)
                     if recorder is not None:
                         recorder.fault_event(event, meas[s].header.stamp)
@@ -345,8 +342,13 @@ class _Monitor:
             for quad in QUADRATURES:
                 self.slots.append((frame, quad, len(self.slots) * 8))
 
-    def step(self, n: int, omega: float, records) -> list[dict]:
+    def step(self, n: int, omega: float, records, force: np.ndarray) -> list[dict]:
+        """Sample ``n``: its wavelet force (N per axis) and the coefficients it completed."""
         from amb_fault_monitor.records import CoefficientSet, SampleCoefficients
+
+        # the applied force first, as the node gets the Measurement before the coefficients
+        # it completes (FaultMonitor.control_force)
+        self.core.control_force(n, force)
 
         sets = tuple(
             CoefficientSet(
