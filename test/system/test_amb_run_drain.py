@@ -16,17 +16,15 @@ unacknowledged measurements with it.
 from __future__ import annotations
 
 import math
-import os
-import signal
 import subprocess
 import sys
-import threading
 import time
 from pathlib import Path
 
 import pytest
 import yaml
 from rosbags.rosbag2 import Reader
+from throttle import Throttle
 
 from amb_tools.bag_types import typestore
 
@@ -79,35 +77,6 @@ def _alive(pid: int) -> bool:
     return state != "Z"
 
 
-class _Throttle(threading.Thread):
-    """Starve a process: SIGSTOP it, and let it run ``on`` s in every ``period`` s.
-
-    Its DDS threads still get to receive and acknowledge (unlike a process stopped for good,
-    whose unacknowledged samples are lost when the plant exits), while its callbacks fall
-    behind, as on a machine whose CPU is taken by other jobs.
-    """
-
-    def __init__(self, pid: int, on: float = 0.005, period: float = 0.25) -> None:
-        super().__init__(daemon=True)
-        self.pid, self.on, self.period = pid, on, period
-        self._done = threading.Event()
-
-    def run(self) -> None:
-        while not self._done.is_set():
-            os.kill(self.pid, signal.SIGSTOP)
-            if self._done.wait(self.period - self.on):
-                break
-            os.kill(self.pid, signal.SIGCONT)
-            time.sleep(self.on)
-        os.kill(self.pid, signal.SIGCONT)
-
-    def release(self) -> None:
-        """Let the process run freely again."""
-        self._done.set()
-        self.join()
-        os.kill(self.pid, signal.SIGCONT)
-
-
 def _bag(bag: Path) -> tuple[list, list, int]:
     """Fault events, the fault monitor's /diagnostics values, measurement indices of a bag."""
     store = typestore()
@@ -146,7 +115,7 @@ def test_a_lagging_fault_monitor_is_drained_before_it_is_stopped(tmp_path, ros_d
             time.sleep(0.05)
             nodes = _children(run.pid)
         assert "plant_sim" in nodes, "amb-run did not start the plant"
-        throttle = _Throttle(nodes["fault_monitor"])
+        throttle = Throttle(nodes["fault_monitor"])
         throttle.start()
         while _alive(nodes["plant_sim"]) and time.monotonic() < deadline:
             time.sleep(0.1)
