@@ -692,11 +692,15 @@ class HarmonicPipeline:
         """Apply the configured action for a FaultEvent type; return it."""
         return self.supervisor.on_fault(int(fault_type))
 
-    def on_sample(self, sample_index: int, records, displacement, omega=None) -> Command | None:
+    def on_sample(
+        self, sample_index: int, records, displacement, omega=None, command_missing=False
+    ) -> Command | None:
         """
         Feed one sample's displacements (8, m); return the command at a period's end.
 
-        ``records`` (filterbank output) is accepted for interface compatibility and unused.
+        ``records`` (filterbank output) is accepted for interface compatibility and unused;
+        ``command_missing`` is the sample's ``STATUS_COMMAND_MISSING`` (as
+        :meth:`amb_controller.pipeline.ControllerPipeline.on_sample`).
         """
         n = int(sample_index)
         N = self.samples_per_period
@@ -708,6 +712,8 @@ class HarmonicPipeline:
         if self._expected is not None and n != self._expected:
             self._ok = False
         self._expected = n + 1
+        if command_missing and self.supervisor.command_missing(m):
+            self._stats["commands_late"] += 1
         x = np.asarray(displacement, dtype=float)
         if x.shape != (N_SENSORS,) or not np.all(np.isfinite(x)):
             self._stats["inputs_rejected"] += 1
@@ -729,7 +735,7 @@ class HarmonicPipeline:
             command = sup.step(m, q, self._peak)
         else:
             self.last_measured = None
-            sup.controller.reset()
+            sup.reset_controller()
             zeros = np.zeros(self.control.n_coefficients)
             result = self.limiter.apply(zeros)
             sup._sent[m + sup.delay] = zeros
@@ -749,7 +755,3 @@ class HarmonicPipeline:
         from amb_controller.pipeline import status_fields
 
         return status_fields(self, 1.0, "")
-
-    def count_late(self) -> None:
-        """Count a command that reached the plant after its target period had started."""
-        self._stats["commands_late"] += 1

@@ -290,6 +290,7 @@ class _Loop:
         k, N = self.k, self.N
         command = self.commands.pop(k, None)
         force = np.zeros((N, 4)) if command is None else command.force.T
+        missing = command is None and k >= self.config.delay_periods  # STATUS_COMMAND_MISSING
         block = self.plant.advance(N, force)
         recorder = self.recorder
         meas = recorder.measurements(block, force) if recorder is not None else None
@@ -313,7 +314,7 @@ class _Loop:
                         self.pipeline.set_mode(Mode.ACTIVE)  # fault-triggered engagement
                     else:
                         self.pipeline.on_fault(code)
-            out = self.pipeline.on_sample(n, records, x, float(block.omega[s]))
+            out = self.pipeline.on_sample(n, records, x, float(block.omega[s]), missing)
             if out is not None:
                 self.commands[out.target_period] = out
                 self.issued.append(out)

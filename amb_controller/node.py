@@ -36,7 +36,11 @@ towards this one: a filterbank restarted past it never sends it.) If neither a m
 a coefficient message arrives for ``measurement_timeout`` s, the controller reports it and
 forgets its history, so that it holds zero until the stream returns; it then resumes without a
 restart. A command the pipeline made with a non-finite value (never expected) is replaced by a
-zero command. All of it is counted on ``/diagnostics``.
+zero command. A period whose measurements carry ``STATUS_COMMAND_MISSING`` ran without the
+command sent for it (lost, late, or the plant's watchdog): it is counted ``commands_late`` and
+the controller's step that made it is undone, so that the integrators do not wind up
+(:mod:`amb_controller.supervisor`, "Commands the plant did not apply"). All of it is counted
+on ``/diagnostics``.
 
 Why the timeouts count from the last coefficient message: in lock-step the plant publishes a
 period's samples at once and waits for the command, so a loaded filterbank that works through
@@ -484,7 +488,7 @@ class WaveletControllerNode(Node):
             self._drain(force=True)
             sup = self._pipe.supervisor
             if sup.controller is not None:
-                sup.controller.reset()  # hold zero: no history carried across the silence
+                sup.reset_controller()  # hold zero: no history carried across the silence
             self._last_reason = (
                 f"no measurement for {silent:.2f} s after sample {self._last_processed}: "
                 "holding zero until the stream returns"
@@ -502,7 +506,13 @@ class WaveletControllerNode(Node):
                 self._reject(
                     "coefficients_rejected", f"coefficients of sample {m.sample_index}: {exc}"
                 )
-        command = self._pipe.on_sample(m.sample_index, records, m.displacement, m.rotor_speed)
+        command = self._pipe.on_sample(
+            m.sample_index,
+            records,
+            m.displacement,
+            m.rotor_speed,
+            command_missing=bool(m.status & Measurement.STATUS_COMMAND_MISSING),
+        )
         if command is None:
             return
         cfg = self._pipe.config
@@ -536,8 +546,10 @@ class WaveletControllerNode(Node):
     def _publish_diagnostics(self) -> None:
         status = self._pipe.status()
         seq = self._sequencer.counts
-        problems = any(self.counts[k] for k in self.counts if k != "config_changes") or any(
-            seq[k] for k in ("stray", "stamp", "repeat")
+        problems = (
+            any(self.counts[k] for k in self.counts if k != "config_changes")
+            or any(seq[k] for k in ("stray", "stamp", "repeat"))
+            or status["commands_late"] > 0  # the plant ran periods without our command
         )
         level = DiagnosticStatus.WARN if (problems or self._stale) else DiagnosticStatus.OK
         values = {
@@ -545,6 +557,7 @@ class WaveletControllerNode(Node):
             "measurements_stale": self._stale,
             "last_sample": self._last_processed,
             "commands_sent": status["commands_sent"],
+            "commands_late": status["commands_late"],
             "callback_errors": getattr(self, "callback_errors", 0),
             "inputs_rejected": status["inputs_rejected"],
             **self.counts,

@@ -685,7 +685,12 @@ class ControllerPipeline:
         self._period_message = ""
 
     def on_sample(
-        self, sample_index: int, records, displacement=None, omega: float | None = None
+        self,
+        sample_index: int,
+        records,
+        displacement=None,
+        omega: float | None = None,
+        command_missing: bool = False,
     ) -> Command | None:
         """
         Feed the records completed by one sample; return a command at a period's end.
@@ -702,6 +707,10 @@ class ControllerPipeline:
             The 8 sensor displacements of the sample in m (for the guard's peak bound).
         omega : float, optional
             Running speed in rad/s (recorded in an identified model).
+        command_missing : bool
+            The sample's ``STATUS_COMMAND_MISSING``: its period ran without the command (zero
+            wavelet force). The command is counted late and the controller's step that made
+            it is undone (:meth:`WaveletControlSupervisor.command_missing`).
 
         Returns
         -------
@@ -722,6 +731,8 @@ class ControllerPipeline:
         if self._expected is not None and n != self._expected:
             self._invalidate(f"sample {n} after {self._expected - 1}: gap")
         self._expected = n + 1
+        if command_missing and self.supervisor.command_missing(m):
+            self._stats["commands_late"] += 1
         if displacement is not None:
             d = np.asarray(displacement, dtype=float)
             self._peak = max(self._peak, float(np.max(np.abs(d))) if d.size else 0.0)
@@ -775,7 +786,7 @@ class ControllerPipeline:
         """Zero-force command for an incomplete period; restart the controller's history."""
         sup = self.supervisor
         if sup.controller is not None:
-            sup.controller.reset()
+            sup.reset_controller()
         if sup.mode == Mode.IDENTIFYING:
             sup.set_mode(Mode.OFF)
             sup.message = f"identification abandoned: {self._period_message or 'incomplete'}"
@@ -829,10 +840,6 @@ class ControllerPipeline:
         commands_sent, commands_late, inputs_rejected, model_file, message.
         """
         return status_fields(self, float(self.supervisor.identification_progress), self._model_file)
-
-    def count_late(self) -> None:
-        """Count a command that reached the plant after its target period had started."""
-        self._stats["commands_late"] += 1
 
 
 def status_fields(pipeline, identification_progress: float, model_file: str) -> dict:

@@ -16,6 +16,10 @@ as zeros, to keep the lock-step loop alive). Modes follow ``ControllerStatus``:
   passes the :class:`~amb_controller.synthesis.ForceLimiter`. While any axis saturates
   the controller's state is held (not advanced: anti-windup) and the scaled command is
   sent.
+* A command the plant did not apply (the period ran with zero wavelet force and its samples
+  carry ``STATUS_COMMAND_MISSING``: lost, late, or the plant's watchdog) is reported with
+  :meth:`WaveletControlSupervisor.command_missing`. The controller's step that computed it
+  is undone (anti-windup, see "Commands the plant did not apply" below).
 * ``HOLD``: no new correction; the controller state is frozen (fault reconfiguration,
   e.g. auxiliary-bearing contact). With ``hold_ramp_periods = 0`` the last command is
   repeated (hold-last); with ``hold_ramp_periods = n > 0`` the last command is scaled
@@ -42,6 +46,24 @@ um and 28 contact onsets, ramp-to-zero over 4 periods 781 um and 18 onsets, PID 
 and 20 onsets: on contact, ramp-to-zero is the contact-safe setting. Leaving a ramped
 HOLD for ACTIVE resets the controller, because the force actually applied is no longer
 the one its integral state (``beta``, eq. 8.10) remembers.
+
+Commands the plant did not apply
+--------------------------------
+The transient controller integrates (``beta`` has its pole at z = 1, eq. 8.10): each period
+it adds to the force it believes is acting. If its commands stop reaching the plant (a lost
+or late command, the plant's command watchdog after a stall, a controller restarted while
+the plant runs on its PID) the measured coefficients keep the disturbance's full size and the
+integrators wind up; when a command gets through again the force is far too large. Measured
+with the mass loss at the first critical speed (test ``test_restart.py``'s scenario, in
+process): 10 periods of commands dropped while the controller ran threw the rotor to 0.80 mm
+at the end planes and 0.33 mm at the inner ones, 44 periods to 0.94 / 0.78 mm, against 0.40 /
+0.14 mm on PID alone. So a missing command is treated like a saturated one: the step that
+computed it did not happen. The controller's state is restored to what it was before that
+step (the step is skipped, as the saturation hold does) and the steps after it, which the
+delay ``i > 1`` has already made, are made again from it (their commands are already sent
+and stand; only the state is corrected). The integrators then hold the force that last
+acted, and a new controller whose commands never arrived stays at its initial state, so its
+first applied command is the prescribed response to the disturbance as it is.
 """
 
 from __future__ import annotations
@@ -111,6 +133,16 @@ class Command:
 
 
 @dataclass
+class _Step:
+    """A controller step, kept until its command is known to be applied (or not)."""
+
+    period: int
+    measured: np.ndarray
+    state_before: object
+    skipped: bool
+
+
+@dataclass
 class _Identification:
     experiment: StepExperiment
     identifier: MarkovIdentifier
@@ -170,6 +202,8 @@ class WaveletControlSupervisor:
         for action in self.fault_actions.values():
             if action not in ("hold", "off", "ignore"):
                 raise ControllerValueError(f"fault action must be hold/off/ignore, got {action!r}")
+        self._steps: dict[int, _Step] = {}  # target period -> the step that made its command
+        self._missing_reported: int | None = None
         self.controller = None
         if controller is not None:
             self.set_controller(controller)
@@ -196,7 +230,7 @@ class WaveletControlSupervisor:
                 f"basis has {self.limiter.basis.n_coefficients}"
             )
         self.controller = controller
-        controller.reset()
+        self.reset_controller()
 
     def set_mode(self, mode: Mode) -> tuple[bool, str]:
         """
@@ -217,11 +251,11 @@ class WaveletControlSupervisor:
             if self.guard is not None and self.guard.tripped:
                 return False, f"divergence guard tripped ({self.guard.reason}); reset() first"
             if self.mode != Mode.HOLD or self._held_periods > 0:
-                self.controller.reset()  # a ramped hold applied less than it remembers
+                self.reset_controller()  # a ramped hold applied less than it remembers
         if mode == Mode.OFF:
             self._identification = None
             if self.controller is not None:
-                self.controller.reset()
+                self.reset_controller()
         self._enter(mode)
         self.message = mode.name.lower()
         return True, self.message
@@ -268,6 +302,56 @@ class WaveletControlSupervisor:
         self._sent.clear()
         self._last = np.zeros(self.limiter.basis.n_coefficients)
 
+    def reset_controller(self) -> None:
+        """Reset the controller's state (integrators and history to zero)."""
+        self.controller.reset()
+        self._steps.clear()
+
+    def command_missing(self, period_index: int) -> bool:
+        """
+        Report that period ``period_index`` ran with zero wavelet force, without its command.
+
+        The plant flags such a period's samples ``STATUS_COMMAND_MISSING``. The command sent
+        for it, if any, is undone: the controller returns to its state before the step that
+        made it, that step counts as skipped, and later steps are made again (module notes,
+        "Commands the plant did not apply"). What the period applied is recorded as zero
+        (:meth:`applied`, the identification's input).
+
+        Call it at the period's first flagged sample, before the period's own step; later
+        calls for the same period are ignored.
+
+        Parameters
+        ----------
+        period_index : int
+            The period that ran without a command.
+
+        Returns
+        -------
+        bool
+            True if this supervisor had sent a command for the period (it was lost or late)
+            and this is the first report of the period.
+
+        """
+        p = int(period_index)
+        if p == self._missing_reported:
+            return False
+        self._missing_reported = p
+        sent = p in self._sent
+        self._sent[p] = np.zeros(self.limiter.basis.n_coefficients)
+        step = self._steps.pop(p, None)
+        if step is None or self.controller is None:
+            return sent
+        self.controller.set_state(step.state_before)
+        self.controller.skip(step.period)
+        for target in sorted(t for t in self._steps if t > p):
+            later = self._steps[target]
+            later.state_before = self.controller.get_state()
+            if later.skipped:
+                self.controller.skip(later.period)
+            else:
+                self.controller.step(later.period, later.measured)
+        return sent
+
     def applied(self, period_index: int) -> np.ndarray:
         """Return the control coefficients commanded for ``period_index`` (zeros if none)."""
         return self._sent.get(period_index, np.zeros(self.limiter.basis.n_coefficients))
@@ -305,12 +389,14 @@ class WaveletControlSupervisor:
                 self._enter(Mode.HOLD)
                 self.message = f"guard: {self.guard.reason}"
                 if self.controller is not None:
-                    self.controller.reset()
+                    self.reset_controller()
         result = None
+        saved = None
+        if self.mode in (Mode.ACTIVE, Mode.HOLD) and self.controller is not None:
+            saved = self.controller.get_state()
         if self.mode == Mode.IDENTIFYING:
             coefficients = self._identify(k, measured, target)
         elif self.mode == Mode.ACTIVE:
-            saved = self.controller.get_state()
             coefficients = self.controller.step(k, measured).coefficients
             result = self.limiter.apply(coefficients)
             if result.saturated.any():
@@ -324,12 +410,18 @@ class WaveletControlSupervisor:
             coefficients = zeros if guard_tripped else self._hold_command()
         else:
             coefficients = zeros
+        if saved is not None and not guard_tripped:
+            self._steps[target] = _Step(k, np.array(measured, dtype=float), saved, hold)
+        else:
+            self._steps.clear()  # the controller was reset or is not running
         if result is None:
             result = self.limiter.apply(coefficients)
         self._last = result.coefficients
         self._sent[target] = result.coefficients
         for old in [p for p in self._sent if p < k - self.delay - 1]:
             del self._sent[old]
+        for old in [p for p in self._steps if p <= k]:
+            del self._steps[old]  # its period has started: a missing flag came before now
         return Command(
             target,
             k,

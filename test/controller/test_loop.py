@@ -147,6 +147,78 @@ def test_saturation_holds_controller_state():
     assert np.all(np.abs(ctrl.get_state().zi) < 1e3)
 
 
+def _loop_with_lost_commands(markov, sup, n_periods, disturbance, lost, report=True):
+    """As :func:`_supervised_loop`; commands for the periods in ``lost`` never reach the plant.
+
+    With ``report`` the supervisor is told (the plant's ``STATUS_COMMAND_MISSING``) when the
+    period starts, before the period's own step.
+    """
+    n_u = markov.shape[2]
+    u = np.zeros((n_periods + 10, n_u))
+    q_all = []
+    for k in range(n_periods):
+        if k in lost:
+            u[k] = 0.0
+            if report:
+                sup.command_missing(k)
+        q = sum(markov[j] @ (disturbance[k - j] + u[k - j]) for j in range(min(k + 1, len(markov))))
+        cmd = sup.step(k, q)
+        u[cmd.target_period] = cmd.coefficients
+        q_all.append(q)
+    return np.array(q_all)
+
+
+@pytest.mark.parametrize("delay", [1, 2, 3])
+def test_a_lost_command_undoes_the_step_that_made_it(delay):
+    _, limiter, markov = _one_axis_setup()
+    inverse = pseudo_inverse_series(markov, order=5)
+    alpha = PrescribedResponse.exponential(0.75, 0.75)
+    sup = WaveletControlSupervisor(
+        limiter, delay=delay, controller=TransientController(inverse, alpha, delay)
+    )
+    sup.set_mode(Mode.ACTIVE)
+    disturbance = np.full((60, 1), 50.0)
+    lost = {20, 21, 30}
+    q = _loop_with_lost_commands(markov, sup, 45, disturbance, lost)
+    # the same measurements into a twin controller that skips the steps whose command was lost
+    twin = TransientController(inverse, alpha, delay)
+    for k in range(45):
+        if k + delay in lost:
+            twin.skip(k)
+        else:
+            twin.step(k, q[k])
+    state = sup.controller.get_state()
+    np.testing.assert_allclose(state.zi, twin.get_state().zi, rtol=1e-12, atol=0.0)
+    np.testing.assert_allclose(state.history, twin.get_state().history, rtol=1e-12, atol=0.0)
+    assert all(not sup.applied(p).any() for p in lost if p >= 45 - delay - 1)
+
+
+def test_lost_commands_do_not_wind_up_the_integrators():
+    # Rotor converged on a step disturbance, then 20 periods of lost commands (a controller
+    # stall or restart behind the plant's watchdog): the response goes to the uncontrolled
+    # level. When commands return it must not go beyond it.
+    _, limiter, markov = _one_axis_setup()
+    inverse = pseudo_inverse_series(markov, order=5)
+    alpha = PrescribedResponse.exponential(0.75, 0.75)
+    disturbance = np.zeros((120, 1))
+    disturbance[5:] = 50.0
+    uncontrolled = abs(markov.sum(axis=0)[0, 0] * 50.0)  # G(1) d: PID alone, steady
+    lost = set(range(40, 60))
+    peaks = {}
+    for report in (True, False):
+        sup = WaveletControlSupervisor(
+            limiter, delay=1, controller=TransientController(inverse, alpha, 1)
+        )
+        sup.set_mode(Mode.ACTIVE)
+        q = _loop_with_lost_commands(markov, sup, 120, disturbance, lost, report=report)
+        assert abs(q[39, 0]) < 0.01 * uncontrolled  # converged before the loss
+        peaks[report] = np.max(np.abs(q[60:, 0]))
+        assert abs(q[-1, 0]) < 0.01 * uncontrolled  # and again after
+    # reported: the integrators held the force that last acted (0.45 of it here)
+    assert peaks[True] < 0.5 * uncontrolled
+    assert peaks[False] > 3.0 * uncontrolled  # unreported, they wound up (3.8 here)
+
+
 def test_guard_trip_zeroes_force_and_fault_holds():
     _, limiter, markov = _one_axis_setup()
     ctrl = TransientController(

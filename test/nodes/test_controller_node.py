@@ -62,8 +62,12 @@ def test_one_command_per_period_and_mode_services(ros, node_process) -> None:
     for m, c in _stream(n_periods, skip_coefficients_of=lost):
         if c is not None:  # coefficients before their measurement: the node joins them
             pc.publish(c)
+        if m.sample_index // SPR in (4, 5):  # the plant ran periods 4 and 5 without commands
+            m.status = Measurement.STATUS_COMMAND_MISSING
         pm.publish(m)
     assert ros.spin_until(lambda: len(commands) == n_periods, 30.0), ctrl.log()
+    assert ros.spin_until(lambda: statuses and statuses[-1].period_index == n_periods - 1, 10.0)
+    assert statuses[-1].commands_late == 2, "the commands sent for periods 4 and 5"
     assert [c.period_index for c in commands] == [k + DELAY for k in range(n_periods)]
     assert all(c.based_on_period == k for k, c in enumerate(commands))
     assert all(len(c.force) == 4 * SPR and not any(c.force) for c in commands)  # OFF
