@@ -9,6 +9,13 @@ the inner (control) planes exceeds the 0.5 mm limit of the thesis (section 8.5.1
 planes stay clear of the retainer bearings. Measured in this test's first runs: inner peaks
 0.16-0.24 mm, end planes 0.55-0.66 mm (the wavelet force the dead controller was applying drops
 to zero at once; PID alone peaks at ~0.40 mm at the end planes after this fault).
+
+Under load the new controller's first commands can reach the plant too late (on its watchdog
+the plant waits one period of real time for each). Those periods run on PID and are flagged
+``STATUS_COMMAND_MISSING``; the controller must undo the steps that made them. It did not, once,
+in a loaded CI run: its integrators wound up and the first command that got through threw the
+rotor to 0.76 mm at x2 and 0.92 mm at the end planes (``test/closed_loop/test_lost_commands.py``
+reproduces it in process).
 """
 
 from __future__ import annotations
