@@ -87,12 +87,21 @@ def test_guard_trips_on_growth_and_bounds():
     assert guard.update(np.zeros(2), displacement_peak=0.6e-3)
 
 
-def _supervised_loop(markov, sup, n_periods, disturbance):
-    """Coefficient-domain plant Q[k] = sum_j A_j (F + U)[k-j]; U = commands by target period."""
+def _supervised_loop(markov, sup, n_periods, disturbance, lost=(), report=True):
+    """Coefficient-domain plant Q[k] = sum_j A_j (F + U)[k-j]; U = commands by target period.
+
+    Commands for the periods in ``lost`` never reach the plant (zero force there); with
+    ``report`` the supervisor is told when such a period starts, before its own step (the
+    plant's ``STATUS_COMMAND_MISSING``).
+    """
     n_u = markov.shape[2]
     u = np.zeros((n_periods + 10, n_u))
     q_all, cmds = [], []
     for k in range(n_periods):
+        if k in lost:
+            u[k] = 0.0
+            if report:
+                sup.command_missing(k)
         q = sum(markov[j] @ (disturbance[k - j] + u[k - j]) for j in range(min(k + 1, len(markov))))
         cmd = sup.step(k, q)
         u[cmd.target_period] = cmd.coefficients
@@ -147,27 +156,6 @@ def test_saturation_holds_controller_state():
     assert np.all(np.abs(ctrl.get_state().zi) < 1e3)
 
 
-def _loop_with_lost_commands(markov, sup, n_periods, disturbance, lost, report=True):
-    """As :func:`_supervised_loop`; commands for the periods in ``lost`` never reach the plant.
-
-    With ``report`` the supervisor is told (the plant's ``STATUS_COMMAND_MISSING``) when the
-    period starts, before the period's own step.
-    """
-    n_u = markov.shape[2]
-    u = np.zeros((n_periods + 10, n_u))
-    q_all = []
-    for k in range(n_periods):
-        if k in lost:
-            u[k] = 0.0
-            if report:
-                sup.command_missing(k)
-        q = sum(markov[j] @ (disturbance[k - j] + u[k - j]) for j in range(min(k + 1, len(markov))))
-        cmd = sup.step(k, q)
-        u[cmd.target_period] = cmd.coefficients
-        q_all.append(q)
-    return np.array(q_all)
-
-
 @pytest.mark.parametrize("delay", [1, 2, 3])
 def test_a_lost_command_undoes_the_step_that_made_it(delay):
     _, limiter, markov = _one_axis_setup()
@@ -179,7 +167,7 @@ def test_a_lost_command_undoes_the_step_that_made_it(delay):
     sup.set_mode(Mode.ACTIVE)
     disturbance = np.full((60, 1), 50.0)
     lost = {20, 21, 30}
-    q = _loop_with_lost_commands(markov, sup, 45, disturbance, lost)
+    q, _ = _supervised_loop(markov, sup, 45, disturbance, lost)
     # the same measurements into a twin controller that skips the steps whose command was lost
     twin = TransientController(inverse, alpha, delay)
     for k in range(45):
@@ -210,7 +198,7 @@ def test_lost_commands_do_not_wind_up_the_integrators():
             limiter, delay=1, controller=TransientController(inverse, alpha, 1)
         )
         sup.set_mode(Mode.ACTIVE)
-        q = _loop_with_lost_commands(markov, sup, 120, disturbance, lost, report=report)
+        q, _ = _supervised_loop(markov, sup, 120, disturbance, lost, report=report)
         assert abs(q[39, 0]) < 0.01 * uncontrolled  # converged before the loss
         peaks[report] = np.max(np.abs(q[60:, 0]))
         assert abs(q[-1, 0]) < 0.01 * uncontrolled  # and again after
