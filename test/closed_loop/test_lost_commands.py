@@ -19,24 +19,15 @@ import math
 from dataclasses import replace
 
 import numpy as np
+from scenarios import SAMPLES_PER_REV, first_critical_mass_loss
 
 from amb_controller.closed_loop import fe_model, run_closed_loop
 from amb_controller.pipeline import ControllerConfig
 from amb_plant_sim.rig import load_rig
 from amb_plant_sim.scenario import scenario_from_dict
 
-SPR = 32
-SCENARIO = {
-    "name": "lost_commands",
-    "speed": {"role": "first_critical"},
-    "duration": 7.0,
-    "samples_per_rev": SPR,
-    "measurement_noise": 2.0e-7,
-    "events": [
-        {"kind": "unbalance", "time": 0.0, "disk": "D1", "me": 0.5e-3, "angle": 0.0},
-        {"kind": "mass_loss", "time": 1.5, "disk": "D1", "me": 4.3e-3, "angle": 0.0},
-    ],
-}
+SPR = SAMPLES_PER_REV
+SCENARIO = first_critical_mass_loss(7.0, name="lost_commands")
 LOST = range(35, 55)  # control periods whose commands never arrive (the loss is in period 16)
 
 

@@ -1,7 +1,12 @@
-"""Shared pieces of the reliability tests: diagnostics collection, parameter calls."""
+"""Shared pieces of the reliability tests: diagnostics, parameter calls, a scenario's model."""
 
 from __future__ import annotations
 
+import subprocess
+import sys
+from pathlib import Path
+
+import yaml
 from diagnostic_msgs.msg import DiagnosticArray
 
 
@@ -52,3 +57,25 @@ def get_parameter(ros, node, target: str, name: str):
     future = client.call_async(GetParameters.Request(names=[name]))
     assert ros.spin_until(future.done, 20.0)
     return parameter_value_to_python(future.result().values[0])
+
+
+def fe_model_file(scenario: dict, tmp_path: Path) -> tuple[Path, Path]:
+    """
+    Write ``scenario`` to ``tmp_path/scenario.yaml``; build its FE-route model with ``amb-sim``.
+
+    Returns
+    -------
+    tuple of Path
+        The scenario file and ``tmp_path/model/model.npz`` (the transient controller's model
+        for the scenario's speed, as ``wavelet_controller`` loads it).
+    """
+    path = tmp_path / "scenario.yaml"
+    path.write_text(yaml.safe_dump(scenario))
+    run = subprocess.run(
+        [sys.executable, "-m", "amb_controller.sim_cli", "--scenario", str(path),
+         "--controller", "transient", "--model", "fe", "--duration", "0.3", "--no-bag",
+         "--out", str(tmp_path / "model")],
+        capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    assert run.returncode == 0, run.stderr
+    return path, tmp_path / "model" / "model.npz"

@@ -21,45 +21,26 @@ reproduces it in process).
 from __future__ import annotations
 
 import signal
-import subprocess
-import sys
 
 import numpy as np
 import pytest
-import yaml
 from amb_msgs.msg import ControllerStatus, Measurement
+from reliability_helpers import fe_model_file
+from scenarios import SAMPLES_PER_REV, first_critical_mass_loss
 
 from amb_plant_sim.rig import load_rig
 from amb_wavelet.node import stream_qos
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
-SPR = 32
-SCENARIO = {
-    "name": "restart",
-    "speed": {"role": "first_critical"},
-    "duration": 20.0,  # room for the new process to start while the plant runs on its watchdog
-    "samples_per_rev": SPR,
-    "measurement_noise": 2.0e-7,
-    "events": [
-        {"kind": "unbalance", "time": 0.0, "disk": "D1", "me": 0.5e-3, "angle": 0.0},
-        {"kind": "mass_loss", "time": 1.5, "disk": "D1", "me": 4.3e-3, "angle": 0.0},
-    ],
-}
+SPR = SAMPLES_PER_REV
+# room for the new process to start while the plant runs on its watchdog
+SCENARIO = first_critical_mass_loss(20.0)
 LIMIT = 0.5e-3  # m, thesis section 8.5.1
 
 
 def test_controller_killed_and_restarted_mid_run(ros, node_process, tmp_path) -> None:
-    scenario = tmp_path / "scenario.yaml"
-    scenario.write_text(yaml.safe_dump(SCENARIO))
-    model_run = subprocess.run(
-        [sys.executable, "-m", "amb_controller.sim_cli", "--scenario", str(scenario),
-         "--controller", "transient", "--model", "fe", "--duration", "0.3", "--no-bag",
-         "--out", str(tmp_path / "model")],
-        capture_output=True, text=True, timeout=300,
-    )  # fmt: skip
-    assert model_run.returncode == 0, model_run.stderr
-    model = tmp_path / "model" / "model.npz"
+    scenario, model = fe_model_file(SCENARIO, tmp_path)
     controller_params = {
         "samples_per_rev": SPR,
         "controller": "transient",

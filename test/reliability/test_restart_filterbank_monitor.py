@@ -22,8 +22,6 @@ from __future__ import annotations
 import json
 import math
 import signal
-import subprocess
-import sys
 import time
 
 import numpy as np
@@ -31,7 +29,8 @@ import pytest
 import yaml
 from amb_msgs.msg import ControllerStatus, FaultEvent, Measurement, WaveletCoefficients
 from amb_msgs.srv import InjectFault
-from reliability_helpers import Diagnostics
+from reliability_helpers import Diagnostics, fe_model_file
+from scenarios import SAMPLES_PER_REV, first_critical_mass_loss
 
 from amb_fault_monitor.event_log import EventLog
 from amb_fault_monitor.events import FaultEvent as CoreEvent
@@ -41,39 +40,13 @@ from amb_wavelet.node import stream_qos
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
-SPR = 32
+SPR = SAMPLES_PER_REV
 LIMIT = 0.5e-3  # m, thesis section 8.5.1
-UNBALANCE = {"kind": "unbalance", "time": 0.0, "disk": "D1", "me": 0.5e-3, "angle": 0.0}
-
-
-def _scenario(path, duration: float, mass_loss_time: float) -> None:
-    path.write_text(
-        yaml.safe_dump(
-            {
-                "name": "restart",
-                "speed": {"role": "first_critical"},
-                "duration": duration,
-                "samples_per_rev": SPR,
-                "measurement_noise": 2.0e-7,
-                "events": [
-                    UNBALANCE,
-                    {"kind": "mass_loss", "time": mass_loss_time, "disk": "D1", "me": 4.3e-3},
-                ],
-            }
-        )
-    )
 
 
 def test_filterbank_killed_and_restarted_mid_run(ros, node_process, tmp_path) -> None:
-    scenario = tmp_path / "scenario.yaml"
-    _scenario(scenario, duration=60.0, mass_loss_time=1.5)  # stopped once the checks are done
-    model_run = subprocess.run(
-        [sys.executable, "-m", "amb_controller.sim_cli", "--scenario", str(scenario),
-         "--controller", "transient", "--model", "fe", "--duration", "0.3", "--no-bag",
-         "--out", str(tmp_path / "model")],
-        capture_output=True, text=True, timeout=300,
-    )  # fmt: skip
-    assert model_run.returncode == 0, model_run.stderr
+    # 60 s: stopped once the checks are done
+    scenario, model = fe_model_file(first_critical_mass_loss(60.0, 1.5), tmp_path)
     node = ros.node("amb_test_fb_restart_observer")
     samples: list[Measurement] = []
     forced: list[int] = []  # indices of the samples with a wavelet force applied
@@ -110,7 +83,7 @@ def test_filterbank_killed_and_restarted_mid_run(ros, node_process, tmp_path) ->
         params={
             "samples_per_rev": SPR,
             "controller": "transient",
-            "model_file": str(tmp_path / "model" / "model.npz"),
+            "model_file": str(model),
             "start_mode": "active",
         },
     )
@@ -189,8 +162,8 @@ def test_filterbank_killed_and_restarted_mid_run(ros, node_process, tmp_path) ->
 def test_fault_monitor_killed_reloads_its_log_and_detects_after_restart(
     ros, node_process, tmp_path
 ) -> None:
-    scenario = tmp_path / "scenario.yaml"
-    _scenario(scenario, duration=300.0, mass_loss_time=4.0)  # stopped once the checks are done
+    scenario = tmp_path / "scenario.yaml"  # 300 s: stopped once the checks are done
+    scenario.write_text(yaml.safe_dump(first_critical_mass_loss(300.0, 4.0)))
     log = tmp_path / "events.jsonl"
     earlier = CoreEvent(
         FaultType.AUX_BEARING_CONTACT, 10, 10, 12, SPR, 60.0, bearing=1, count=3,

@@ -18,13 +18,11 @@ the end planes and 0.76 mm at the inner ones (x2, y2): 2.2-5.4 times PID alone.
 
 from __future__ import annotations
 
-import subprocess
-import sys
-
 import numpy as np
 import pytest
-import yaml
 from amb_msgs.msg import ControllerStatus, Measurement
+from reliability_helpers import fe_model_file
+from scenarios import SAMPLES_PER_REV, first_critical_mass_loss
 from throttle import Throttle
 
 from amb_controller.closed_loop import run_closed_loop
@@ -35,30 +33,12 @@ from amb_wavelet.node import stream_qos
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
-SPR = 32
-SCENARIO = {
-    "name": "starved_controller",
-    "speed": {"role": "first_critical"},
-    "duration": 12.0,
-    "samples_per_rev": SPR,
-    "measurement_noise": 2.0e-7,
-    "events": [
-        {"kind": "unbalance", "time": 0.0, "disk": "D1", "me": 0.5e-3, "angle": 0.0},
-        {"kind": "mass_loss", "time": 1.5, "disk": "D1", "me": 4.3e-3, "angle": 0.0},
-    ],
-}
+SPR = SAMPLES_PER_REV
+SCENARIO = first_critical_mass_loss(12.0, name="starved_controller")
 
 
 def test_a_starved_controller_does_not_wind_up(ros, node_process, tmp_path) -> None:
-    scenario = tmp_path / "scenario.yaml"
-    scenario.write_text(yaml.safe_dump(SCENARIO))
-    model_run = subprocess.run(
-        [sys.executable, "-m", "amb_controller.sim_cli", "--scenario", str(scenario),
-         "--controller", "transient", "--model", "fe", "--duration", "0.3", "--no-bag",
-         "--out", str(tmp_path / "model")],
-        capture_output=True, text=True, timeout=300,
-    )  # fmt: skip
-    assert model_run.returncode == 0, model_run.stderr
+    scenario, model = fe_model_file(SCENARIO, tmp_path)
     node = ros.node("amb_test_starved_observer")
     samples: list[Measurement] = []
     statuses: list[ControllerStatus] = []
@@ -72,7 +52,7 @@ def test_a_starved_controller_does_not_wind_up(ros, node_process, tmp_path) -> N
     controller = node_process(
         "wavelet_controller",
         params={"samples_per_rev": SPR, "controller": "transient", "start_mode": "active",
-                "model_file": str(tmp_path / "model" / "model.npz")},
+                "model_file": str(model)},
     )  # fmt: skip
     assert ros.spin_until(lambda: status_sub.get_publisher_count() >= 1, 60.0), controller.log()
     plant = node_process(

@@ -1,0 +1,42 @@
+"""Scenario mappings shared by tests (the rig itself stays in config/rig.yaml)."""
+
+from __future__ import annotations
+
+#: Samples per revolution of the shared scenarios.
+SAMPLES_PER_REV = 32
+
+
+def first_critical_mass_loss(
+    duration: float, mass_loss_time: float = 1.5, name: str = "restart"
+) -> dict:
+    """
+    430 g cm lost at D1 at the first critical speed (thesis section 8.5.3), 32 samples/rev.
+
+    Over a 50 g cm residual unbalance at D1, with 0.2 um probe noise: the lock-step scenario of
+    the restart, starvation and lost-command tests.
+
+    Parameters
+    ----------
+    duration : float
+        Simulated s.
+    mass_loss_time : float
+        Simulated s of the loss.
+    name : str
+        Scenario name.
+
+    Returns
+    -------
+    dict
+        For :func:`amb_plant_sim.scenario.scenario_from_dict` or a YAML file.
+    """
+    return {
+        "name": name,
+        "speed": {"role": "first_critical"},
+        "duration": duration,
+        "samples_per_rev": SAMPLES_PER_REV,
+        "measurement_noise": 2.0e-7,
+        "events": [
+            {"kind": "unbalance", "time": 0.0, "disk": "D1", "me": 0.5e-3, "angle": 0.0},
+            {"kind": "mass_loss", "time": mass_loss_time, "disk": "D1", "me": 4.3e-3, "angle": 0.0},
+        ],
+    }
