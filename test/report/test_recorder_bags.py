@@ -20,6 +20,7 @@ import pytest
 import yaml
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosbags.rosbag2 import Reader
+from scenarios import first_critical_mass_loss
 
 from amb_tools import report_cli
 from amb_tools.bag_read import read_bag
@@ -99,17 +100,7 @@ def test_bag_of_the_recorder_node_reads_like_the_original(
         assert (out / f"{name}.png").is_file(), name
 
 
-SCENARIO = {
-    "name": "report_amb_run",
-    "speed": {"role": "first_critical"},
-    "duration": 2.0,
-    "samples_per_rev": 32,
-    "measurement_noise": 2.0e-7,
-    "events": [
-        {"kind": "unbalance", "time": 0.0, "disk": "D1", "me": 0.5e-3, "angle": 0.0},
-        {"kind": "mass_loss", "time": 0.8, "disk": "D1", "me": 4.3e-3, "angle": 0.0},
-    ],
-}
+SCENARIO = first_critical_mass_loss(2.0, 0.8, name="report_amb_run")
 
 
 @pytest.mark.slow

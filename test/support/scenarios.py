@@ -12,8 +12,8 @@ def first_critical_mass_loss(
     """
     430 g cm lost at D1 at the first critical speed (thesis section 8.5.3), 32 samples/rev.
 
-    Over a 50 g cm residual unbalance at D1, with 0.2 um probe noise: the lock-step scenario of
-    the restart, starvation and lost-command tests.
+    Over a 50 g cm residual unbalance at D1, with 0.2 um probe noise: the scenario of the
+    restart, starvation, lost-command, drain, determinism and recorder-bag tests.
 
     Parameters
     ----------

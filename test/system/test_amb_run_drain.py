@@ -24,6 +24,7 @@ from pathlib import Path
 import pytest
 import yaml
 from rosbags.rosbag2 import Reader
+from scenarios import first_critical_mass_loss
 from throttle import Throttle
 
 from amb_tools.bag_types import typestore
@@ -32,17 +33,7 @@ pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
 #: Mass loss at 3.0 s: 16 revolutions of calibration and more before it (about 9.7 rev/s at
 #: the model's first critical speed), and the run ends 2 s (about 19 revolutions) after it.
-SCENARIO = {
-    "name": "drain",
-    "speed": {"role": "first_critical"},
-    "duration": 5.0,
-    "samples_per_rev": 32,
-    "measurement_noise": 2.0e-7,
-    "events": [
-        {"kind": "unbalance", "time": 0.0, "disk": "D1", "me": 0.5e-3, "angle": 0.0},
-        {"kind": "mass_loss", "time": 3.0, "disk": "D1", "me": 4.3e-3, "angle": 0.0},
-    ],
-}
+SCENARIO = first_critical_mass_loss(5.0, 3.0, name="drain")
 MASS_LOSS = 1  # amb_msgs/FaultEvent.MASS_LOSS
 
 

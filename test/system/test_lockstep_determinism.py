@@ -16,22 +16,13 @@ import pytest
 import yaml
 from msg_fill import diff, to_plain
 from rosbags.rosbag2 import Reader
+from scenarios import first_critical_mass_loss
 
 from amb_tools.bag_types import typestore
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
-SCENARIO = {
-    "name": "determinism",
-    "speed": {"role": "first_critical"},
-    "duration": 2.0,
-    "samples_per_rev": 32,
-    "measurement_noise": 2.0e-7,
-    "events": [
-        {"kind": "unbalance", "time": 0.0, "disk": "D1", "me": 0.5e-3, "angle": 0.0},
-        {"kind": "mass_loss", "time": 0.8, "disk": "D1", "me": 4.3e-3, "angle": 0.0},
-    ],
-}
+SCENARIO = first_critical_mass_loss(2.0, 0.8, name="determinism")
 COMPARED = ("/amb/measurement", "/amb/wavelet/coefficients", "/amb/control/command")
 
 
