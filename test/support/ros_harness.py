@@ -6,7 +6,12 @@
 - :class:`RosTestContext` is one rclpy ``Context`` with its own executor, for in-process nodes.
 - :class:`NodeProcess` starts a node executable as a separate process, as ``ros2 run`` would,
   with ``--ros-args --params-file``, and stops it with SIGINT or SIGTERM.
-- :func:`spin_until` spins an executor until a condition holds or a timeout passes.
+- :func:`spin_until` spins an executor until a condition holds or a timeout passes;
+  :meth:`RosTestContext.spin_until_progress` waits as long as a progress count keeps moving
+  (samples processed), so that a slow, loaded machine is waited for and a stalled node is not.
+
+Every node a test starts through the ``node_process`` fixture has its log attached to the
+test's report when the test fails or times out (``test/conftest.py``).
 """
 
 from __future__ import annotations
@@ -80,6 +85,46 @@ class RosTestContext:
     def spin_until(self, predicate: Callable[[], bool], timeout: float, step: float = 0.02) -> bool:
         """Spin until ``predicate()`` is true; return whether it became true in time."""
         return spin_until(self.executor, predicate, timeout, step)
+
+    def spin_until_progress(
+        self,
+        predicate: Callable[[], bool],
+        progress: Callable[[], object],
+        stall: float = 30.0,
+        limit: float = 900.0,
+    ) -> bool:
+        """
+        Spin until ``predicate()`` holds, for as long as ``progress()`` keeps changing.
+
+        Parameters
+        ----------
+        predicate : callable
+            The condition waited for.
+        progress : callable
+            A measure of the work done (samples received, a node's ``last_sample``); any
+            change of its value counts as progress.
+        stall : float
+            Give up after this many seconds without progress.
+        limit : float
+            Give up after this many seconds in all (a bound for a node that makes progress
+            for ever without reaching the condition).
+
+        Returns
+        -------
+        bool
+            Whether the condition held before the wait gave up.
+        """
+        start = time.monotonic()
+        seen, since = progress(), start
+        while not predicate():
+            now = time.monotonic()
+            value = progress()
+            if value != seen:
+                seen, since = value, now
+            elif now - since > stall or now - start > limit:
+                return False
+            self.executor.spin_once(timeout_sec=0.02)
+        return True
 
     def stream_writers(self, node, samples_per_rev: int, proc: NodeProcess):
         """
@@ -203,9 +248,26 @@ class NodeProcess:
         self._log.close()
         return self.proc.returncode
 
+    @property
+    def name(self) -> str:
+        """The executable's name (the log file's prefix)."""
+        return self.log_path.name.split("-", 1)[0]
+
     def wait(self, timeout: float) -> int:
-        """Wait for the process to exit by itself; return its status."""
-        code = self.proc.wait(timeout)
+        """
+        Wait for the process to exit by itself; return its status.
+
+        Raises
+        ------
+        TimeoutError
+            If it is still running after ``timeout`` s; the message ends with its log.
+        """
+        try:
+            code = self.proc.wait(timeout)
+        except subprocess.TimeoutExpired:
+            raise TimeoutError(
+                f"{self.name} did not exit within {timeout} s; its log:\n{self.log()[-6000:]}"
+            ) from None
         self._log.close()
         return code
 
