@@ -33,6 +33,8 @@ from amb_plant_sim.rotor import build_rotor
 
 AXES = ("b1x", "b1y", "b2x", "b2y")
 ISO_ZONE_LIMITS = ((3.0, "A"), (4.0, "B"), (5.0, "C"))
+#: An eigenvalue with |Im| below this fraction of |lambda| is real (see frequencies_vs_gain).
+REAL_REL = 1e-5
 
 
 def campbell(
@@ -104,8 +106,12 @@ def frequencies_vs_gain(
         g = replace(rig.pid, Kp=float(kp), KI=0.0, Kd=0.0)
         cl = build_closed_loop(rig, 0.0, rotor=rot, gains=g)
         lam = np.linalg.eigvals(cl.A)
-        n_real_unstable = int(np.sum((lam.real > 1e-6) & (np.abs(lam.imag) < 1e-6)))
-        freqs = np.sort(lam.imag[lam.imag > 1e-6]) / (2 * math.pi)
+        # Each unstable real eigenvalue is double (x and y planes): rounding splits the pair
+        # into two real values or a complex pair with |Im| ~ 1e-8 |lambda|; a vibration mode
+        # has Im of the order of |lambda|. The cut is relative for that reason.
+        real = np.abs(lam.imag) < REAL_REL * np.abs(lam)
+        n_real_unstable = int(np.sum((lam.real > 1e-6) & real))
+        freqs = np.sort(lam.imag[(lam.imag > 0) & ~real]) / (2 * math.pi)
         dedup: list[float] = []
         for f in freqs:
             if not dedup or abs(f - dedup[-1]) > 1e-6 * max(f, 1.0):

@@ -21,6 +21,11 @@ from amb_plant_sim.closed_loop import build_closed_loop, build_plant
 from amb_plant_sim.rig import Rig
 from amb_plant_sim.rotor import RotorModel, build_rotor
 
+#: Eigenvalues this close (relative) are one double eigenvalue. At zero speed the rig's x/y
+#: copies differ by rounding alone (1e-12 to 1e-10 of |lambda|); gyroscopic coupling splits
+#: them by 6e-6 of |lambda| already at 0.01 Hz running speed.
+DEGENERATE_REL = 1e-8
+
 
 @dataclass(frozen=True)
 class Mode:
@@ -91,13 +96,18 @@ def modes_from_matrix(
         & (zeta < max_damping_ratio)
     )
     out = []
+    kept = lam[keep]
     for k in np.flatnonzero(keep):
         v = V[:n_dof, k]
         xy = np.stack([v[0::4], v[1::4]], axis=1)
         fwd = float(np.sum(np.abs(xy[:, 0] + 1j * xy[:, 1]) ** 2))
         bwd = float(np.sum(np.abs(xy[:, 0] - 1j * xy[:, 1]) ** 2))
         tot = fwd + bwd
-        if tot == 0.0:
+        # A double eigenvalue (the x/y copies of an axisymmetric rotor at zero speed) has a
+        # two-dimensional eigenspace: any mix of its forward and backward circles is an
+        # eigenvector, and rounding picks the mix. It has no whirl direction.
+        degenerate = np.count_nonzero(np.abs(kept - lam[k]) <= DEGENERATE_REL * abs(lam[k])) > 1
+        if tot == 0.0 or degenerate:
             whirl = "planar"
         elif fwd > 0.99 * tot:
             whirl = "forward"

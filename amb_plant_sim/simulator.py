@@ -152,7 +152,6 @@ class PlantSimulator:
             [[2 * nd, 2 * nd + 1] for nd in self._clear_nodes], dtype=int
         ).ravel()
         self._cmats: dict[int, tuple] = {}
-        self._chunk_hint = 64
         self._clear_tags = [c.tag for c in clear]
         self._contact_pos = z0.position_rows(self._clear_nodes)
         self._contact_vel = z0.velocity_rows(self._clear_nodes)
@@ -194,6 +193,7 @@ class PlantSimulator:
         self._rng = np.random.default_rng(self.seed)
         self._inp_key = None
         self._inp: dict | None = None
+        self._chunk_hint = 64  # samples per linear chunk: a reset run repeats the first exactly
 
     def inject(self, event: Event | dict) -> Event:
         """

@@ -29,7 +29,9 @@ def test_sensitivity_equals_the_mimo_input_sensitivity(rig):
         P = plant.C_in @ np.linalg.solve(1j * w * np.eye(plant.n_states) - plant.A, plant.B_i)
         K = pid_frequency_response(rig.pid, np.array([w]))[0] / rig.amb.Ki  # A per m
         Si = np.linalg.inv(np.eye(4) + K * P)
-        np.testing.assert_allclose(S[k], np.diag(Si), rtol=1e-8)
+        # analysis works through the eigenvectors V of A: cond(V) ~ 1e8 gives ~2e-8 relative
+        # rounding error on another LAPACK (measured 4e-10 here); 1e-6 keeps 50x above it
+        np.testing.assert_allclose(S[k], np.diag(Si), rtol=1e-6)
 
 
 def test_iso_zones():
@@ -62,7 +64,8 @@ def test_singular_values_equal_a_direct_solve(rig):
     C = cl.output(cl.plant.C_s)
     for k, fk in enumerate(f):
         G = C @ np.linalg.solve(2j * math.pi * fk * np.eye(cl.A.shape[0]) - cl.A, cl.B_u)
-        np.testing.assert_allclose(sv[k], np.linalg.svd(G, compute_uv=False), rtol=1e-8)
+        # eigenvector route, cond(V) ~ 1e8: see the sensitivity test
+        np.testing.assert_allclose(sv[k], np.linalg.svd(G, compute_uv=False), rtol=1e-6)
     assert np.all(np.diff(sv, axis=1) <= 0)  # ordered
     # at DC the integrators cancel a static AMB force where it acts: no static compliance
     G0 = C @ np.linalg.solve(-cl.A, cl.B_u)

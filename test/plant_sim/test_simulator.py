@@ -89,7 +89,8 @@ def test_chunked_equals_batch_and_reset_repeats(rig):
     parts = [sim.advance(k, wf[a : a + k]) for a, k in ((0, 1), (1, 100), (101, 77), (178, 122))]
     for name in ("displacement", "current", "bearing_force", "time", "angle"):
         joined = np.concatenate([getattr(p, name) for p in parts])
-        np.testing.assert_allclose(joined, getattr(whole, name), rtol=1e-9, atol=1e-15)
+        ref = getattr(whole, name)
+        np.testing.assert_allclose(joined, ref, rtol=1e-9, atol=1e-12 * np.abs(ref).max())
     sim.reset()
     again = sim.advance(300, wf)
     np.testing.assert_array_equal(again.displacement, whole.displacement)
@@ -102,7 +103,14 @@ def test_mass_loss_changes_the_response_only_after_onset(rig):
     base = _sim(rig, [UNB], 20.0, 32).advance(640)
     lost = _sim(rig, [UNB, ml], 20.0, 32).advance(640)
     onset = int(np.ceil(0.25 * 640 - 1e-9))
-    np.testing.assert_array_equal(lost.displacement[: onset + 1], base.displacement[: onset + 1])
+    # the event cuts the run's linear chunks differently: matrix products over other row
+    # counts may differ in the last bit on some BLAS kernels, a leak of the loss would not
+    np.testing.assert_allclose(
+        lost.displacement[: onset + 1],
+        base.displacement[: onset + 1],
+        rtol=0,
+        atol=1e-12 * np.abs(base.displacement).max(),
+    )
     assert np.abs(lost.displacement[-32:]).max() > 3 * np.abs(base.displacement[-32:]).max()
     assert lost.truth["events_active"][onset, 1] and not lost.truth["events_active"][onset - 1, 1]
 

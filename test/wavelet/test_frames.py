@@ -31,7 +31,8 @@ def test_unbalance_force_is_constant_in_rotating_frame() -> None:
 def test_round_trip_and_single_sample(rng: np.random.Generator) -> None:
     xy = rng.standard_normal(8)
     uv = to_rotating_frame(xy, 0.3)
-    np.testing.assert_allclose(to_fixed_frame(uv, 0.3), xy, rtol=0, atol=1e-15)
+    # two rotations of values up to ~3: a few ulps of the largest (8.9e-16 seen on 2000 draws)
+    np.testing.assert_allclose(to_fixed_frame(uv, 0.3), xy, rtol=0, atol=1e-14 * np.abs(xy).max())
     np.testing.assert_allclose(to_rotating_frame(xy, 0.0), xy, rtol=0, atol=0)
     # quarter turn: u = y, v = -x
     np.testing.assert_allclose(to_rotating_frame([1.0, 2.0], np.pi / 2), [2.0, -1.0], atol=1e-15)
@@ -54,7 +55,8 @@ def test_circular_orbit_gives_zero_rotating_details(wavelet: str) -> None:
     for j in range(1, level + 1):
         skip = -(-((2**j - 1) * (L - 1)) // 2**j) + 1  # start-up coefficients
         d_rot = rotating.details[j - 1][skip:]
-        assert np.max(np.abs(d_rot)) < 1e-12 * radius
+        # rounding of angles up to 250 rad (ulp 3e-14) scaled by 2^(j/2): ~5e-13 radius at most
+        assert np.max(np.abs(d_rot)) < 1e-10 * radius
     # the same orbit is clearly visible at 1 x running speed in the fixed frame
     assert np.max(np.abs(fixed.details[4][4:])) > 0.5 * radius
 
