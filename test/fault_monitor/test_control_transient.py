@@ -107,6 +107,7 @@ def test_a_real_contact_is_still_found_with_the_force_fed(contact_case, wavelet)
     assert monitor.control_transients == 0
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("wavelet", ["haar", "db4"])
 def test_the_controllers_reaction_to_a_fault_does_not_excuse_it(wavelet):
     """A 50 N force stepped in at the start of the period after the loss's: still reported."""

@@ -101,6 +101,7 @@ STARTUP_CASES = [
 ]
 
 
+@pytest.mark.slow
 def test_invalid_start_up_values_exit_2_naming_parameter_value_and_range(
     node_process, bad_files
 ) -> None:
@@ -116,6 +117,7 @@ def test_invalid_start_up_values_exit_2_naming_parameter_value_and_range(
 
 
 # ---------------------------------------------------------------------------------- run time
+@pytest.mark.slow
 def test_run_time_changes_are_checked_kept_or_applied(ros, node_process) -> None:
     fm = node_process("fault_monitor", params={"samples_per_rev": SPR, "status_period": 0.1})
     node = ros.node("amb_test_fm_params")

@@ -110,6 +110,7 @@ def test_invalid_parameters_stop_the_node_with_a_reason(node_process, params, wo
     assert all(w in log for w in words), log
 
 
+@pytest.mark.slow
 def test_a_slow_filterbank_is_waited_for_while_its_coefficients_keep_coming(
     ros, node_process
 ) -> None:

@@ -82,6 +82,7 @@ def test_mass_loss_event_published_and_logged(ros, node_process, tmp_path) -> No
     assert json.loads(lines[0])["fault_type"] == "MASS_LOSS"
 
 
+@pytest.mark.slow
 def test_control_transient_is_counted_on_diagnostics_not_published(ros, node_process) -> None:
     """The soak's late command (late_command.py) with its wavelet force: a WARN, no event."""
     spr = late_command.SPR
@@ -134,6 +135,7 @@ def test_invalid_samples_per_rev_exits_with_configuration_error(node_process) ->
     assert "power of two" in fm.log()
 
 
+@pytest.mark.slow
 def test_1x_trip_error_and_black_box_bag(ros, node_process, tmp_path) -> None:
     """A 1 x orbit growing from 20 to 80 um trips at 50 um (ERROR) and leaves a black-box bag."""
     from rosbags.highlevel import AnyReader

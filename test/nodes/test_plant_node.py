@@ -121,7 +121,7 @@ def test_lockstep_applies_each_command_in_its_period(ros, node_process, tmp_path
         len(loop.samples),
         plant.log(),
     )
-    assert plant.wait(20) == 0, plant.log()
+    assert plant.wait(60) == 0
     idx = [m.sample_index for m in loop.samples]
     assert idx == list(range(10 * SPR))
     forces = {k: _force(k) for k in range(DELAY, 10)}
@@ -134,23 +134,27 @@ def test_lockstep_applies_each_command_in_its_period(ros, node_process, tmp_path
     assert "rejected 1" in plant.log()  # the NaN command of period 5
 
 
+@pytest.mark.slow
 def test_missing_command_times_out_to_zero_force(ros, node_process, tmp_path) -> None:
     loop = _Loop(ros, skip={4})
-    plant = _start_plant(node_process, tmp_path, command_timeout=0.3)
+    # 2 s: the test's own answers, slowed by a loaded machine, must not be missed; the skipped
+    # period costs those 2 s once
+    plant = _start_plant(node_process, tmp_path, command_timeout=2.0)
     assert ros.spin_until(lambda: len(loop.samples) == 10 * SPR, 60.0), plant.log()
-    assert plant.wait(20) == 0, plant.log()
+    assert plant.wait(60) == 0
     period4 = loop.samples[4 * SPR : 5 * SPR]
     assert all(m.status & Measurement.STATUS_COMMAND_MISSING for m in period4)
     assert all(not np.any(m.wavelet_force) for m in period4)
-    assert "missing 1" in plant.log()
+    assert "missing 1," in plant.log()
 
 
+@pytest.mark.slow
 def test_realtime_publishes_each_sample_at_its_instant(ros, node_process, tmp_path) -> None:
     """A rig does not send a period's samples in one burst: they leave at the sample rate."""
     loop = _Loop(ros)
     plant = _start_plant(node_process, tmp_path, mode="realtime")
     assert ros.spin_until(lambda: len(loop.samples) == 10 * SPR, 60.0), plant.log()
-    assert plant.wait(20) == 0, plant.log()
+    assert plant.wait(60) == 0
     assert [m.sample_index for m in loop.samples] == list(range(10 * SPR))
     fs = SPR * SCENARIO["speed"]["hz"]
     arrivals = np.array(loop.arrivals).reshape(10, SPR)

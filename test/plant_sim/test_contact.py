@@ -68,6 +68,7 @@ def test_penalty_impact_matches_closed_form(rig):
     assert delta_max == pytest.approx(v0 * math.sqrt(m / params.penalty_stiffness), rel=1e-4)
 
 
+@pytest.mark.slow
 def test_contact_damping_dissipates_energy(rig):
     params = dataclasses.replace(rig.contact, friction=0.0)
     assert params.damping > 0.0

@@ -29,7 +29,7 @@ from amb_wavelet.analysis import AnalysisFilterbank
 from amb_wavelet.frontend import FRAMES, QUADRATURES, ChannelFrontEnd
 from amb_wavelet.node import FRAME_CODES, QUAD_CODES, stream_qos
 
-pytestmark = pytest.mark.ros
+pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
 SPR = 16
 HZ = 20.0

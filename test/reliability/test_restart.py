@@ -68,12 +68,16 @@ def test_controller_killed_and_restarted_mid_run(ros, node_process, tmp_path) ->
                 "command_timeout": 0.5, "wait_for_subscribers": 3},
     )  # fmt: skip
     # let the controller act on the fault, then kill it
-    assert ros.spin_until(lambda: len(samples) >= 30 * SPR, 120.0), plant.log()
+    assert ros.spin_until_progress(lambda: len(samples) >= 30 * SPR, lambda: len(samples)), (
+        plant.log()
+    )
     assert any(s.mode == ControllerStatus.MODE_ACTIVE for s in statuses), first.log()
     first.proc.send_signal(signal.SIGKILL)
     assert ros.spin_until(lambda: first.returncode is not None, 10.0)
     killed_at = len(samples)
-    assert ros.spin_until(lambda: len(samples) >= killed_at + 10 * SPR, 120.0), plant.log()
+    assert ros.spin_until_progress(
+        lambda: len(samples) >= killed_at + 10 * SPR, lambda: len(samples)
+    ), plant.log()
     n_status = len(statuses)
     second = node_process("wavelet_controller", params=controller_params)
     assert ros.spin_until(
@@ -83,7 +87,9 @@ def test_controller_killed_and_restarted_mid_run(ros, node_process, tmp_path) ->
         ),
         120.0,
     ), second.log()
-    assert ros.spin_until(lambda: plant.returncode is not None, 240.0), plant.log()
+    assert ros.spin_until_progress(lambda: plant.returncode is not None, lambda: len(samples)), (
+        plant.log()
+    )
     assert plant.returncode == 0, plant.log()
     ros.spin_for(0.5)
 

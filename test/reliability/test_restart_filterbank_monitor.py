@@ -116,9 +116,9 @@ def test_filterbank_killed_and_restarted_mid_run(ros, node_process, tmp_path) ->
         if len(coefficients) != quiet[0]:
             quiet = (len(coefficients), time.monotonic())
     last_old = coefficients[-1]
-    assert ros.spin_until(
-        lambda: samples and samples[-1].sample_index >= last_old + 6 * SPR + 2, 120.0
-    ), plant.log()
+    assert ros.spin_until_progress(
+        lambda: samples and samples[-1].sample_index >= last_old + 6 * SPR + 2, lambda: len(samples)
+    )
     second = node_process("wavelet_filterbank", params={"samples_per_rev": SPR})
     assert ros.spin_until(lambda: jumps, 120.0), second.log()
     last_before, resumed = jumps[0]
@@ -128,7 +128,7 @@ def test_filterbank_killed_and_restarted_mid_run(ros, node_process, tmp_path) ->
     )
     # ten more revolutions under control, then stop the run
     end = len(samples) + 10 * SPR
-    assert ros.spin_until(lambda: len(samples) >= end, 120.0), plant.log()
+    assert ros.spin_until_progress(lambda: len(samples) >= end, lambda: len(samples)), plant.log()
     plant.stop()
     ros.spin_for(0.3)
 

@@ -10,6 +10,7 @@ traceback ended the process with exit code 1.
 
 from __future__ import annotations
 
+import pytest
 from ros_harness import configuration_refusals
 
 CASES = [
@@ -22,6 +23,7 @@ CASES = [
 ]
 
 
+@pytest.mark.slow
 def test_descriptor_and_type_refusals_exit_2_with_the_parameter_and_value(node_process) -> None:
     """All cases start at once (start-up dominates the wall time), then are checked."""
     cases = [(f"{n} {p}", node_process(n, params=p), w) for n, p, w in CASES]

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 import yaml
@@ -12,7 +14,7 @@ from reliability_helpers import Diagnostics, get_parameter, set_parameters
 from amb_tools.conversions import to_float_array
 from amb_wavelet.node import stream_qos
 
-pytestmark = pytest.mark.ros
+pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
 SPR = 16
 DELAY = 2
@@ -41,7 +43,8 @@ def test_dead_controller_trips_the_watchdog_and_lockstep_resumes(ros, node_proce
             "scenario_file": str(scenario),
             "samples_per_rev": SPR,
             "delay_periods": DELAY,
-            "command_timeout": 0.3,
+            # a loaded machine's slow answers must not trip it; the silent periods must
+            "command_timeout": 2.0,
             "status_period": 0.1,
         },
     )
@@ -72,24 +75,30 @@ def test_dead_controller_trips_the_watchdog_and_lockstep_resumes(ros, node_proce
         ),
         60.0,
     ), plant.log()
-    assert plant.wait(30) == 0, plant.log()
+    assert plant.wait(60) == 0
+    log = plant.log()
+    # While the controller is lost the plant waits one period of real time for each command:
+    # the first answer after the silence (for period 9, sent when period 7 is measured) makes
+    # it unless the test process is slower than that (a loaded machine), then the next one does.
+    resumed = re.search(r"commands resumed with period (\d+)", log)
+    assert resumed and max(SILENT) < int(resumed[1]) <= max(SILENT) + 3, log
+    late = set(range(max(SILENT) + 1, int(resumed[1])))
     by_period = [samples[k * SPR : (k + 1) * SPR] for k in range(PERIODS)]
     for k, period in enumerate(by_period):
         wf = np.array([m.wavelet_force for m in period])
         flags = [m.status for m in period]
-        if k in SILENT:
+        if k in SILENT | late:
             assert not wf.any(), k  # zero wavelet force in the first silent period already
             assert all(f & Measurement.STATUS_COMMAND_MISSING for f in flags), k
-            # the watchdog flag until the first new command (for period 9) arrives during 7
-            if k < max(SILENT):
+            # the watchdog flag until the first new command arrives (during 7 for period 9)
+            if k < max(SILENT) + len(late):
                 assert all(f & Measurement.STATUS_WATCHDOG for f in flags), k
         elif k >= DELAY:
             np.testing.assert_array_equal(wf, force)  # commands applied again after it
             assert not any(f & Measurement.STATUS_WATCHDOG for f in flags), k
     assert "True" in lost_seen, "the watchdog was not reported on /diagnostics"
-    log = plant.log()
-    assert "controller lost" in log and "commands resumed with period 9" in log, log
-    assert "missing 4" in log and "watchdog_trips 1" in log, log
+    assert "controller lost" in log, log
+    assert f"missing {len(SILENT | late)}," in log and "watchdog_trips 1" in log, log
     assert np.max(np.abs([m.displacement for m in samples])) < 0.5e-3  # on PID throughout
 
 

@@ -47,6 +47,7 @@ def _same_metrics(a: dict, b: dict, skip=("bag",)) -> None:
             assert a[key] == b[key], key
 
 
+@pytest.mark.slow
 def test_bag_of_the_recorder_node_reads_like_the_original(
     ros, node_process, sim_wavelet, tmp_path
 ) -> None:

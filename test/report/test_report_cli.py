@@ -53,6 +53,7 @@ def _assert_same_metrics(ours: dict, ref: dict) -> None:
         assert ours["controller"][key] == ref["controller"][key], key
 
 
+@pytest.mark.slow
 def test_every_figure_is_written_and_linked(report) -> None:
     md = (report / "report.md").read_text()
     for name in FIGURES:

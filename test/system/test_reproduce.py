@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import pytest
 import yaml
 
 from amb_tools.reproduce import main
@@ -19,6 +20,7 @@ SCENARIO = {
 }
 
 
+@pytest.mark.slow
 def test_reproduce_runs_checks_and_writes_the_index(tmp_path) -> None:
     scenario = tmp_path / "scenario.yaml"
     scenario.write_text(yaml.safe_dump(SCENARIO))
