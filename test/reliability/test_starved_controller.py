@@ -2,7 +2,7 @@
 
 Lock-step run of the mass loss at the first critical speed with the real plant, filterbank and
 controller (transient, ACTIVE from a model file) over DDS. Once the controller has converged, its
-process is starved for 4 s (it runs 5 ms in every 250 ms, SIGSTOP / SIGCONT), as on a machine
+process is starved for 4 s (it runs 5 ms in every second, SIGSTOP / SIGCONT), as on a machine
 whose CPU is taken by other jobs. The plant's watchdog takes the rotor to its PID and runs on at
 the real-time pace; the commands the controller still makes reach it after their period has
 started, and those periods run with zero wavelet force, flagged ``STATUS_COMMAND_MISSING``. The
@@ -11,9 +11,8 @@ otherwise its integrators wind up while the rotor sits on its PID, and the first
 gets through throws it beyond the PID-only response (the failure of a loaded CI run of
 ``test_restart.py``: 0.76 mm at x2). Reference: the same scenario on PID alone (in process).
 
-Measured: 36-38 periods without a command; peaks 0.998-1.026 times the PID-only ones per
-plane. With the controller blind to the flag (the old node) this run gave 0.91 / 0.92 mm at
-the end planes and 0.76 mm at the inner ones (x2, y2): 2.2-5.4 times PID alone.
+With the controller blind to the flag (the old node) a starvation of this kind gave 0.91 /
+0.92 mm at the end planes and 0.76 mm at the inner ones (x2, y2): 2.2-5.4 times PID alone.
 """
 
 from __future__ import annotations
@@ -56,7 +55,8 @@ def test_a_starved_controller_does_not_wind_up(ros, node_process, tmp_path) -> N
     )  # fmt: skip
     assert ros.spin_until(lambda: status_sub.get_publisher_count() >= 1, 60.0), controller.log()
     # command_timeout: long enough that a controller slowed by a loaded machine (its first
-    # command took over 0.1 s under a CPU hog) is waited for; only the starvation trips it.
+    # command took over 0.1 s under a CPU hog) is waited for; the starvation below (5 ms of
+    # CPU a second: a period takes it more than that) is far longer, whatever the machine.
     plant = node_process(
         "plant_sim",
         params={"scenario_file": str(scenario), "samples_per_rev": SPR,
@@ -64,9 +64,8 @@ def test_a_starved_controller_does_not_wind_up(ros, node_process, tmp_path) -> N
     )  # fmt: skip
     received = lambda: len(samples)  # noqa: E731
     assert ros.spin_until_progress(lambda: len(samples) >= 35 * SPR, received, stall=60.0)
-    early = [m.sample_index for m in samples if m.status & Measurement.STATUS_COMMAND_MISSING]
     starved_from = len(samples)
-    throttle = Throttle(controller.proc.pid, on=0.005, period=0.25)
+    throttle = Throttle(controller.proc.pid, on=0.005, period=1.0)
     throttle.start()
     try:
         ros.spin_for(4.0)
@@ -79,7 +78,8 @@ def test_a_starved_controller_does_not_wind_up(ros, node_process, tmp_path) -> N
 
     assert [m.sample_index for m in samples] == list(range(len(samples)))
     missing = [m.sample_index for m in samples if m.status & Measurement.STATUS_COMMAND_MISSING]
-    assert not early, f"commands missing before the starvation, from sample {early[0]}"
+    # (a loaded machine may cost commands before the starvation too: the plant's watchdog at
+    # work, which the controller must survive just the same)
     assert any(i >= starved_from - SPR for i in missing), "the starving cost commands"
     last_missing = max(missing)
     assert last_missing < len(samples) - 10 * SPR, "lock step resumed before the end"
