@@ -91,6 +91,7 @@ def test_one_command_per_period_and_mode_services(ros, node_process) -> None:
     assert not bad.accepted
 
 
+@pytest.mark.slow  # one process start-up per case (start-up refusals)
 @pytest.mark.parametrize(
     ("params", "words"),
     [

@@ -192,6 +192,7 @@ def test_fault_injection_service(ros, node_process, tmp_path) -> None:
     assert not worse.accepted
 
 
+@pytest.mark.slow  # one process start-up per case (start-up refusals)
 @pytest.mark.parametrize(
     ("params", "words"),
     [
