@@ -91,7 +91,6 @@ from amb_msgs.srv import SetControllerMode, StartIdentification
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
 from rclpy.node import Node
-from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from amb_controller.errors import ControllerValueError
 from amb_controller.pipeline import ControllerConfig, ControllerPipeline
@@ -111,12 +110,9 @@ from amb_tools.conversions import (
 )
 from amb_tools.node_main import ConfigurationError, run_node
 from amb_tools.paths import config_file
+from amb_tools.streams import COMMAND_QOS, FRAME_CODES, QUAD_CODES, stream_qos
 from amb_wavelet.frontend import FRAMES, QUADRATURES, ChannelFrontEnd
-from amb_wavelet.node import FRAME_CODES, QUAD_CODES, stream_qos
 
-COMMAND_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST, depth=16, reliability=ReliabilityPolicy.RELIABLE
-)
 START_MODES = ("off", "active", "identify")
 #: Controller parameters that may change at run time (applied at a period boundary).
 TUNABLES = ("w", "v", "rate", "gain", "force_limit")

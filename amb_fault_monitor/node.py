@@ -99,8 +99,8 @@ from amb_tools.conversions import (
     stamp_seconds,
 )
 from amb_tools.node_main import ConfigurationError, descriptor, run_node
+from amb_tools.streams import stream_qos
 from amb_wavelet.levels import revolution_level
-from amb_wavelet.node import stream_qos
 
 KIND = {CoefficientSetMsg.KIND_DETAIL: "detail", CoefficientSetMsg.KIND_APPROXIMATION: "approx"}
 FRAME = {CoefficientSetMsg.FRAME_FIXED: "fixed", CoefficientSetMsg.FRAME_ROTATING: "rotating"}

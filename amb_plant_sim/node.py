@@ -73,7 +73,6 @@ from rcl_interfaces.msg import (
 )
 from rclpy.duration import Duration
 from rclpy.node import Node
-from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 
 from amb_plant_sim.errors import RigError, ScenarioError, SimulationError
@@ -90,16 +89,13 @@ from amb_tools.conversions import (
 )
 from amb_tools.node_main import ConfigurationError, descriptor, run_node
 from amb_tools.paths import config_file
-from amb_wavelet.node import stream_qos
+from amb_tools.streams import COMMAND_QOS, stream_qos
 
 MODES = ("lockstep", "realtime")
 #: Commands may target at most this many periods beyond ``next period + delay_periods``.
 COMMAND_HORIZON_PERIODS = 16
 #: Parameters settable at run time (applied at the next period boundary).
 RUNTIME_PARAMETERS = ("command_timeout", "wavelet_force_limit", "time_scale", "status_period")
-COMMAND_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST, depth=16, reliability=ReliabilityPolicy.RELIABLE
-)
 
 
 class PlantSimNode(Node):

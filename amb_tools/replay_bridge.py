@@ -39,7 +39,7 @@ from rosbags.rosbag2 import Reader
 
 from amb_tools.conversions import NUM_AXES, from_float_array, stamp_seconds
 from amb_tools.node_main import ConfigurationError, descriptor, run_node
-from amb_wavelet.node import stream_qos
+from amb_tools.streams import stream_qos
 
 COMMAND_QOS_DEPTH = 16
 

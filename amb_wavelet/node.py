@@ -29,13 +29,12 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from amb_msgs.msg import CoefficientSet, Measurement, WaveletCoefficients
+from amb_msgs.msg import Measurement, WaveletCoefficients
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rcl_interfaces.msg import (
     SetParametersResult,
 )
 from rclpy.node import Node
-from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from amb_tools.cdr import MeasurementView, read_measurement
 from amb_tools.conversions import (
@@ -46,23 +45,12 @@ from amb_tools.conversions import (
     stamp_seconds,
 )
 from amb_tools.node_main import ConfigurationError, descriptor, run_node
+from amb_tools.streams import FRAME_CODES, QUAD_CODES, stream_qos
 from amb_wavelet.analysis import AnalysisFilterbank
 from amb_wavelet.errors import LevelError, WaveletNameError
 from amb_wavelet.filters import get_filters
 from amb_wavelet.frontend import FRAMES, QUADRATURES, ChannelFrontEnd
 from amb_wavelet.levels import check_level, revolution_level
-
-FRAME_CODES = {"fixed": CoefficientSet.FRAME_FIXED, "rotating": CoefficientSet.FRAME_ROTATING}
-QUAD_CODES = {"even": CoefficientSet.QUADRATURE_EVEN, "odd": CoefficientSet.QUADRATURE_ODD}
-
-
-def stream_qos(samples_per_period: int) -> QoSProfile:
-    """Reliable, several periods deep: the lock-step loop needs every sample (never dropped)."""
-    return QoSProfile(
-        history=HistoryPolicy.KEEP_LAST,
-        depth=max(1024, 8 * samples_per_period),
-        reliability=ReliabilityPolicy.RELIABLE,
-    )
 
 
 class WaveletFilterbankNode(Node):

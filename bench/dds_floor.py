@@ -48,7 +48,7 @@ def role_publisher(args) -> dict:
     from amb_msgs.msg import Measurement
     from rclpy.serialization import serialize_message
 
-    from amb_wavelet.node import stream_qos
+    from amb_tools.streams import stream_qos
 
     rclpy.init()
     node = rclpy.create_node("floor_pub")
@@ -82,7 +82,7 @@ def role_subscriber(args) -> dict:
     import rclpy
     from amb_msgs.msg import Measurement
 
-    from amb_wavelet.node import stream_qos
+    from amb_tools.streams import stream_qos
 
     rclpy.init()
     node = rclpy.create_node(f"floor_sub_{os.getpid()}")
@@ -114,7 +114,7 @@ def role_ping(args) -> dict:
     import rclpy
     from amb_msgs.msg import Measurement
 
-    from amb_wavelet.node import stream_qos
+    from amb_tools.streams import stream_qos
 
     rclpy.init()
     node = rclpy.create_node(f"floor_{args.role}")

@@ -88,9 +88,9 @@ def test_coefficients_bytes_deserialise_to_the_message_coefficients_msg_builds(w
     from amb_msgs.msg import Measurement, WaveletCoefficients
     from rclpy.serialization import deserialize_message
 
+    from amb_tools.streams import FRAME_CODES, QUAD_CODES
     from amb_wavelet.analysis import AnalysisFilterbank
     from amb_wavelet.frontend import ChannelFrontEnd
-    from amb_wavelet.node import FRAME_CODES, QUAD_CODES
 
     rng = np.random.default_rng(10)
     front = ChannelFrontEnd(32)

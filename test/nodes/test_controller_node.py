@@ -6,20 +6,16 @@ import numpy as np
 import pytest
 from amb_msgs.msg import ControlCommand, ControllerStatus, Measurement
 from amb_msgs.srv import SetControllerMode, StartIdentification
-from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from amb_tools.conversions import coefficients_msg
+from amb_tools.streams import COMMAND_QOS, FRAME_CODES, QUAD_CODES
 from amb_wavelet.analysis import AnalysisFilterbank
 from amb_wavelet.frontend import FRAMES, QUADRATURES, ChannelFrontEnd
-from amb_wavelet.node import FRAME_CODES, QUAD_CODES
 
 pytestmark = pytest.mark.ros
 
 SPR = 16
 DELAY = 2
-COMMAND_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST, depth=16, reliability=ReliabilityPolicy.RELIABLE
-)
 
 
 def _stream(n_periods: int, skip_coefficients_of: int | None = None):

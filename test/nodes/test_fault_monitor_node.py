@@ -11,7 +11,7 @@ import pytest
 from amb_msgs.msg import FaultEvent, Measurement
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 
-from amb_wavelet.node import stream_qos
+from amb_tools.streams import stream_qos
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "fault_monitor"))
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "reliability"))

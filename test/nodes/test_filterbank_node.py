@@ -11,7 +11,7 @@ import pywt
 from amb_msgs.msg import CoefficientSet, Measurement, WaveletCoefficients
 from diagnostic_msgs.msg import DiagnosticArray
 
-from amb_wavelet.node import stream_qos
+from amb_tools.streams import stream_qos
 
 pytestmark = pytest.mark.ros
 
@@ -124,9 +124,9 @@ def test_a_gap_resets_the_filterbank_at_the_new_index(ros, node_process) -> None
 def test_records_rebuilt_from_messages_equal_the_core(ros, node_process) -> None:
     """What a consumer rebuilds from the messages is what the filterbank core computed."""
     from amb_tools.conversions import coefficient_records
+    from amb_tools.streams import FRAME_CODES, QUAD_CODES
     from amb_wavelet.analysis import AnalysisFilterbank
     from amb_wavelet.frontend import ChannelFrontEnd
-    from amb_wavelet.node import FRAME_CODES, QUAD_CODES
 
     rng = np.random.default_rng(5)
     n = 4 * SPR

@@ -14,13 +14,12 @@ import yaml
 from amb_msgs.msg import ControlCommand, Measurement
 from amb_msgs.srv import InjectFault
 from diagnostic_msgs.msg import DiagnosticArray
-from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from amb_plant_sim.rig import load_rig
 from amb_plant_sim.scenario import scenario_from_dict
 from amb_plant_sim.simulator import PlantSimulator
 from amb_tools.conversions import to_float_array
-from amb_wavelet.node import stream_qos
+from amb_tools.streams import COMMAND_QOS, stream_qos
 
 pytestmark = pytest.mark.ros
 
@@ -36,9 +35,6 @@ SCENARIO = {
         {"kind": "mass_loss", "time": 0.2, "disk": "D1", "me": 4.3e-3, "angle": 1.0},
     ],
 }
-COMMAND_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST, depth=16, reliability=ReliabilityPolicy.RELIABLE
-)
 
 
 def _force(period: int) -> np.ndarray:

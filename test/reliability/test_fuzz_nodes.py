@@ -19,24 +19,20 @@ import yaml
 from amb_msgs.msg import ControlCommand, Measurement, WaveletCoefficients
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import serialize_message
 from reliability_helpers import Diagnostics
 
 from amb_plant_sim.rig import load_rig
 from amb_tools.conversions import coefficients_msg, from_float_array, to_float_array
+from amb_tools.streams import COMMAND_QOS, FRAME_CODES, QUAD_CODES, stream_qos
 from amb_wavelet.analysis import AnalysisFilterbank
 from amb_wavelet.frontend import FRAMES, QUADRATURES, ChannelFrontEnd
-from amb_wavelet.node import FRAME_CODES, QUAD_CODES, stream_qos
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
 SPR = 16
 HZ = 20.0
 OMEGA = 2 * math.pi * HZ
-COMMAND_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST, depth=16, reliability=ReliabilityPolicy.RELIABLE
-)
 EXAMPLES = 25
 FUZZ = settings(
     max_examples=EXAMPLES,

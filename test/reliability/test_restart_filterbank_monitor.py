@@ -36,7 +36,7 @@ from amb_fault_monitor.event_log import EventLog
 from amb_fault_monitor.events import FaultEvent as CoreEvent
 from amb_fault_monitor.events import FaultType
 from amb_plant_sim.rig import load_rig
-from amb_wavelet.node import stream_qos
+from amb_tools.streams import stream_qos
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 

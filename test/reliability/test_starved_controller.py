@@ -28,7 +28,7 @@ from amb_controller.closed_loop import run_closed_loop
 from amb_controller.pipeline import ControllerConfig
 from amb_plant_sim.rig import load_rig
 from amb_plant_sim.scenario import load_scenario
-from amb_wavelet.node import stream_qos
+from amb_tools.streams import stream_qos
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 

@@ -8,11 +8,10 @@ import numpy as np
 import pytest
 import yaml
 from amb_msgs.msg import ControlCommand, Measurement
-from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from reliability_helpers import Diagnostics, get_parameter, set_parameters
 
 from amb_tools.conversions import to_float_array
-from amb_wavelet.node import stream_qos
+from amb_tools.streams import COMMAND_QOS, stream_qos
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
@@ -20,9 +19,6 @@ SPR = 16
 DELAY = 2
 PERIODS = 16
 SILENT = set(range(5, 9))  # the test controller does not answer for these target periods
-COMMAND_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST, depth=16, reliability=ReliabilityPolicy.RELIABLE
-)
 
 
 def test_dead_controller_trips_the_watchdog_and_lockstep_resumes(ros, node_process, tmp_path):

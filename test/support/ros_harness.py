@@ -136,7 +136,7 @@ class RosTestContext:
         """
         from amb_msgs.msg import Measurement, WaveletCoefficients
 
-        from amb_wavelet.node import stream_qos
+        from amb_tools.streams import stream_qos
 
         qos = stream_qos(samples_per_rev)
         pm = node.create_publisher(Measurement, "/amb/measurement", qos)
