@@ -47,16 +47,31 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 import numpy as np
 
 from amb_fault_monitor.events import FaultType
 
-if TYPE_CHECKING:
-    from amb_fault_monitor.monitor import MonitorConfig
+__all__ = [
+    "PLANE_BEARING",
+    "ClassifierThresholds",
+    "Decision",
+    "EpisodeEvidence",
+    "bearing_of_plane",
+    "classify",
+]
 
-__all__ = ["Decision", "EpisodeEvidence", "classify"]
+
+class ClassifierThresholds(Protocol):
+    """The thresholds :func:`classify` reads (``MonitorConfig`` has them; its docstring says
+    what each means)."""
+
+    isolation: float
+    base_coherence: float
+    base_dominance: float
+    confirm_ratio: float
+    sync_change: float
 
 
 @dataclass
@@ -132,6 +147,16 @@ class Decision:
     description: str = ""
 
 
+#: Clearance bearing (1-based, ``rig.yaml`` order: AB1, AB2, R1, R2) nearest each sensor plane
+#: (S1..S4) along the shaft; test/fault_monitor checks it against ``config/rig.yaml``.
+PLANE_BEARING = {1: 3, 2: 1, 3: 2, 4: 4}
+
+
+def bearing_of_plane(plane: int) -> int:
+    """Clearance bearing nearest a sensor plane (``PLANE_BEARING``; 0 for no plane)."""
+    return PLANE_BEARING.get(plane, 0)
+
+
 def _confidence(ratio: float) -> float:
     return float(min(max(1.0 - math.exp(-(ratio - 1.0)), 0.0), 1.0))
 
@@ -140,14 +165,15 @@ def _levels_crossed(ev: EpisodeEvidence, frame: str) -> list[int]:
     return sorted({j for (j, f), r in ev.max_ratio.items() if f == frame and r.max() > 1.0})
 
 
-def classify(ev: EpisodeEvidence, config: MonitorConfig) -> Decision:
+def classify(ev: EpisodeEvidence, config: ClassifierThresholds) -> Decision:
     """
     Classify an episode (rules in the module docstring).
 
     Parameters
     ----------
     ev : EpisodeEvidence
-    config : MonitorConfig
+    config : ClassifierThresholds
+        A :class:`~amb_fault_monitor.monitor.MonitorConfig`, or anything with its thresholds.
         Uses ``isolation``, ``base_coherence``, ``base_dominance``, ``sync_change`` and
         ``confirm_ratio``.
 
@@ -245,12 +271,10 @@ def classify(ev: EpisodeEvidence, config: MonitorConfig) -> Decision:
         plane = int(np.argmax(both)) + 1
         count = max(1, len([b for b in ev.bursts if min(b[2], b[3]) > 1.0]))
         r = float(min(above_fixed.max(), above_rot.max()))
-        from amb_fault_monitor.monitor import _bearing_of_plane
-
         return Decision(
             FaultType.AUX_BEARING_CONTACT,
             plane=plane,
-            bearing=_bearing_of_plane(plane),
+            bearing=bearing_of_plane(plane),
             severity=0.0,
             confidence=_confidence(r),
             count=count,

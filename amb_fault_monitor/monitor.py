@@ -125,7 +125,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from amb_fault_monitor.calibration import robust_threshold
-from amb_fault_monitor.classifier import EpisodeEvidence, classify
+from amb_fault_monitor.classifier import EpisodeEvidence, bearing_of_plane, classify
 from amb_fault_monitor.errors import FaultMonitorError, RecordError
 from amb_fault_monitor.events import FaultEvent, FaultType
 from amb_fault_monitor.records import N_SENSORS, SampleCoefficients
@@ -1073,7 +1073,7 @@ class FaultMonitor:
                 samples_per_rev=self.config.samples_per_rev,
                 omega=self._omega,
                 plane=plane,
-                bearing=_bearing_of_plane(plane),
+                bearing=bearing_of_plane(plane),
                 confidence=float(min(max(1.0 - math.exp(-(r - 1.0)), 0.0), 1.0)),
                 count=ep.tail_contacts,
                 evidence={
@@ -1207,11 +1207,6 @@ def _window_median(hist: deque, n: int, spr: int, value: float) -> float:
     older = [h[1] for h in hist if h[0] <= n - spr // 8]
     hist.append((n, value))
     return float(np.median(older)) if len(older) >= 2 else math.inf
-
-
-def _bearing_of_plane(plane: int) -> int:
-    """Clearance bearing nearest a sensor plane: 2 -> AB1 (1), 3 -> AB2 (2), 1 -> 3, 4 -> 4."""
-    return {1: 3, 2: 1, 3: 2, 4: 4}.get(plane, 0)
 
 
 def with_levels(config: MonitorConfig, levels: tuple[int, ...]) -> MonitorConfig:

@@ -10,10 +10,12 @@ import numpy as np
 import pytest
 from synthetic import OMEGA, SPR, make_run, run_monitor
 
+from amb_fault_monitor.classifier import bearing_of_plane
 from amb_fault_monitor.errors import FaultMonitorError, RecordError
 from amb_fault_monitor.events import FaultType
 from amb_fault_monitor.monitor import FaultMonitor, MonitorConfig
 from amb_fault_monitor.records import CoefficientSet, SampleCoefficients
+from amb_plant_sim.rig import load_rig
 from amb_wavelet.filters import get_filters
 from amb_wavelet.levels import support_length
 
@@ -116,3 +118,14 @@ def test_config_errors(kwargs, match):
     args = {"samples_per_rev": SPR, **kwargs}
     with pytest.raises(FaultMonitorError, match=match):
         MonitorConfig(**args)
+
+
+def test_plane_bearing_map_is_the_rigs_nearest_clearance_bearing():
+    """PLANE_BEARING names, per sensor plane, the clearance bearing nearest it in rig.yaml."""
+    rig = load_rig()
+    for plane, s in enumerate(rig.sensor_planes, start=1):
+        nearest = min(
+            range(len(rig.clearance_bearings)), key=lambda b: abs(rig.clearance_bearings[b].z - s.z)
+        )
+        assert bearing_of_plane(plane) == nearest + 1, (plane, s.z)
+    assert bearing_of_plane(0) == 0
