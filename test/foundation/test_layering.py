@@ -1,0 +1,122 @@
+"""The imports run one way: vocabulary < cores < ROS glue < applications (issue 15).
+
+The layers and the rules are in ``test/support/layering.py``. ``KNOWN`` lists the imports that
+still break them today, each with what has to move: the test fails on any other violation
+(a new upward, cross-core or node-to-node import, rclpy in a core, an import cycle) and on a
+listed one that is gone (take it off the list: the ratchet only turns one way).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from layering import Violation, layer_of, module_imports, violations
+
+ROOT = Path(__file__).resolve().parents[2]
+
+#: Violations still in the code, and what must move to end each.
+KNOWN = {
+    Violation(
+        "amb_controller.baselines",
+        "amb_plant_sim.closed_loop",
+        "a core imports another part's core",
+    ): "the baselines' model from the FE plant belongs to the in-process loop (application)",
+    Violation(
+        "amb_controller.baselines",
+        "amb_plant_sim.simulator",
+        "a core imports another part's core",
+    ): "the baselines' simulated identification run belongs to the application layer",
+    Violation(
+        "amb_controller.multilevel",
+        "amb_controller.closed_loop",
+        "upward: core imports application",
+    ): "level_models runs the FE route or a simulated identification: an application",
+}
+
+
+def test_imports_keep_the_layers() -> None:
+    found = set(violations(module_imports(ROOT)))
+    new = sorted(found - KNOWN.keys())
+    gone = sorted(KNOWN.keys() - found)
+    assert not new, "imports against the layering:\n" + "\n".join(map(str, new))
+    assert not gone, "fixed, take them off KNOWN:\n" + "\n".join(map(str, gone))
+
+
+def _write(root: Path, files: dict[str, str]) -> None:
+    for name, text in files.items():
+        path = root / name
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(text)
+
+
+@pytest.mark.parametrize(
+    ("files", "expected"),
+    [
+        (  # rclpy in a core, even inside a function
+            {"amb_wavelet/analysis.py": "def f():\n    import rclpy.node\n"},
+            Violation("amb_wavelet.analysis", "rclpy", "rclpy in the core layer"),
+        ),
+        (  # a core importing a node
+            {
+                "amb_wavelet/node.py": "",
+                "amb_wavelet/levels.py": "from amb_wavelet.node import stream_qos\n",
+            },
+            Violation("amb_wavelet.levels", "amb_wavelet.node", "upward: core imports ros"),
+        ),
+        (  # one node importing another part's node
+            {"amb_wavelet/node.py": "", "amb_plant_sim/node.py": "from amb_wavelet import node\n"},
+            Violation(
+                "amb_plant_sim.node", "amb_wavelet.node", "a node imports another part's node"
+            ),
+        ),
+        (  # a core importing another part's core (other than the wavelet core)
+            {
+                "amb_plant_sim/simulator.py": "",
+                "amb_controller/guard.py": "import amb_plant_sim.simulator\n",
+            },
+            Violation(
+                "amb_controller.guard",
+                "amb_plant_sim.simulator",
+                "a core imports another part's core",
+            ),
+        ),
+        (  # a cycle hidden in a function, through a relative import
+            {
+                "amb_fault_monitor/monitor.py": "from .classifier import classify\n",
+                "amb_fault_monitor/classifier.py": "def f():\n    from . import monitor\n",
+            },
+            Violation(
+                "amb_fault_monitor.classifier",
+                "amb_fault_monitor.monitor",
+                "import cycle among amb_fault_monitor.classifier, amb_fault_monitor.monitor",
+            ),
+        ),
+    ],
+)
+def test_a_planted_violation_is_caught(tmp_path: Path, files: dict, expected: Violation) -> None:
+    _write(tmp_path, files)
+    assert violations(module_imports(tmp_path)) == [expected]
+
+
+def test_allowed_imports_pass(tmp_path: Path) -> None:
+    """Each layer may use its own and those below; the other cores may use the wavelet core."""
+    _write(
+        tmp_path,
+        {
+            "amb_plant_sim/rig.py": "",
+            "amb_wavelet/synthesis.py": "from amb_plant_sim.rig import load_rig\n",
+            "amb_controller/transient.py": "from amb_wavelet.synthesis import x\n",
+            "amb_controller/node.py": "import rclpy\nfrom amb_controller import transient\n",
+            "amb_tools/run_cli.py": "import amb_controller.node\n",
+        },
+    )
+    assert violations(module_imports(tmp_path)) == []
+    assert [layer_of(m) for m in ("amb_plant_sim.rig", "amb_wavelet.synthesis")] == [
+        "vocabulary",
+        "core",
+    ]
+    assert [layer_of(m) for m in ("amb_controller.node", "amb_tools.run_cli")] == [
+        "ros",
+        "application",
+    ]
