@@ -18,4 +18,8 @@ synthesis         coefficients -> force samples, per-axis force limit
 guard             divergence guard
 supervisor        OFF / IDENTIFYING / ACTIVE / HOLD mode logic for the node
 model_file        identified model .npz
+
+Applications above the core (they run the plant model): ``closed_loop`` (the in-process loop),
+``plant_models`` (baselines' and per-level models from the simulated rig), the ``*_cli``
+commands, ``acceptability``, ``acceptance``.
 """

@@ -32,17 +32,17 @@ per window of ``window`` periods from the window mean ``Y_j``::
 
     U_{j+1} = U_j - a (T^H T + R)^-1 T^H Y_j                                    (B.1)
 
-with ``T`` the steady-state influence coefficients (complex, sensors x axes) identified
-by trial injections (:func:`influence_by_trials`: each axis in turn driven with a known
-1 x force, the change of the steady 1 x response measured), ``a`` the convergence gain
-(``ControllerConfig.gain``) and ``R = rho ||T||_F^2 / n_u I``. On a plant ``Y = T_p U + D``
-the update error obeys ``E_{j+1} = (I - a (T^H T + R)^-1 T^H T_p) E_j``: it converges iff
-that matrix has spectral radius < 1 (with ``T = T_p``, ``R = 0``: ``|1 - a| < 1``, one
-update cancels a steady disturbance at ``a = 1``). ``R`` only shapes the step: the fixed
-point is ``T^H Y = 0`` (the least-squares cancelling force) whatever ``rho``; it is NOT the
-control-effort penalty of a weighted least-squares cost ``Y^H Y + U^H R U`` (whose recursive
-form adds ``R U_j`` inside the bracket and leaves a residual), which is the version Dyer et
-al. [4]_ recommend for robustness. Both facts are tested (``test/beyond/test_baselines.py``).
+with ``T`` the steady-state influence coefficients (complex, sensors x axes) identified by trial
+injections (:func:`~amb_controller.plant_models.influence_by_trials`: each axis in turn driven
+with a known 1 x force, the change of the steady 1 x response measured), ``a`` the convergence
+gain (``ControllerConfig.gain``) and ``R = rho ||T||_F^2 / n_u I``. On a plant ``Y = T_p U + D``
+the update error obeys ``E_{j+1} = (I - a (T^H T + R)^-1 T^H T_p) E_j``: it converges iff that
+matrix has spectral radius < 1 (with ``T = T_p``, ``R = 0``: ``|1 - a| < 1``, one update cancels
+a steady disturbance at ``a = 1``). ``R`` only shapes the step: the fixed point is ``T^H Y = 0``
+(the least-squares cancelling force) whatever ``rho``; it is NOT the control-effort penalty of a
+weighted least-squares cost ``Y^H Y + U^H R U`` (whose recursive form adds ``R U_j`` inside the
+bracket and leaves a residual), which is the version Dyer et al. [4]_ recommend for robustness.
+Both facts are tested (``test/beyond/test_baselines.py``).
 
 What eq. B.1 rests on, and what could not be checked
 ~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~
@@ -74,8 +74,8 @@ prescribed closed-loop decay ``alpha(z)`` of a step disturbance::
 which is the thesis's eq. 8.10 (with eq. 8.1, ``U = -L Q``) with the Haar coefficients
 replaced by the 1 x Fourier ones. It is realised with
 :class:`~amb_controller.transient.TransientController` on the Markov parameters of ``G_h``
-(:func:`harmonic_model`, exact sampled projection of the FE model's PID closed loop,
-:func:`~amb_controller.wavelet_dynamics.wavelet_markov`).
+(:func:`~amb_controller.plant_models.harmonic_model`, exact sampled projection of the FE
+model's PID closed loop, :func:`~amb_controller.wavelet_dynamics.wavelet_markov`).
 
 What eq. B.2 rests on, and what could not be checked: the thesis's own account of [3]
 (section 8.1): "a multi-state transient controller evaluated from sampled harmonics ...
@@ -129,8 +129,7 @@ __all__ = [
     "complex_from_real",
     "fourier_control_basis",
     "fourier_measurement_basis",
-    "harmonic_model",
-    "influence_by_trials",
+    "fourier_model",
     "perturb_model",
     "real_from_complex",
 ]
@@ -153,7 +152,8 @@ class BaselineSettings:
         Relative step weight ``R = rho ||T||_F^2 / n_u I`` of eq. B.1, >= 0 (shapes the
         update direction; does not change its fixed point, module docstring).
     trial_force : float
-        Amplitude of the 1 x trial force per axis in N for :func:`influence_by_trials`.
+        Amplitude of the 1 x trial force per axis in N for
+        :func:`~amb_controller.plant_models.influence_by_trials`.
     trial_settle : int
         Periods waited after each trial change before averaging.
     trial_average : int
@@ -288,42 +288,29 @@ def real_gain(complex_t: np.ndarray) -> np.ndarray:
 # ---------------------------------------------------------------------------------------------
 
 
-def harmonic_model(rig, omega: float, config, n_terms: int = 60) -> WaveletModel:
+def fourier_model(markov, config, omega, source, cb, mb) -> WaveletModel:
     """
-    Sampled-harmonic model ``G_h`` of the FE PID closed loop (Markov parameters, eq. B.2).
+    The baselines' model: Fourier-basis Markov series ``markov`` with its least-squares inverse.
 
     Parameters
     ----------
-    rig : amb_plant_sim.rig.Rig
-        Rig description.
-    omega : float
-        Running speed in rad/s.
+    markov : numpy.ndarray
+        (K, n_y, n_u) Markov parameters in the bases ``mb`` (measured) and ``cb`` (control).
     config : ControllerConfig
-        ``samples_per_rev``, ``sensors``, ``inverse_order``, ``inverse_regularisation``,
-        ``delay_periods`` are used.
-    n_terms : int
-        Markov parameters kept (periods).
+        ``period_samples``, ``inverse_order``, ``inverse_regularisation``, ``delay_periods``.
+    omega : float
+        Running speed, rad/s.
+    source : str
+        How the series was obtained (``fe-harmonic``, ``trial-injection``).
+    cb, mb : BasisSet
+        Control and measurement bases (:func:`fourier_control_basis`,
+        :func:`fourier_measurement_basis`).
 
     Returns
     -------
     WaveletModel
-        ``wavelet = "fourier"``, ``source = "fe-harmonic"``; Fourier labels.
-
+        ``wavelet = "fourier"``.
     """
-    from amb_controller.wavelet_dynamics import wavelet_markov
-    from amb_plant_sim.closed_loop import build_closed_loop
-
-    cl = build_closed_loop(rig, omega)
-    n = config.period_samples
-    cb = fourier_control_basis(n)
-    mb = fourier_measurement_basis(n, config.sensors)
-    markov = wavelet_markov(
-        cl.A, cl.B_u, cl.output(cl.plant.C_s), 2 * math.pi / omega, cb, mb, n_terms
-    )
-    return _model(markov, config, omega, "fe-harmonic", cb, mb)
-
-
-def _model(markov, config, omega, source, cb, mb) -> WaveletModel:
     inverse = pseudo_inverse_series(
         markov, config.inverse_order, regularisation=config.inverse_regularisation
     )
@@ -340,73 +327,6 @@ def _model(markov, config, omega, source, cb, mb) -> WaveletModel:
         control_labels=cb.labels,
         measured_labels=mb.labels,
     )
-
-
-def influence_by_trials(
-    rig, scenario, config, settings: BaselineSettings | None = None, seed: int = 0
-) -> WaveletModel:
-    """
-    Identify the steady 1 x influence coefficients ``T`` by trial injections (eq. B.1).
-
-    The simulated rig runs PID only at the scenario speed with the scenario's residual
-    unbalance (every other event dropped). After ``trial_settle`` periods the 1 x response
-    is averaged over ``trial_average`` periods (reference); then each axis in turn carries a
-    cosine force of ``trial_force`` N (the others none) and the averaged response change,
-    divided by the trial's complex coefficient, is the column of ``T`` (the sine injection
-    is redundant for a linear time-invariant plant). Noise averages down as
-    ``1/sqrt(trial_average N)``.
-
-    Parameters
-    ----------
-    rig : amb_plant_sim.rig.Rig
-    scenario : amb_plant_sim.scenario.Scenario
-        Resolved scenario.
-    config : ControllerConfig
-        ``samples_per_rev``, ``sensors``, ``delay_periods``.
-    settings : BaselineSettings, optional
-    seed : int
-        Measurement-noise seed.
-
-    Returns
-    -------
-    WaveletModel
-        One Markov term: ``markov[0]`` is the real block form of ``T``
-        (``source = "trial-injection"``); ``inverse`` its least-squares inverse.
-
-    """
-    from amb_plant_sim.simulator import PlantSimulator
-
-    s = settings or BaselineSettings()
-    quiet = replace(
-        scenario, events=tuple(e for e in scenario.events if e.kind == "unbalance"), duration=1e6
-    )
-    n = config.period_samples
-    plant = PlantSimulator(rig, quiet, config.samples_per_rev, seed)
-    cb = fourier_control_basis(n)
-    mb = fourier_measurement_basis(n, config.sensors)
-    weights = mb.weights  # (n_y, 8, N)
-
-    def response(force: np.ndarray) -> np.ndarray:
-        for _ in range(s.trial_settle):
-            plant.advance(n, force)
-        acc = np.zeros(mb.n_coefficients)
-        for _ in range(s.trial_average):
-            block = plant.advance(n, force)
-            acc += np.einsum("icn,nc->i", weights, block.displacement)
-        return complex_from_real(acc / s.trial_average)
-
-    reference = response(np.zeros((n, N_AXES)))
-    u = s.trial_force * math.sqrt(n / 2.0)  # cos coefficient of a trial_force N sinusoid
-    columns = []
-    for axis in range(N_AXES):
-        coeffs = np.zeros(cb.n_coefficients)
-        coeffs[axis] = u
-        force = np.einsum("i,icn->nc", coeffs, cb.weights)
-        columns.append((response(force) - reference) / u)  # U = u (real cos) -> complex u
-    t = np.stack(columns, axis=1)
-    markov = real_gain(t)[None]
-    return _model(markov, replace(config, inverse_order=0), 2 * math.pi * scenario.speed_hz,
-                  "trial-injection", cb, mb)  # fmt: skip
 
 
 def perturb_model(
@@ -606,8 +526,9 @@ class HarmonicPipeline:
     capacity : float
         Bearing capacity in N.
     model : WaveletModel
-        :func:`harmonic_model` (harmonic) or :func:`influence_by_trials` /
-        :func:`harmonic_model` (synchronous: its steady-state gain is used).
+        From :mod:`amb_controller.plant_models`: ``harmonic_model`` (harmonic), or
+        ``influence_by_trials`` / ``harmonic_model`` (synchronous: its steady-state gain is
+        used).
     settings : BaselineSettings, optional
 
     """

@@ -261,8 +261,8 @@ class Matrix:
 
     def model(self, spec: Spec, scenario, config, speed_hz: float | None = None):
         """Return (and cache) the model of ``spec`` identified at ``speed_hz``."""
-        from amb_controller.baselines import harmonic_model, influence_by_trials
         from amb_controller.closed_loop import fe_model
+        from amb_controller.plant_models import harmonic_model, influence_by_trials
 
         if spec.model == "none":
             return None

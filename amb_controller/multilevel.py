@@ -53,7 +53,6 @@ that the supervisor's anti-windup hold and the pipeline's reset act on all level
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -70,7 +69,6 @@ __all__ = [
     "MultiLevelController",
     "block_diagonal_model",
     "level_indices",
-    "level_models",
 ]
 
 
@@ -166,7 +164,7 @@ class MultiLevelController:
                 raise ShapeError(
                     f"level {p}: inverse of shape {inv.shape} expected (K+1, {iu.size}, "
                     f"{iy.size}) (control x measured coefficients of that level); build it "
-                    "from the level's own model (level_models)"
+                    "from the level's own model (plant_models.level_models)"
                 )
             self._parts.append((iy, iu, TransientController(inv, responses[p], delay)))
             covered_y += iy.tolist()
@@ -205,7 +203,7 @@ class MultiLevelController:
             if tuple(m.levels) != (int(p),):
                 raise ControllerValueError(
                     f"model given for level {p} covers levels {tuple(m.levels)}: give each "
-                    "level its own single-level model (level_models)"
+                    "level its own single-level model (plant_models.level_models)"
                 )
         alphas = {
             p: (r.response() if isinstance(r, LevelResponse) else r) for p, r in responses.items()
@@ -333,48 +331,4 @@ def block_diagonal_model(model: WaveletModel, inverse_order: int, regularisation
             control_labels=tuple(model.control_labels[i] for i in iu),
             measured_labels=tuple(model.measured_labels[i] for i in iy),
         )
-    return out
-
-
-def level_models(rig, omega: float, config, route: str = "fe", scenario=None,
-                 seed: int = 0) -> dict[int, WaveletModel]:  # fmt: skip
-    """
-    Return each configured level's own model, obtained with that level alone.
-
-    Parameters
-    ----------
-    rig : amb_plant_sim.rig.Rig
-    omega : float
-        Running speed in rad/s.
-    config : ControllerConfig
-        Levels, wavelet, samples per period, sensors, inverse order.
-    route : str
-        ``fe`` (chapter-6 route, :func:`amb_controller.closed_loop.fe_model` with
-        ``levels = (p,)``) or ``identify`` (section 6.4 step identification on the
-        simulated rig with only level p stepped, :func:`~amb_controller.closed_loop.
-        identify_model`; needs ``scenario``).
-    scenario : amb_plant_sim.scenario.Scenario, optional
-        For ``identify``: speed, unbalance and noise of the identification run.
-    seed : int
-        Noise seed of the identification.
-
-    Returns
-    -------
-    dict of int to WaveletModel
-
-    """
-    from amb_controller.closed_loop import fe_model, identify_model
-
-    if route not in ("fe", "identify"):
-        raise ControllerValueError(f"route must be 'fe' or 'identify', got {route!r}")
-    if route == "identify" and scenario is None:
-        raise ControllerValueError("route 'identify' needs the scenario to identify on")
-    out = {}
-    for p in config.levels:
-        cfg = replace(config, levels=(int(p),))
-        if route == "fe":
-            out[int(p)] = fe_model(rig, omega, cfg)
-        else:
-            sc = replace(scenario, speed_hz=omega / (2 * math.pi))
-            out[int(p)] = identify_model(rig, sc, cfg, seed=seed)
     return out

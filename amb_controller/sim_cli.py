@@ -145,11 +145,8 @@ def run(args) -> dict:
     source = "none"
     baseline = None
     if config.controller in ("synchronous", "harmonic"):
-        from amb_controller.baselines import (
-            BaselineSettings,
-            harmonic_model,
-            influence_by_trials,
-        )
+        from amb_controller.baselines import BaselineSettings
+        from amb_controller.plant_models import harmonic_model, influence_by_trials
 
         baseline = BaselineSettings(window=args.window)
         if args.model == "fe":

@@ -21,14 +21,13 @@ from amb_controller.baselines import (
     complex_gain,
     fourier_control_basis,
     fourier_measurement_basis,
-    harmonic_model,
-    influence_by_trials,
     real_from_complex,
     real_gain,
 )
 from amb_controller.errors import ControllerValueError
 from amb_controller.inverse import dc_gain
 from amb_controller.pipeline import ConfigError, ControllerConfig, ControllerPipeline
+from amb_controller.plant_models import harmonic_model, influence_by_trials
 
 N = 32
 

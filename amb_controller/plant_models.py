@@ -1,0 +1,173 @@
+"""
+Controller models built from the simulated rig (application layer).
+
+These run the plant model, so they sit above the controller core: the baselines' models
+(:mod:`amb_controller.baselines`), the sampled-harmonic one from the FE model's PID closed
+loop and the influence coefficients from trial injections on the simulated rig, and the
+multilevel controller's per-level models (:mod:`amb_controller.multilevel`) from the chapter-6
+FE route or a simulated identification (section 6.4).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+
+from amb_controller.baselines import (
+    N_AXES,
+    BaselineSettings,
+    complex_from_real,
+    fourier_control_basis,
+    fourier_measurement_basis,
+    fourier_model,
+    real_gain,
+)
+from amb_controller.closed_loop import fe_model, identify_model
+from amb_controller.errors import ControllerValueError
+from amb_controller.model_file import WaveletModel
+from amb_controller.wavelet_dynamics import wavelet_markov
+from amb_plant_sim.closed_loop import build_closed_loop
+from amb_plant_sim.simulator import PlantSimulator
+
+__all__ = ["harmonic_model", "influence_by_trials", "level_models"]
+
+
+def harmonic_model(rig, omega: float, config, n_terms: int = 60) -> WaveletModel:
+    """
+    Sampled-harmonic model ``G_h`` of the FE PID closed loop (Markov parameters, eq. B.2).
+
+    Parameters
+    ----------
+    rig : amb_plant_sim.rig.Rig
+        Rig description.
+    omega : float
+        Running speed in rad/s.
+    config : ControllerConfig
+        ``samples_per_rev``, ``sensors``, ``inverse_order``, ``inverse_regularisation``,
+        ``delay_periods`` are used.
+    n_terms : int
+        Markov parameters kept (periods).
+
+    Returns
+    -------
+    WaveletModel
+        ``wavelet = "fourier"``, ``source = "fe-harmonic"``; Fourier labels.
+
+    """
+    cl = build_closed_loop(rig, omega)
+    n = config.period_samples
+    cb = fourier_control_basis(n)
+    mb = fourier_measurement_basis(n, config.sensors)
+    markov = wavelet_markov(
+        cl.A, cl.B_u, cl.output(cl.plant.C_s), 2 * math.pi / omega, cb, mb, n_terms
+    )
+    return fourier_model(markov, config, omega, "fe-harmonic", cb, mb)
+
+
+def influence_by_trials(
+    rig, scenario, config, settings: BaselineSettings | None = None, seed: int = 0
+) -> WaveletModel:
+    """
+    Identify the steady 1 x influence coefficients ``T`` by trial injections (eq. B.1).
+
+    The simulated rig runs PID only at the scenario speed with the scenario's residual
+    unbalance (every other event dropped). After ``trial_settle`` periods the 1 x response
+    is averaged over ``trial_average`` periods (reference); then each axis in turn carries a
+    cosine force of ``trial_force`` N (the others none) and the averaged response change,
+    divided by the trial's complex coefficient, is the column of ``T`` (the sine injection
+    is redundant for a linear time-invariant plant). Noise averages down as
+    ``1/sqrt(trial_average N)``.
+
+    Parameters
+    ----------
+    rig : amb_plant_sim.rig.Rig
+    scenario : amb_plant_sim.scenario.Scenario
+        Resolved scenario.
+    config : ControllerConfig
+        ``samples_per_rev``, ``sensors``, ``delay_periods``.
+    settings : BaselineSettings, optional
+    seed : int
+        Measurement-noise seed.
+
+    Returns
+    -------
+    WaveletModel
+        One Markov term: ``markov[0]`` is the real block form of ``T``
+        (``source = "trial-injection"``); ``inverse`` its least-squares inverse.
+
+    """
+    s = settings or BaselineSettings()
+    quiet = replace(
+        scenario, events=tuple(e for e in scenario.events if e.kind == "unbalance"), duration=1e6
+    )
+    n = config.period_samples
+    plant = PlantSimulator(rig, quiet, config.samples_per_rev, seed)
+    cb = fourier_control_basis(n)
+    mb = fourier_measurement_basis(n, config.sensors)
+    weights = mb.weights  # (n_y, 8, N)
+
+    def response(force: np.ndarray) -> np.ndarray:
+        for _ in range(s.trial_settle):
+            plant.advance(n, force)
+        acc = np.zeros(mb.n_coefficients)
+        for _ in range(s.trial_average):
+            block = plant.advance(n, force)
+            acc += np.einsum("icn,nc->i", weights, block.displacement)
+        return complex_from_real(acc / s.trial_average)
+
+    reference = response(np.zeros((n, N_AXES)))
+    u = s.trial_force * math.sqrt(n / 2.0)  # cos coefficient of a trial_force N sinusoid
+    columns = []
+    for axis in range(N_AXES):
+        coeffs = np.zeros(cb.n_coefficients)
+        coeffs[axis] = u
+        force = np.einsum("i,icn->nc", coeffs, cb.weights)
+        columns.append((response(force) - reference) / u)  # U = u (real cos) -> complex u
+    t = np.stack(columns, axis=1)
+    markov = real_gain(t)[None]
+    return fourier_model(markov, replace(config, inverse_order=0), 2 * math.pi * scenario.speed_hz,
+                  "trial-injection", cb, mb)  # fmt: skip
+
+
+def level_models(rig, omega: float, config, route: str = "fe", scenario=None,
+                 seed: int = 0) -> dict[int, WaveletModel]:  # fmt: skip
+    """
+    Return each configured level's own model, obtained with that level alone.
+
+    Parameters
+    ----------
+    rig : amb_plant_sim.rig.Rig
+    omega : float
+        Running speed in rad/s.
+    config : ControllerConfig
+        Levels, wavelet, samples per period, sensors, inverse order.
+    route : str
+        ``fe`` (chapter-6 route, :func:`amb_controller.closed_loop.fe_model` with
+        ``levels = (p,)``) or ``identify`` (section 6.4 step identification on the
+        simulated rig with only level p stepped, :func:`~amb_controller.closed_loop.
+        identify_model`; needs ``scenario``).
+    scenario : amb_plant_sim.scenario.Scenario, optional
+        For ``identify``: speed, unbalance and noise of the identification run.
+    seed : int
+        Noise seed of the identification.
+
+    Returns
+    -------
+    dict of int to WaveletModel
+
+    """
+    if route not in ("fe", "identify"):
+        raise ControllerValueError(f"route must be 'fe' or 'identify', got {route!r}")
+    if route == "identify" and scenario is None:
+        raise ControllerValueError("route 'identify' needs the scenario to identify on")
+    out = {}
+    for p in config.levels:
+        cfg = replace(config, levels=(int(p),))
+        if route == "fe":
+            out[int(p)] = fe_model(rig, omega, cfg)
+        else:
+            sc = replace(scenario, speed_hz=omega / (2 * math.pi))
+            out[int(p)] = identify_model(rig, sc, cfg, seed=seed)
+    return out
