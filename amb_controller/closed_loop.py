@@ -56,6 +56,7 @@ from amb_controller.pipeline import (
 )
 from amb_controller.supervisor import Command, Mode
 from amb_controller.wavelet_dynamics import wavelet_markov
+from amb_tools import topics
 from amb_wavelet.analysis import AnalysisFilterbank
 from amb_wavelet.frontend import FRAMES, QUADRATURES, ChannelFrontEnd
 
@@ -501,13 +502,7 @@ class BagRecorder:
 
     """
 
-    TOPICS: ClassVar[dict[str, str]] = {
-        "/amb/measurement": "amb_msgs/msg/Measurement",
-        "/amb/wavelet/coefficients": "amb_msgs/msg/WaveletCoefficients",
-        "/amb/control/command": "amb_msgs/msg/ControlCommand",
-        "/amb/control/status": "amb_msgs/msg/ControllerStatus",
-        "/amb/fault/events": "amb_msgs/msg/FaultEvent",
-    }
+    TOPICS: ClassVar[dict[str, str]] = topics.STREAM_TYPES
 
     def __init__(self, path: str | Path, config: ControllerConfig, force_limit: float) -> None:
         from amb_msgs.msg import CoefficientSet
@@ -535,7 +530,7 @@ class BagRecorder:
 
         msgs = measurement_msgs(block, force, 0, self.config.samples_per_rev, self.force_limit)
         for m in msgs:
-            self._write("/amb/measurement", m)
+            self._write(topics.MEASUREMENT, m)
         return msgs
 
     def coefficients(self, measurement, sample_index: int, omega: float, records) -> None:
@@ -547,7 +542,7 @@ class BagRecorder:
             measurement.header, cfg.wavelet, cfg.samples_per_rev, cfg.period_samples,
             sample_index, omega, records, self.slots,
         )  # fmt: skip
-        self._write("/amb/wavelet/coefficients", msg)
+        self._write(topics.COEFFICIENTS, msg)
 
     def command(self, command: Command, header, pipeline: ControllerPipeline) -> None:
         """Write a ``ControlCommand`` and the ``ControllerStatus`` after it."""
@@ -555,13 +550,13 @@ class BagRecorder:
 
         cfg = self.config
         self._write(
-            "/amb/control/command",
+            topics.COMMAND,
             command_msg(
                 command, header, pipeline.control.labels, cfg.period_samples,
                 cfg.delay_periods, cfg.wavelet,
             ),
         )  # fmt: skip
-        self._write("/amb/control/status", controller_status_msg(pipeline.status(), header))
+        self._write(topics.STATUS, controller_status_msg(pipeline.status(), header))
 
     def fault_event(self, event: dict, stamp) -> None:
         """Write a ``FaultEvent`` (fields of :class:`amb_fault_monitor.events.FaultEvent`)."""
@@ -585,7 +580,7 @@ class BagRecorder:
         msg.evidence = [KeyValue(key=str(k), value=str(v)) for k, v in event["evidence"].items()]
         msg.description = str(event.get("description", ""))
         msg.detection_stamp = stamp
-        self._write("/amb/fault/events", msg)
+        self._write(topics.FAULT_EVENTS, msg)
 
     def close(self) -> None:
         """Finish the bag."""

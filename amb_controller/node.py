@@ -98,6 +98,7 @@ from amb_controller.supervisor import Mode
 from amb_controller.synthesis import ForceLimiter
 from amb_plant_sim.errors import RigError
 from amb_plant_sim.rig import load_rig
+from amb_tools import topics
 from amb_tools.cdr import CoefficientsView, MeasurementView, read_coefficients, read_measurement
 from amb_tools.conversions import (
     MessageError,
@@ -236,20 +237,18 @@ class WaveletControllerNode(Node):
         )
         self._configure()
         qos = stream_qos(self._pipe.samples_per_period)
-        self._cmd_pub = self.create_publisher(ControlCommand, "/amb/control/command", COMMAND_QOS)
-        self._status_pub = self.create_publisher(ControllerStatus, "/amb/control/status", 10)
+        self._cmd_pub = self.create_publisher(ControlCommand, topics.COMMAND, COMMAND_QOS)
+        self._status_pub = self.create_publisher(ControllerStatus, topics.STATUS, 10)
         self.create_subscription(
-            Measurement, "/amb/measurement", self._on_measurement, qos, raw=True
+            Measurement, topics.MEASUREMENT, self._on_measurement, qos, raw=True
         )
         self.create_subscription(
-            WaveletCoefficients, "/amb/wavelet/coefficients", self._on_coefficients, qos, raw=True
+            WaveletCoefficients, topics.COEFFICIENTS, self._on_coefficients, qos, raw=True
         )
-        self.create_subscription(FaultEvent, "/amb/fault/events", self._on_fault, 10)
-        self.create_service(SetControllerMode, "/amb/control/set_mode", self._on_set_mode)
-        self.create_service(
-            StartIdentification, "/amb/control/start_identification", self._on_identify
-        )
-        self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        self.create_subscription(FaultEvent, topics.FAULT_EVENTS, self._on_fault, 10)
+        self.create_service(SetControllerMode, topics.SET_MODE, self._on_set_mode)
+        self.create_service(StartIdentification, topics.START_IDENTIFICATION, self._on_identify)
+        self._diag_pub = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS, 10)
         self._pending: deque[tuple[MeasurementView, float]] = deque()  # (message, wall s)
         self._coefficients: dict[int, CoefficientsView] = {}
         self._sequencer = SampleSequencer(self._pipe.config.samples_per_rev)

@@ -88,6 +88,7 @@ from amb_fault_monitor.monitor import FaultMonitor, MonitorConfig
 from amb_fault_monitor.records import N_SENSORS, CoefficientSet, SampleCoefficients
 from amb_fault_monitor.trips import SynchronousAmplitude, TripMonitor, clearance_levels
 from amb_plant_sim.errors import RigError
+from amb_tools import topics
 from amb_tools.conversions import (
     MessageError,
     SampleSequencer,
@@ -324,15 +325,15 @@ class FaultMonitorNode(Node):
         qos.depth = max(qos.depth, QUEUE_REVS * self._spr)  # not in the loop: may lag, not lose
         self._pub = self.create_publisher(
             FaultEventMsg,
-            "/amb/fault/events",
+            topics.FAULT_EVENTS,
             QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE),
         )
-        self._diag = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        self._diag = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS, 10)
         self._coef_sub = self.create_subscription(
-            WaveletCoefficients, "/amb/wavelet/coefficients", self._on_coefficients, qos
+            WaveletCoefficients, topics.COEFFICIENTS, self._on_coefficients, qos
         )
         self._meas_sub = self.create_subscription(
-            Measurement, "/amb/measurement", self._on_measurement, qos
+            Measurement, topics.MEASUREMENT, self._on_measurement, qos
         )
         self._status_timer = self.create_timer(p("status_period").value, self._publish_status)
         self.get_logger().info(

@@ -79,6 +79,7 @@ from amb_plant_sim.errors import RigError, ScenarioError, SimulationError
 from amb_plant_sim.rig import load_rig
 from amb_plant_sim.scenario import load_scenario
 from amb_plant_sim.simulator import MeasurementBlock, PlantSimulator
+from amb_tools import topics
 from amb_tools.conversions import (
     NUM_AXES,
     MessageError,
@@ -160,13 +161,13 @@ class PlantSimNode(Node):
             ),
         )
         self._configure()
-        self._meas_pub = self.create_publisher(Measurement, "/amb/measurement", stream_qos(self._N))
-        self._clock_pub = self.create_publisher(Clock, "/clock", 10)
-        self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        self._meas_pub = self.create_publisher(Measurement, topics.MEASUREMENT, stream_qos(self._N))
+        self._clock_pub = self.create_publisher(Clock, topics.CLOCK, 10)
+        self._diag_pub = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS, 10)
         self._cmd_sub = self.create_subscription(
-            ControlCommand, "/amb/control/command", self._on_command, COMMAND_QOS
+            ControlCommand, topics.COMMAND, self._on_command, COMMAND_QOS
         )
-        self.create_service(InjectFault, "/amb/plant/inject_fault", self._on_inject)
+        self.create_service(InjectFault, topics.INJECT_FAULT, self._on_inject)
         self._status_timer = self.create_timer(
             self.get_parameter("status_period").value, self._publish_status
         )
@@ -369,8 +370,8 @@ class PlantSimNode(Node):
                     return
                 self.get_logger().warning(
                     f"{self._meas_pub.get_subscription_count()} of {want} subscribers of "
-                    f"/amb/measurement, {self._cmd_sub.get_publisher_count()} publishers of "
-                    "/amb/control/command after startup_timeout: starting anyway"
+                    f"{topics.MEASUREMENT}, {self._cmd_sub.get_publisher_count()} publishers of "
+                    f"{topics.COMMAND} after startup_timeout: starting anyway"
                 )
             self._started = True
             self._wall0 = time.monotonic()

@@ -23,13 +23,14 @@ from pathlib import Path
 import numpy as np
 
 from amb_tools.bag_types import typestore
+from amb_tools.topics import (
+    COEFFICIENTS,
+    COMMAND,
+    FAULT_EVENTS,
+    MEASUREMENT,
+    STATUS,
+)
 
-MEASUREMENT = "/amb/measurement"
-COEFFICIENTS = "/amb/wavelet/coefficients"
-COMMAND = "/amb/control/command"
-STATUS = "/amb/control/status"
-FAULT_EVENTS = "/amb/fault/events"
-DIAGNOSTICS = "/diagnostics"
 #: Topics a complete report uses (``/diagnostics`` is counted, not drawn).
 EXPECTED_TOPICS = (MEASUREMENT, COEFFICIENTS, COMMAND, STATUS, FAULT_EVENTS)
 

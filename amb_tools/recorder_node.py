@@ -60,6 +60,7 @@ from rclpy.qos import (
 )
 from std_msgs.msg import Header
 
+from amb_tools import topics
 from amb_tools.bag_writer import STORAGE_PLUGINS, BagWriter, header_stamp_ns
 from amb_tools.node_main import ConfigurationError, descriptor, run_node
 
@@ -108,7 +109,11 @@ class Recorder(Node):
         super().__init__("recorder")
         d = self.declare_parameter
         d("output", "", descriptor("bag folder to create"))
-        d("topics", ["/amb/*", "/diagnostics"], descriptor("topic name patterns to record"))
+        d(
+            "topics",
+            [topics.PREFIX + "*", topics.DIAGNOSTICS],
+            descriptor("topic name patterns to record"),
+        )
         d("storage", "mcap", descriptor("mcap | sqlite3"))
         d("stamp_source", "receive", descriptor("receive | header"))
         d(
@@ -168,7 +173,7 @@ class Recorder(Node):
         self._recorded: dict[str, Any] = {}
         self._drained = DrainedGroup()
         self._readers: list[tuple[Any, Any]] = []  # (subscription, writer of one message)
-        self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        self._diag_pub = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS, 10)
         self.create_timer(self.get_parameter("discovery_period").value, self._discover)
         status_period = self.get_parameter("status_period").value
         if status_period > 0:

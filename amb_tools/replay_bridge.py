@@ -37,6 +37,7 @@ from rclpy.node import Node
 from rclpy.serialization import deserialize_message
 from rosbags.rosbag2 import Reader
 
+from amb_tools import topics
 from amb_tools.conversions import NUM_AXES, from_float_array, stamp_seconds
 from amb_tools.node_main import ConfigurationError, descriptor, run_node
 from amb_tools.streams import stream_qos
@@ -62,9 +63,9 @@ class ReplayBridge(Node):
         if not self._samples:
             raise ConfigurationError(f"parameter 'bag' = {bag!r}: no /amb/measurement messages")
         spr = self._samples[0][1].samples_per_rev
-        self._pub = self.create_publisher(Measurement, "/amb/measurement", stream_qos(spr))
+        self._pub = self.create_publisher(Measurement, topics.MEASUREMENT, stream_qos(spr))
         self.create_subscription(
-            ControlCommand, "/amb/control/command", self._on_command, COMMAND_QOS_DEPTH
+            ControlCommand, topics.COMMAND, self._on_command, COMMAND_QOS_DEPTH
         )
         log = self.get_parameter("command_log").value
         self._log = open(log, "w") if log else None
@@ -86,7 +87,7 @@ class ReplayBridge(Node):
     def _load(bag: Path) -> list[tuple[float, Measurement]]:
         out = []
         with Reader(bag) as reader:
-            conns = [c for c in reader.connections if c.topic == "/amb/measurement"]
+            conns = [c for c in reader.connections if c.topic == topics.MEASUREMENT]
             for _conn, _t, raw in reader.messages(connections=conns):
                 msg = deserialize_message(bytes(raw), Measurement)
                 out.append((stamp_seconds(msg.header.stamp), msg))

@@ -34,6 +34,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
+from amb_tools import topics
 from amb_tools.bag_read import BagData
 
 DPI = 110
@@ -496,7 +497,7 @@ def timeline_figure(runs: list[Run], path: Path) -> Figure:
             )
         if not events:
             msg = "no FaultEvent in this bag"
-            if "/amb/fault/events" in run.data.missing:
+            if topics.FAULT_EVENTS in run.data.missing:
                 msg += " (/amb/fault/events empty or not recorded: fault monitor not running?)"
             ax.text(
                 0.01,

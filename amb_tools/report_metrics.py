@@ -30,6 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
+from amb_tools import topics
 from amb_tools.bag_read import BagData
 
 #: amb-sim keys that a bag cannot reproduce, and why.
@@ -211,7 +212,9 @@ def bag_metrics(
     out.update(
         {
             "bag": str(data.path),
-            "bag_counts": {t: n for t, n in data.counts.items() if t.startswith("/amb/") and n},
+            "bag_counts": {
+                t: n for t, n in data.counts.items() if t.startswith(topics.PREFIX) and n
+            },
             "controller": _controller(data),
             "fault_time_source": fault.source,
             "fault_time_candidates": fault.candidates,

@@ -47,6 +47,7 @@ from pathlib import Path
 
 import yaml
 
+from amb_tools import topics
 from amb_tools.paths import config_file
 
 INSTALL_LIB = Path(__file__).resolve().parent.parent / "install" / "amb_wavelet_control" / "lib"
@@ -67,13 +68,7 @@ DRAINED = {
 #: samples/rev) with ``--nice fault_monitor=19`` and three CPU-bound processes on the 2-core
 #: machine left the monitor 30 revolutions behind at the plant's end; it drained in 35 s.
 DRAIN_TIMEOUT = 300.0
-STREAM_TYPES = {
-    "/amb/measurement": "amb_msgs/msg/Measurement",
-    "/amb/wavelet/coefficients": "amb_msgs/msg/WaveletCoefficients",
-    "/amb/control/command": "amb_msgs/msg/ControlCommand",
-    "/amb/control/status": "amb_msgs/msg/ControllerStatus",
-    "/amb/fault/events": "amb_msgs/msg/FaultEvent",
-}
+STREAM_TYPES = topics.STREAM_TYPES
 
 
 @dataclass
@@ -218,7 +213,7 @@ class _Progress:
         rclpy.init(context=self.context)
         self.node = rclpy.create_node("amb_run_progress", context=self.context)
         self.statuses: dict[str, dict[str, str]] = {}  # status name -> its last key values
-        self.node.create_subscription(DiagnosticArray, "/diagnostics", self._on_diag, 100)
+        self.node.create_subscription(DiagnosticArray, topics.DIAGNOSTICS, self._on_diag, 100)
         from rclpy.executors import SingleThreadedExecutor
 
         self.executor = SingleThreadedExecutor(context=self.context)
@@ -243,9 +238,9 @@ class _Progress:
         while time.monotonic() < deadline:
             self.executor.spin_once(timeout_sec=0.05)
 
-    def graph(self, topics: dict[str, int]) -> dict[str, int]:
+    def graph(self, names: dict[str, int]) -> dict[str, int]:
         """Subscribers of each topic now."""
-        return {t: self.node.count_subscribers(t) for t in topics}
+        return {t: self.node.count_subscribers(t) for t in names}
 
     def wait_for_graph(self, expected: dict[str, int], timeout: float) -> bool:
         """Spin until every topic has its expected subscribers; False on timeout."""
@@ -472,18 +467,18 @@ def _expected_subscribers(names: list[str]) -> dict[str, int]:
     has = set(names)
     recorder = int("recorder" in has)
     consumers = {
-        "/amb/measurement": {"wavelet_filterbank", "fault_monitor", "wavelet_controller"},
-        "/amb/wavelet/coefficients": {"fault_monitor", "wavelet_controller"},
-        "/amb/control/command": set(),
-        "/amb/control/status": set(),
-        "/amb/fault/events": {"wavelet_controller"},
+        topics.MEASUREMENT: {"wavelet_filterbank", "fault_monitor", "wavelet_controller"},
+        topics.COEFFICIENTS: {"fault_monitor", "wavelet_controller"},
+        topics.COMMAND: set(),
+        topics.STATUS: set(),
+        topics.FAULT_EVENTS: {"wavelet_controller"},
     }
     publishers = {
-        "/amb/measurement": "plant_sim",
-        "/amb/wavelet/coefficients": "wavelet_filterbank",
-        "/amb/control/command": "wavelet_controller",
-        "/amb/control/status": "wavelet_controller",
-        "/amb/fault/events": "fault_monitor",
+        topics.MEASUREMENT: "plant_sim",
+        topics.COEFFICIENTS: "wavelet_filterbank",
+        topics.COMMAND: "wavelet_controller",
+        topics.STATUS: "wavelet_controller",
+        topics.FAULT_EVENTS: "fault_monitor",
     }
     # the recorder subscribes every stream at start (topic_types), so it counts on each
     return {

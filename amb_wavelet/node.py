@@ -36,6 +36,7 @@ from rcl_interfaces.msg import (
 )
 from rclpy.node import Node
 
+from amb_tools import topics
 from amb_tools.cdr import MeasurementView, read_measurement
 from amb_tools.conversions import (
     MessageError,
@@ -91,10 +92,10 @@ class WaveletFilterbankNode(Node):
         )
         self._configure()
         qos = stream_qos(self._samples_per_period)
-        self._pub = self.create_publisher(WaveletCoefficients, "/amb/wavelet/coefficients", qos)
-        self._diag = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        self._pub = self.create_publisher(WaveletCoefficients, topics.COEFFICIENTS, qos)
+        self._diag = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS, 10)
         self.create_subscription(
-            Measurement, "/amb/measurement", self._on_measurement, qos, raw=True
+            Measurement, topics.MEASUREMENT, self._on_measurement, qos, raw=True
         )
         self._status_timer = self.create_timer(
             self.get_parameter("status_period").value, self._publish_status

@@ -28,6 +28,8 @@ from pathlib import Path
 
 import yaml
 
+from amb_tools import topics
+
 
 def rss_kib(pid: int) -> int:
     """Resident memory of a process in KiB (``VmRSS``), 0 if it has gone."""
@@ -134,7 +136,7 @@ def main() -> int:
 
     with AnyReader([bag]) as reader:
         counts = {c.topic: c.msgcount for c in reader.connections}
-    in_bag = counts.get("/amb/measurement", 0)
+    in_bag = counts.get(topics.MEASUREMENT, 0)
     print(f"soak: {args.hz:g} Hz, {args.spr} samples/rev, lockstep, controller {args.controller}")
     print(
         f"simulated {sim_time:.1f} s in {wall:.1f} s wall (real-time factor {sim_time / wall:.2f})"

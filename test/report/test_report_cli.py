@@ -18,9 +18,10 @@ from PIL import Image
 from rosbags.rosbag2 import Reader
 
 from amb_tools import report_cli
-from amb_tools.bag_read import COEFFICIENTS, MEASUREMENT, read_bag
+from amb_tools.bag_read import read_bag
 from amb_tools.bag_writer import BagWriter
 from amb_tools.report_metrics import NOT_IN_BAG, bag_metrics, choose_fault_time
+from amb_tools.topics import COEFFICIENTS, MEASUREMENT
 
 FIGURES = ("displacement", "coefficients_1x", "forces", "orbits", "fault_timeline")
 LABELS = ("PID only", "PID + wavelet")

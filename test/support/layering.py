@@ -28,6 +28,7 @@ SHARED_CORE = "amb_wavelet"
 
 VOCABULARY = {
     "amb_tools.paths",
+    "amb_tools.topics",
     "amb_plant_sim.rig",
     "amb_fault_monitor.events",
 }
