@@ -306,16 +306,18 @@ def rig_from_dict(data: dict[str, Any], source: str = "") -> Rig:
     shaft = ShaftData(
         length=length,
         outer_radius=_pos(_req(s, "outer_radius", "shaft"), "shaft.outer_radius"),
-        inner_radius=_pos(s.get("inner_radius", 0.0), "shaft.inner_radius", allow_zero=True),
+        inner_radius=_pos(_req(s, "inner_radius", "shaft"), "shaft.inner_radius", allow_zero=True),
         material=materials[mat],
         elements=elements,
-        shear=bool(s.get("shear", True)),
-        rotary_inertia=bool(s.get("rotary_inertia", True)),
+        shear=bool(_req(s, "shear", "shaft")),
+        rotary_inertia=bool(_req(s, "rotary_inertia", "shaft")),
         internal_damping_viscous=_pos(
-            s.get("internal_damping_viscous", 0.0), "shaft.internal_damping_viscous", True
+            _req(s, "internal_damping_viscous", "shaft"), "shaft.internal_damping_viscous", True
         ),
         internal_damping_hysteretic=_pos(
-            s.get("internal_damping_hysteretic", 0.0), "shaft.internal_damping_hysteretic", True
+            _req(s, "internal_damping_hysteretic", "shaft"),
+            "shaft.internal_damping_hysteretic",
+            True,
         ),
     )
     disks = tuple(_body(d, materials, "disks", length) for d in data.get("disks", []))
@@ -350,7 +352,7 @@ def rig_from_dict(data: dict[str, Any], source: str = "") -> Rig:
         ClearanceBearing(
             str(_req(c, "tag", "clearance_bearings")),
             _pos(_req(c, "z", "clearance_bearings"), "clearance_bearings.z", True),
-            str(c.get("kind", "auxiliary")),
+            str(_req(c, "kind", "clearance_bearings")),
             _pos(_req(c, "radial_clearance", "clearance_bearings"), "radial_clearance"),
         )
         for c in data.get("clearance_bearings", [])
@@ -359,25 +361,25 @@ def rig_from_dict(data: dict[str, Any], source: str = "") -> Rig:
         if z > length:
             raise RigError(f"rig file: position z = {z} m lies beyond the shaft (0..{length} m)")
     a = _req(data, "amb", "top level")
-    law = str(a.get("law", "linear"))
+    law = str(_req(a, "law", "amb"))
     if law not in ("linear", "nonlinear"):
         raise RigError(f"rig file: amb.law must be 'linear' or 'nonlinear', got {law!r}")
-    amplifier = str(a.get("amplifier", "ideal"))
+    amplifier = str(_req(a, "amplifier", "amb"))
     if amplifier not in ("ideal", "coil"):
         raise RigError(f"rig file: amb.amplifier must be 'ideal' or 'coil', got {amplifier!r}")
     amb = AmbData(
         Kz=_pos(_req(a, "Kz", "amb"), "amb.Kz", True),
         Ki=_pos(_req(a, "Ki", "amb"), "amb.Ki"),
         law=law,
-        force_limit=_pos(a.get("force_limit", 1000.0), "amb.force_limit"),
-        pole_area=_pos(a.get("pole_area", 1398.0e-6), "amb.pole_area"),
-        turns=int(a.get("turns", 158)),
-        nominal_air_gap=_pos(a.get("nominal_air_gap", 1.2e-3), "amb.nominal_air_gap"),
-        coil_resistance=_pos(a.get("coil_resistance", 0.365), "amb.coil_resistance"),
-        coil_inductance=_pos(a.get("coil_inductance", 0.0732), "amb.coil_inductance"),
-        peak_current=_pos(a.get("peak_current", 10.0), "amb.peak_current"),
+        force_limit=_pos(_req(a, "force_limit", "amb"), "amb.force_limit"),
+        pole_area=_pos(_req(a, "pole_area", "amb"), "amb.pole_area"),
+        turns=int(_req(a, "turns", "amb")),
+        nominal_air_gap=_pos(_req(a, "nominal_air_gap", "amb"), "amb.nominal_air_gap"),
+        coil_resistance=_pos(_req(a, "coil_resistance", "amb"), "amb.coil_resistance"),
+        coil_inductance=_pos(_req(a, "coil_inductance", "amb"), "amb.coil_inductance"),
+        peak_current=_pos(_req(a, "peak_current", "amb"), "amb.peak_current"),
         amplifier=amplifier,
-        amplifier_bandwidth=_pos(a.get("amplifier_bandwidth", 6283.0), "amb.amplifier_bandwidth"),
+        amplifier_bandwidth=_pos(_req(a, "amplifier_bandwidth", "amb"), "amb.amplifier_bandwidth"),
     )
     p = _req(data, "pid", "top level")
     pid = PidGains(
@@ -386,25 +388,31 @@ def rig_from_dict(data: dict[str, Any], source: str = "") -> Rig:
         Kd=_pos(_req(p, "Kd", "pid"), "pid.Kd", True),
         derivative_cutoff=_pos(_req(p, "derivative_cutoff", "pid"), "pid.derivative_cutoff"),
     )
-    c = data.get("contact", {})
-    model = str(c.get("model", "hertz"))
+    c = _req(data, "contact", "top level")
+    model = str(_req(c, "model", "contact"))
     if model not in ("hertz", "penalty"):
         raise RigError(f"rig file: contact.model must be 'hertz' or 'penalty', got {model!r}")
     contact = ContactData(
         model=model,
-        hertz_stiffness=_pos(c.get("hertz_stiffness", 5.0e9), "contact.hertz_stiffness"),
-        penalty_stiffness=_pos(c.get("penalty_stiffness", 5.0e7), "contact.penalty_stiffness"),
-        damping=_pos(c.get("damping", 2.0e3), "contact.damping", True),
-        friction=_pos(c.get("friction", 0.1), "contact.friction", True),
-        slip_velocity_scale=_pos(c.get("slip_velocity_scale", 1e-3), "contact.slip_velocity_scale"),
-        rotor_radius=_pos(c.get("rotor_radius", shaft.outer_radius), "contact.rotor_radius"),
-        substeps=max(1, int(c.get("substeps", 16))),
+        hertz_stiffness=_pos(_req(c, "hertz_stiffness", "contact"), "contact.hertz_stiffness"),
+        penalty_stiffness=_pos(
+            _req(c, "penalty_stiffness", "contact"), "contact.penalty_stiffness"
+        ),
+        damping=_pos(_req(c, "damping", "contact"), "contact.damping", True),
+        friction=_pos(_req(c, "friction", "contact"), "contact.friction", True),
+        slip_velocity_scale=_pos(
+            _req(c, "slip_velocity_scale", "contact"), "contact.slip_velocity_scale"
+        ),
+        rotor_radius=_pos(_req(c, "rotor_radius", "contact"), "contact.rotor_radius"),
+        substeps=max(1, int(_req(c, "substeps", "contact"))),
     )
-    sm = data.get("simulation", {})
+    sm = _req(data, "simulation", "top level")
     simulation = SimulationData(
-        internal_rate_min=_pos(sm.get("internal_rate_min", 5000.0), "simulation.internal_rate_min"),
-        speed_quantum=_pos(sm.get("speed_quantum", 0.01), "simulation.speed_quantum"),
-        cache_size=max(1, int(sm.get("cache_size", 32))),
+        internal_rate_min=_pos(
+            _req(sm, "internal_rate_min", "simulation"), "simulation.internal_rate_min"
+        ),
+        speed_quantum=_pos(_req(sm, "speed_quantum", "simulation"), "simulation.speed_quantum"),
+        cache_size=max(1, int(_req(sm, "cache_size", "simulation"))),
     )
     rig = Rig(
         shaft=shaft,

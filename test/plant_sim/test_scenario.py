@@ -98,6 +98,30 @@ def test_rig_validation_messages():
 
 
 @pytest.mark.parametrize(
+    ("section", "key"),
+    [
+        ("amb", "force_limit"),
+        ("amb", "turns"),
+        ("amb", "law"),
+        ("contact", "substeps"),
+        ("contact", "rotor_radius"),
+        ("shaft", "shear"),
+        ("simulation", "internal_rate_min"),
+        (None, "contact"),
+        (None, "simulation"),
+    ],
+)
+def test_a_missing_rig_number_is_an_error_naming_it(section, key):
+    """The rig's numbers live in the rig file only: none is filled in by the code."""
+    import yaml
+
+    data = yaml.safe_load(RIG_PATH.read_text())
+    del (data[section] if section else data)[key]
+    with pytest.raises(RigError, match=f"missing key '{key}' in {section or 'top level'}"):
+        rig_from_dict(data)
+
+
+@pytest.mark.parametrize(
     ("text", "words"),
     [("shaft: [unclosed\n", "not readable YAML"), ("- just\n- a list\n", "expected a mapping")],
 )
