@@ -129,14 +129,14 @@ def run(args) -> dict:
     from amb_controller.metrics import compute_metrics
     from amb_controller.model_file import WaveletModel
     from amb_plant_sim.rig import load_rig
-    from amb_plant_sim.scenario import load_scenario
+    from amb_plant_sim.scenario import load_scenario, resolve_samples_per_rev
 
     t0 = time.perf_counter()
     rig = load_rig(args.rig) if args.rig else load_rig()
     scenario = load_scenario(args.scenario, rig)
     if args.duration is not None:
         scenario = replace(scenario, duration=float(args.duration))
-    spr = args.samples_per_rev or scenario.samples_per_rev or 64
+    spr = resolve_samples_per_rev(args.samples_per_rev, scenario)
     config = config_from_args(args, spr, rig.amb.force_limit)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)

@@ -77,7 +77,7 @@ from rosgraph_msgs.msg import Clock
 
 from amb_plant_sim.errors import RigError, ScenarioError, SimulationError
 from amb_plant_sim.rig import load_rig
-from amb_plant_sim.scenario import load_scenario
+from amb_plant_sim.scenario import load_scenario, resolve_samples_per_rev
 from amb_plant_sim.simulator import MeasurementBlock, PlantSimulator
 from amb_tools import topics
 from amb_tools.conversions import (
@@ -232,7 +232,7 @@ class PlantSimNode(Node):
             raise ConfigurationError(
                 f"parameter 'scenario_file' = {scenario_file!r}: {exc}"
             ) from exc
-        spr = p("samples_per_rev") or scenario.samples_per_rev or 64
+        spr = resolve_samples_per_rev(p("samples_per_rev"), scenario)
         if spr < 4 or spr & (spr - 1):
             raise ConfigurationError(
                 f"parameter 'samples_per_rev' = {spr}: must be a power of two >= 4"

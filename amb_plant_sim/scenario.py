@@ -188,6 +188,32 @@ def scenario_from_dict(
     return sc.resolved(rig, critical_hz) if rig is not None else sc
 
 
+#: Samples per revolution when neither the caller nor the scenario names them.
+DEFAULT_SAMPLES_PER_REV = 64
+
+
+def resolve_samples_per_rev(requested: int | None, scenario: Scenario) -> int:
+    """
+    Samples per revolution of a run: the caller's, else the scenario's, else 64.
+
+    One rule for the plant node (its ``samples_per_rev`` parameter, 0 = not set), ``amb-sim``
+    (``--samples-per-rev``), ``amb-run`` and the launch file (which pass the scenario's value to
+    every node, :func:`amb_tools.system.run_parameters`).
+
+    Parameters
+    ----------
+    requested : int or None
+        Explicit choice (0 or None: none).
+    scenario : Scenario
+        Its ``samples_per_rev`` (None: not set).
+
+    Returns
+    -------
+    int
+    """
+    return int(requested or scenario.samples_per_rev or DEFAULT_SAMPLES_PER_REV)
+
+
 def load_scenario(
     path: str | Path, rig: Rig | None = None, critical_hz: list[float] | None = None
 ) -> Scenario:

@@ -45,13 +45,12 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import yaml
-
+from amb_plant_sim.errors import ScenarioError
 from amb_tools import topics
 from amb_tools.paths import config_file
+from amb_tools.system import NODE_MODULES, NODES, find_scenario, ros_arguments, run_parameters
 
 INSTALL_LIB = Path(__file__).resolve().parent.parent / "install" / "amb_wavelet_control" / "lib"
-NODES = ("recorder", "wavelet_filterbank", "fault_monitor", "wavelet_controller", "plant_sim")
 #: Nice value added to the nodes that are not on the control loop's chain.
 # fault_monitor is not niced by default: at +5 it lagged the demo's transient run by ~12
 # revolutions and was stopped with its mass-loss decision still in its queue (no event).
@@ -68,7 +67,6 @@ DRAINED = {
 #: samples/rev) with ``--nice fault_monitor=19`` and three CPU-bound processes on the 2-core
 #: machine left the monitor 30 revolutions behind at the plant's end; it drained in 35 s.
 DRAIN_TIMEOUT = 300.0
-STREAM_TYPES = topics.STREAM_TYPES
 
 
 @dataclass
@@ -112,14 +110,7 @@ def executable(name: str) -> list[str]:
     path = INSTALL_LIB / "amb_wavelet_control" / name
     if path.exists():
         return [str(path)]
-    modules = {
-        "recorder": "amb_tools.recorder_node",
-        "wavelet_filterbank": "amb_wavelet.node",
-        "fault_monitor": "amb_fault_monitor.node",
-        "wavelet_controller": "amb_controller.node",
-        "plant_sim": "amb_plant_sim.node",
-    }
-    return [sys.executable, "-m", modules[name]]
+    return [sys.executable, "-m", NODE_MODULES[name]]
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -173,32 +164,16 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-def _overrides(args: argparse.Namespace, scenario: Path) -> dict[str, list[str]]:
-    """``-p`` arguments per node, scoped to the node (``-p node:param:=value``).
-
-    A node-scoped override is needed: rcl ranks a node's section of a params file above an
-    unscoped ``-p``, so ``-p mode:=realtime`` would lose to ``plant_sim: mode: lockstep``.
-    """
+def _set_overrides(args: argparse.Namespace) -> dict[str, list[str]]:
+    """The ``--set NODE.PARAM:=VALUE`` items as node-scoped ``-p`` arguments per node."""
     over: dict[str, list[str]] = {n: [] for n in NODES}
-
-    def put(node: str, assignment: str) -> None:
-        over[node] += ["-p", f"{node}:{assignment}"]
-
-    with scenario.open() as fh:
-        spr = (yaml.safe_load(fh) or {}).get("samples_per_rev")
-    if spr:
-        for n in NODES:
-            put(n, f"samples_per_rev:={int(spr)}")
-    put("plant_sim", f"scenario_file:={scenario}")
-    if args.controller:
-        put("wavelet_controller", f"controller:={args.controller}")
     for item in args.set:
         node, _, rest = item.partition(".")
         if node not in over or ":=" not in rest:
             raise SystemExit(
                 f"amb-run: --set {item!r}: expected NODE.PARAM:=VALUE with NODE in {NODES}"
             )
-        put(node, rest)
+        over[node] += ["-p", f"{node}:{rest}"]
     return over
 
 
@@ -260,11 +235,10 @@ class _Progress:
 
 def run(args: argparse.Namespace) -> int:
     """Start the nodes, wait for the scenario to end, stop them; return the exit status."""
-    scenario = Path(args.scenario)
-    if not scenario.is_file():
-        scenario = config_file(Path("scenarios") / args.scenario)
-    if not scenario.is_file():
-        print(f"amb-run: scenario {args.scenario!r} not found", file=sys.stderr)
+    try:
+        scenario = find_scenario(args.scenario)
+    except FileNotFoundError as exc:
+        print(f"amb-run: {exc}", file=sys.stderr)
         return 2
     params = args.params or config_file("amb_params.yaml")
     if not Path(params).is_file():
@@ -274,20 +248,24 @@ def run(args: argparse.Namespace) -> int:
     if out.exists():
         print(f"amb-run: output folder {out} exists; choose a new one", file=sys.stderr)
         return 2
-    (out / "logs").mkdir(parents=True)
-    over = _overrides(args, scenario.resolve())
-    over["recorder"] += ["-p", f"recorder:output:={(out / 'bag').resolve()}"]
-    # the recorder subscribes the contract's streams at start, not when it discovers them
-    streams = ",".join(f'"{t}:{m}"' for t, m in STREAM_TYPES.items())
-    over["recorder"] += ["-p", f"recorder:topic_types:=[{streams}]"]
     names = [n for n in NODES if n not in args.without and _available(n)]
     missing = [n for n in NODES if n not in names and n not in args.without]
     if "plant_sim" not in names:
         print("amb-run: plant_sim is not available", file=sys.stderr)
         return 2
-    # every node but the plant subscribes /amb/measurement: sample 0 waits for all of them
-    subscribers = len(names) - 1
-    over["plant_sim"] += ["-p", f"plant_sim:wait_for_subscribers:={subscribers}"]
+    set_by_user = _set_overrides(args)
+    try:
+        run_params = run_parameters(
+            scenario,
+            tuple(names),
+            controller=args.controller or "",
+            bag=str((out / "bag").resolve()),
+        )
+    except ScenarioError as exc:
+        print(f"amb-run: {exc}", file=sys.stderr)
+        return 2
+    (out / "logs").mkdir(parents=True)
+    over = {n: ros_arguments(n, run_params[n]) + set_by_user[n] for n in names}
     nice = dict(NICENESS)
     for item in args.nice:
         node, _, value = item.partition("=")

@@ -1,97 +1,87 @@
 """The simulated rig with all four nodes and the recorder (full ROS 2 Jazzy installs).
 
 What ``amb-run`` does where ``ros2 launch`` is not available: the same executables, the same
-params file, the same overrides. The launch ends when ``plant_sim`` has finished its scenario.
+params file, the same per-run parameters, built by the same function
+(:func:`amb_tools.system.run_parameters`: the scenario's ``samples_per_rev`` on every node, the
+plant's scenario and subscriber count, the controller's choices, the recorder's bag). The
+launch ends when ``plant_sim`` has finished its scenario.
 
     ros2 launch amb_wavelet_control amb_system.launch.py \\
         scenario:=mass_loss_first_critical.yaml controller:=transient \\
         model_file:=/path/model.npz start_mode:=active bag:=/tmp/run1
 
-Arguments: ``scenario`` (file or name in config/scenarios), ``controller`` (none |
-proportional | moderated | transient), ``start_mode`` (off | active | identify), ``model_file``,
-``model_file_out``, ``params`` (default: the package's config/amb_params.yaml), ``bag``
-(recorder output folder; it must not exist), ``mode`` (lockstep | realtime).
 To drive a real rig, leave out plant_sim (``with_plant:=false``) and start your I/O bridge.
 """
 
-from launch.actions import DeclareLaunchArgument, RegisterEventHandler, Shutdown
-from launch.conditions import IfCondition
+from launch.actions import DeclareLaunchArgument, OpaqueFunction, RegisterEventHandler, Shutdown
 from launch.event_handlers import OnProcessExit
 from launch.substitutions import LaunchConfiguration, PathJoinSubstitution
 from launch_ros.actions import Node
 from launch_ros.substitutions import FindPackageShare
 
+from amb_tools.system import NODES, find_scenario, run_parameters
 from launch import LaunchDescription
 
 PACKAGE = "amb_wavelet_control"
 
+#: Launch arguments: (name, default, description).
+ARGUMENTS = (
+    ("scenario", "mass_loss_first_critical.yaml",
+     "scenario YAML: a path, or a name in the package's config/scenarios"),
+    ("controller", "transient",
+     "wavelet_controller.controller: none | proportional | moderated | transient"),
+    ("start_mode", "off", "wavelet_controller.start_mode: off | active | identify"),
+    ("model_file", "", "identified model .npz for the controller ('' = none)"),
+    ("model_file_out", "", "where an identification writes its model ('' = nowhere)"),
+    ("params", "", "ROS params file ('' = the package's config/amb_params.yaml)"),
+    ("bag", "amb_bag", "recorder output folder (must not exist)"),
+    ("mode", "lockstep", "plant_sim.mode: lockstep | realtime"),
+    ("with_plant", "true", "start plant_sim (false: your I/O bridge publishes the rig)"),
+)  # fmt: skip
+
+
+def _nodes(context) -> list:
+    """The node actions, with the per-run parameters of :func:`run_parameters`."""
+    value = {name: LaunchConfiguration(name).perform(context) for name, _, _ in ARGUMENTS}
+    params = value["params"] or PathJoinSubstitution(
+        [FindPackageShare(PACKAGE), "config", "amb_params.yaml"]
+    )
+    with_plant = value["with_plant"].lower() in ("true", "1", "yes")
+    names = NODES if with_plant else tuple(n for n in NODES if n != "plant_sim")
+    overrides = run_parameters(
+        find_scenario(value["scenario"]),
+        NODES,
+        controller=value["controller"],
+        start_mode=value["start_mode"],
+        model_file=value["model_file"],
+        model_file_out=value["model_file_out"],
+        mode=value["mode"],
+        bag=value["bag"],
+    )
+    actions = [
+        Node(
+            package=PACKAGE,
+            executable=name,
+            name=name,
+            parameters=[params, overrides[name]],
+            output="screen",
+        )
+        for name in names
+    ]
+    if with_plant:
+        plant = actions[names.index("plant_sim")]
+        actions.append(
+            RegisterEventHandler(
+                OnProcessExit(target_action=plant, on_exit=[Shutdown(reason="scenario complete")])
+            )
+        )
+    return actions
+
 
 def generate_launch_description() -> LaunchDescription:
-    """Declare the arguments and the five nodes."""
-    arg = LaunchConfiguration
-    default_params = PathJoinSubstitution([FindPackageShare(PACKAGE), "config", "amb_params.yaml"])
+    """Declare the arguments (each with its description) and the five nodes."""
     arguments = [
-        DeclareLaunchArgument("scenario", default_value="mass_loss_first_critical.yaml"),
-        DeclareLaunchArgument("controller", default_value="transient"),
-        DeclareLaunchArgument("start_mode", default_value="off"),
-        DeclareLaunchArgument("model_file", default_value=""),
-        DeclareLaunchArgument("model_file_out", default_value=""),
-        DeclareLaunchArgument("params", default_value=default_params),
-        DeclareLaunchArgument("bag", default_value="amb_bag"),
-        DeclareLaunchArgument("mode", default_value="lockstep"),
-        DeclareLaunchArgument("with_plant", default_value="true"),
+        DeclareLaunchArgument(name, default_value=default, description=description)
+        for name, default, description in ARGUMENTS
     ]
-    params = arg("params")
-    recorder = Node(
-        package=PACKAGE,
-        executable="recorder",
-        name="recorder",
-        parameters=[params, {"output": arg("bag")}],
-        output="screen",
-    )
-    filterbank = Node(
-        package=PACKAGE,
-        executable="wavelet_filterbank",
-        name="wavelet_filterbank",
-        parameters=[params],
-        output="screen",
-    )
-    monitor = Node(
-        package=PACKAGE,
-        executable="fault_monitor",
-        name="fault_monitor",
-        parameters=[params],
-        output="screen",
-    )
-    controller = Node(
-        package=PACKAGE,
-        executable="wavelet_controller",
-        name="wavelet_controller",
-        parameters=[
-            params,
-            {
-                "controller": arg("controller"),
-                "start_mode": arg("start_mode"),
-                "model_file": arg("model_file"),
-                "model_file_out": arg("model_file_out"),
-            },
-        ],
-        output="screen",
-    )
-    plant = Node(
-        package=PACKAGE,
-        executable="plant_sim",
-        name="plant_sim",
-        parameters=[
-            params,
-            {"scenario_file": arg("scenario"), "mode": arg("mode"), "wait_for_subscribers": 4},
-        ],
-        output="screen",
-        condition=IfCondition(arg("with_plant")),
-    )
-    end_with_plant = RegisterEventHandler(
-        OnProcessExit(target_action=plant, on_exit=[Shutdown(reason="scenario complete")])
-    )
-    return LaunchDescription(
-        [*arguments, recorder, filterbank, monitor, controller, plant, end_with_plant]
-    )
+    return LaunchDescription([*arguments, OpaqueFunction(function=_nodes)])

@@ -155,8 +155,11 @@ def test_realtime_publishes_each_sample_at_its_instant(ros, node_process, tmp_pa
     fs = SPR * SCENARIO["speed"]["hz"]
     arrivals = np.array(loop.arrivals).reshape(10, SPR)
     spread = arrivals[:, -1] - arrivals[:, 0]  # s, first to last sample of each period
-    # (SPR - 1) / fs = 47 ms at the sample instants; a burst arrives within a few ms
-    assert np.median(spread) > 0.5 * (SPR - 1) / fs, spread
+    # (SPR - 1) / fs = 47 ms at the sample instants; a burst arrives within a few ms. A loaded
+    # machine may hold the test's own process for a period and hand it a whole period at
+    # once (the median spread failed with two busy processes beside it): published at the
+    # sample instants, several periods still arrive spread; published in bursts, none does.
+    assert np.count_nonzero(spread > 0.5 * (SPR - 1) / fs) >= 3, spread
     run = arrivals[-1, -1] - arrivals[0, 0]
     assert run > 0.8 * (10 * SPR - 1) / fs, run  # the whole run took its real time
     for k in range(10):  # each period ran with its command or, if that was late, none

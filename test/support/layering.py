@@ -52,6 +52,7 @@ APPLICATION = {
     "amb_tools.reproduce",
     "amb_controller.closed_loop",
     "amb_controller.plant_models",
+    "amb_tools.system",
     "amb_controller.acceptability",
     "amb_controller.acceptance",
     "amb_fault_monitor.evaluation",

@@ -1,8 +1,11 @@
-"""The launch file (not runnable here: launch is not on PyPI) names what the package installs.
+"""The launch file and amb-run start the same node set with the same per-run parameters.
 
-Parsed, not executed: every ``executable=`` is a node console script of ``setup.py`` and every
-parameter it sets is one the node declares, so a renamed node or parameter breaks this test
-rather than a user's ``ros2 launch`` on the rig.
+The launch file is not runnable here (launch is not on PyPI): it is parsed, and the function it
+builds its nodes with, :func:`amb_tools.system.run_parameters`, which ``amb-run`` uses too, is
+tested. Every node it starts is a console script of ``setup.py``, every parameter it sets is
+one the node declares, every launch argument has a description, and a scenario's
+``samples_per_rev`` reaches every sampling node (``ros2 launch`` once ran the 32-sample fault
+scenarios at the params file's 64).
 """
 
 from __future__ import annotations
@@ -11,7 +14,13 @@ import ast
 import re
 from pathlib import Path
 
+import pytest
+
+from amb_plant_sim.errors import ScenarioError
+from amb_tools.system import NODES, find_scenario, run_parameters
+
 ROOT = Path(__file__).resolve().parents[2]
+LAUNCH = ROOT / "launch" / "amb_system.launch.py"
 NODE_MODULES = {
     "plant_sim": "amb_plant_sim/node.py",
     "wavelet_filterbank": "amb_wavelet/node.py",
@@ -21,31 +30,89 @@ NODE_MODULES = {
 }
 
 
-def _nodes_in_launch() -> list[tuple[str, set[str]]]:
-    tree = ast.parse((ROOT / "launch" / "amb_system.launch.py").read_text())
-    found = []
-    for call in ast.walk(tree):
-        if isinstance(call, ast.Call) and getattr(call.func, "id", None) == "Node":
-            kw = {k.arg: k.value for k in call.keywords}
-            names: set[str] = set()
-            for item in getattr(kw.get("parameters"), "elts", []):
-                if isinstance(item, ast.Dict):
-                    names |= {k.value for k in item.keys}
-            found.append((kw["executable"].value, names))
-    return found
+def _launch_tree() -> ast.Module:
+    return ast.parse(LAUNCH.read_text())
 
 
-def test_launch_executables_are_installed_nodes() -> None:
+def test_launch_builds_its_nodes_with_run_parameters() -> None:
+    tree = _launch_tree()
+    called = {getattr(c.func, "id", None) for c in ast.walk(tree) if isinstance(c, ast.Call)}
+    assert {"run_parameters", "Node", "OpaqueFunction"} <= called
+    imported = {
+        a.name
+        for n in ast.walk(tree)
+        if isinstance(n, ast.ImportFrom) and n.module == "amb_tools.system"
+        for a in n.names
+    }
+    assert {"NODES", "run_parameters"} <= imported
+
+
+def test_every_launch_argument_has_a_description() -> None:
+    for node in ast.walk(_launch_tree()):
+        if isinstance(node, ast.Assign) and getattr(node.targets[0], "id", "") == "ARGUMENTS":
+            arguments = ast.literal_eval(node.value)
+            break
+    else:
+        pytest.fail("no ARGUMENTS table in the launch file")
+    names = [a[0] for a in arguments]
+    assert {"scenario", "controller", "start_mode", "model_file", "params", "bag", "mode"} <= set(
+        names
+    )
+    for name, default, description in arguments:
+        assert isinstance(default, str) and len(description) > 10, name
+
+
+def test_the_nodes_are_installed_console_scripts() -> None:
     setup = (ROOT / "setup.py").read_text()
-    nodes = _nodes_in_launch()
-    assert {name for name, _ in nodes} == set(NODE_MODULES)
-    for name, _ in nodes:
+    assert set(NODES) == set(NODE_MODULES)
+    for name in NODES:
         assert f'"{name}": "' in setup, f"{name} is not a console script in setup.py"
 
 
-def test_launch_parameters_are_declared_by_the_nodes() -> None:
-    for name, params in _nodes_in_launch():
+def test_run_parameters_are_declared_by_the_nodes() -> None:
+    overrides = run_parameters(
+        find_scenario("contact_misalignment_second_bending.yaml"),
+        controller="transient",
+        start_mode="active",
+        model_file="/tmp/m.npz",
+        model_file_out="/tmp/out.npz",
+        mode="realtime",
+        bag="/tmp/bag",
+    )
+    assert set(overrides) == set(NODES)
+    for name, params in overrides.items():
         source = (ROOT / NODE_MODULES[name]).read_text()
         for param in params:
             declared = re.search(rf'["\']{param}["\']', source)
-            assert declared, f"{name} does not declare parameter {param!r} set by the launch file"
+            assert declared, f"{name} does not declare parameter {param!r} set for a run"
+
+
+def test_a_scenarios_samples_per_rev_reaches_every_node() -> None:
+    path = find_scenario("contact_misalignment_second_bending.yaml")
+    assert "samples_per_rev: 32" in path.read_text()
+    overrides = run_parameters(path)
+    sampling = [n for n in NODES if n != "recorder"]
+    assert {n: p.get("samples_per_rev") for n, p in overrides.items()} == {
+        **dict.fromkeys(sampling, 32),
+        "recorder": None,
+    }
+    assert overrides["plant_sim"]["scenario_file"] == str(path)
+    # every other node subscribes the measurements: sample 0 waits for all of them
+    assert overrides["plant_sim"]["wait_for_subscribers"] == len(NODES) - 1
+    without = run_parameters(path, ("wavelet_filterbank", "plant_sim"))
+    assert without["plant_sim"]["wait_for_subscribers"] == 1
+
+
+def test_a_scenario_without_samples_per_rev_leaves_the_params_file_in_force(tmp_path: Path):
+    plain = tmp_path / "plain.yaml"
+    plain.write_text("speed: {hz: 20.0}\nduration: 1.0\n")
+    assert all("samples_per_rev" not in p for p in run_parameters(plain).values())
+
+
+def test_a_bad_scenario_is_refused_with_its_name(tmp_path: Path) -> None:
+    with pytest.raises(FileNotFoundError, match="no_such"):
+        find_scenario("no_such.yaml")
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("speed: {hz: 20.0}\nduration: 1.0\nsamples_per_rev: 24\n")
+    with pytest.raises(ScenarioError, match="power of two"):
+        run_parameters(bad)
