@@ -28,11 +28,12 @@ Run modes (ARCHITECTURE.md, "Time")
 
 A command is rejected (counted, reported, never applied) if its period has already started
 (``late``), if it is malformed (:func:`amb_tools.conversions.check_command`: sizes, indices,
-non-finite force), if it repeats a period already commanded (the first is kept), if it is
-stamped after the last published sample or based on a period not yet measured (from the
-future), or if it targets a period more than ``delay_periods + 16`` periods ahead (nothing
-sane computes that far ahead; it would only fill memory). Forces beyond
-``wavelet_force_limit`` are clipped to it and counted.
+non-finite force), if it was made for another ``delay_periods`` than the plant's (controller and
+plant disagree on i, eq. 8.10), if it repeats a period already commanded (the first is kept), if
+it is stamped after the last published sample or based on a period not yet measured (from the
+future), or if it targets a period more than ``delay_periods + 16`` periods ahead (nothing sane
+computes that far ahead; it would only fill memory). Forces beyond ``wavelet_force_limit`` are
+clipped to it and counted.
 
 Command watchdog
 ----------------
@@ -285,7 +286,12 @@ class PlantSimNode(Node):
                 horizon = next_period + self._delay + COMMAND_HORIZON_PERIODS
                 measured = next_period - 1  # the plant publishes whole periods
                 t = stamp_seconds(msg.header.stamp)
-                if k in self._commands:
+                if msg.delay_periods != self._delay:
+                    reason = (
+                        f"command for period {k} made with delay_periods {msg.delay_periods}, "
+                        f"the plant runs {self._delay}: controller and plant must agree"
+                    )
+                elif k in self._commands:
                     reason = f"command for period {k} repeated: the first one is kept"
                 elif k > horizon:
                     reason = f"command for period {k}: more than {horizon} is not plausible"

@@ -178,7 +178,7 @@ def test_filterbank_survives_random_and_garbled_measurements(ros, node_process) 
 @st.composite
 def commands(draw) -> ControlCommand:
     k = draw(st.one_of(st.integers(-5, 60), st.integers(-(2**63), 2**63 - 1)))
-    c = ControlCommand(period_index=k)
+    c = ControlCommand(period_index=k, delay_periods=draw(st.sampled_from([2, 2, 2, 0, 1, 3])))
     c.samples_per_period = draw(st.sampled_from([SPR, SPR, SPR, 0, 3]))
     start = k * SPR if -(2**63) <= k * SPR < 2**64 and k >= 0 else 0
     c.start_sample_index = draw(st.sampled_from([start, start, 0, 5]))
@@ -236,6 +236,7 @@ def test_plant_survives_random_and_garbled_commands(ros, node_process, tmp_path)
         # sample: 15-30 x slower than real time, and past the old 60 s wait on a slower CPU.
         k = (samples[-1].sample_index // SPR if samples else 0) + 3
         good = ControlCommand(period_index=k, samples_per_period=SPR, start_sample_index=k * SPR)
+        good.delay_periods = 2  # the plant's default
         good.based_on_period = k - 2
         force = np.linspace(-150.0, 150.0, 4 * SPR)
         force[SPR // 2] = 2.0 * limit
@@ -247,6 +248,7 @@ def test_plant_survives_random_and_garbled_commands(ros, node_process, tmp_path)
                 and force.size == 4 * SPR
                 and np.all(np.isfinite(force))
                 and c.start_sample_index == c.period_index * SPR
+                and c.delay_periods == 2
             ):
                 wellformed.setdefault(int(c.period_index), []).append(force.reshape(4, SPR).T)
             pub.publish(c)

@@ -56,6 +56,7 @@ def test_dead_controller_trips_the_watchdog_and_lockstep_resumes(ros, node_proce
             if k in SILENT:
                 return
             c = ControlCommand(period_index=k, start_sample_index=k * SPR, samples_per_period=SPR)
+            c.delay_periods = DELAY
             c.based_on_period = k - DELAY
             c.header = m.header
             c.force = to_float_array(np.full(4 * SPR, force))
