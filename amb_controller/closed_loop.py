@@ -57,6 +57,7 @@ from amb_controller.pipeline import (
 from amb_controller.supervisor import Command, Mode
 from amb_controller.wavelet_dynamics import wavelet_markov
 from amb_tools import topics
+from amb_tools.names import SENSOR_NAMES
 from amb_wavelet.analysis import AnalysisFilterbank
 from amb_wavelet.frontend import FRAMES, QUADRATURES, ChannelFrontEnd
 
@@ -284,8 +285,8 @@ class _Loop:
         r = spr.bit_length() - 1
         self._j1 = r  # filterbank level of p = 1 (1 x)
         labels = self.front.labels
-        self._even = np.array([labels.index(f"fixed/even/{s}") for s in _SENSORS])
-        self._odd = np.array([labels.index(f"fixed/odd/{s}") for s in _SENSORS])
+        self._even = np.array([labels.index(f"fixed/even/{s}") for s in SENSOR_NAMES])
+        self._odd = np.array([labels.index(f"fixed/odd/{s}") for s in SENSOR_NAMES])
 
     def period(self) -> None:
         k, N = self.k, self.N
@@ -325,9 +326,6 @@ class _Loop:
         self.forces.append(force)
         self.phasors.append(phasor)
         self.k += 1
-
-
-_SENSORS = ("x1", "y1", "x2", "y2", "x3", "y3", "x4", "y4")
 
 
 class _Monitor:

@@ -29,7 +29,8 @@ import math
 
 import numpy as np
 
-SENSOR_NAMES = ("x1", "y1", "x2", "y2", "x3", "y3", "x4", "y4")
+from amb_tools.names import SENSOR_NAMES
+
 INNER = (2, 3, 4, 5)
 STEADY_REVS = 10
 SETTLE_BAND = 0.05

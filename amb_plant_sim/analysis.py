@@ -30,8 +30,9 @@ from amb_plant_sim.modal import (
 )
 from amb_plant_sim.rig import Rig
 from amb_plant_sim.rotor import build_rotor
+from amb_tools.names import AXIS_NAMES
 
-AXES = ("b1x", "b1y", "b2x", "b2y")
+AXES = AXIS_NAMES
 ISO_ZONE_LIMITS = ((3.0, "A"), (4.0, "B"), (5.0, "C"))
 #: An eigenvalue with |Im| below this fraction of |lambda| is real (see frequencies_vs_gain).
 REAL_REL = 1e-5

@@ -37,8 +37,9 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from amb_plant_sim.errors import ScenarioError
+from amb_tools.names import AXIS_NAMES
 
-AXES = ("b1x", "b1y", "b2x", "b2y")
+AXES = AXIS_NAMES
 KINDS = {
     "unbalance": {"me"},
     "mass_loss": {"me"},

@@ -82,13 +82,13 @@ from amb_plant_sim.scenario import load_scenario, resolve_samples_per_rev
 from amb_plant_sim.simulator import MeasurementBlock, PlantSimulator
 from amb_tools import topics
 from amb_tools.conversions import (
-    NUM_AXES,
     MessageError,
     check_command,
     measurement_bytes,
     stamp,
     stamp_seconds,
 )
+from amb_tools.names import N_AXES
 from amb_tools.node_main import ConfigurationError, descriptor, run_node
 from amb_tools.paths import config_file
 from amb_tools.streams import COMMAND_QOS, stream_qos
@@ -440,7 +440,7 @@ class PlantSimNode(Node):
         force = self._commands.pop(k, None)
         status = 0
         if force is None:
-            wf = np.zeros((n, NUM_AXES))
+            wf = np.zeros((n, N_AXES))
             if k >= self._delay:
                 status |= Measurement.STATUS_COMMAND_MISSING
                 if self._mode == "realtime":

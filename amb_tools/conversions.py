@@ -17,10 +17,7 @@ from array import array
 import numpy as np
 from builtin_interfaces.msg import Time
 
-NUM_SENSORS = 8
-NUM_AXES = 4
-SENSOR_NAMES = ("x1", "y1", "x2", "y2", "x3", "y3", "x4", "y4")
-AXIS_NAMES = ("b1x", "b1y", "b2x", "b2y")
+from amb_tools.names import N_AXES, N_SENSORS, SENSOR_NAMES
 
 
 class MessageError(ValueError):
@@ -173,7 +170,7 @@ def _coefficient_set_fields(coefficients, slots, samples_per_rev: int, rotor_spe
     from amb_wavelet.levels import pseudo_frequency
 
     fs = samples_per_rev * rotor_speed / (2.0 * np.pi)
-    n = NUM_SENSORS
+    n = N_SENSORS
     sets = []
     for c in coefficients:
         kind = (
@@ -325,7 +322,7 @@ def coefficient_records(msg, slots) -> list:
         key = (s.level, s.kind, s.translation_index)
         entry = records.setdefault(key, {"set": s, "values": {}})
         values = from_float_array(s.values)
-        check_length("sets[].values", values, NUM_SENSORS)
+        check_length("sets[].values", values, N_SENSORS)
         entry["values"][(s.frame, s.quadrature)] = values
     out = []
     for (level, kind, m), entry in records.items():
@@ -390,9 +387,9 @@ def command_msg(
     from amb_msgs.msg import AxisCoefficients, CoefficientSet, ControlCommand
 
     force = np.asarray(command.force, dtype=float)
-    if force.shape != (NUM_AXES, samples_per_period):
+    if force.shape != (N_AXES, samples_per_period):
         raise MessageError(
-            f"field 'force' has shape {force.shape}, expected ({NUM_AXES}, {samples_per_period})"
+            f"field 'force' has shape {force.shape}, expected ({N_AXES}, {samples_per_period})"
         )
     check_finite("force", force)
     coefficients = np.asarray(command.coefficients, dtype=float)
@@ -447,7 +444,7 @@ def controller_status_msg(status: dict, header):
     from amb_msgs.msg import ControllerStatus
 
     peak = check_length(
-        "peak_wavelet_force", np.asarray(status["peak_wavelet_force"], dtype=float), NUM_AXES
+        "peak_wavelet_force", np.asarray(status["peak_wavelet_force"], dtype=float), N_AXES
     )
     return ControllerStatus(
         header=header,
@@ -480,10 +477,10 @@ STAMP_TOLERANCE = 4.0
 MAX_DISPLACEMENT = 1.0
 #: The array fields of a ``Measurement`` and their lengths, in message order.
 MEASUREMENT_ARRAYS = (
-    ("displacement", NUM_SENSORS),
-    ("current", NUM_AXES),
-    ("bearing_force", NUM_AXES),
-    ("wavelet_force", NUM_AXES),
+    ("displacement", N_SENSORS),
+    ("current", N_AXES),
+    ("bearing_force", N_AXES),
+    ("wavelet_force", N_AXES),
 )
 MEASUREMENT_VALUES = sum(n for _, n in MEASUREMENT_ARRAYS)
 
@@ -665,7 +662,7 @@ class SampleSequencer:
         return []
 
 
-def check_command(msg, samples_per_period: int, num_axes: int = NUM_AXES) -> np.ndarray:
+def check_command(msg, samples_per_period: int, num_axes: int = N_AXES) -> np.ndarray:
     """Return the force of a ``ControlCommand`` as ``(samples_per_period, num_axes)`` N.
 
     Raises

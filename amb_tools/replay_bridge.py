@@ -38,7 +38,8 @@ from rclpy.serialization import deserialize_message
 from rosbags.rosbag2 import Reader
 
 from amb_tools import topics
-from amb_tools.conversions import NUM_AXES, from_float_array, stamp_seconds
+from amb_tools.conversions import from_float_array, stamp_seconds
+from amb_tools.names import N_AXES
 from amb_tools.node_main import ConfigurationError, descriptor, run_node
 from amb_tools.streams import stream_qos
 
@@ -124,8 +125,8 @@ class ReplayBridge(Node):
         force = from_float_array(msg.force)
         n = msg.samples_per_period or 1
         peaks = (
-            np.max(np.abs(force.reshape(NUM_AXES, n)), axis=1).tolist()
-            if force.size == NUM_AXES * n
+            np.max(np.abs(force.reshape(N_AXES, n)), axis=1).tolist()
+            if force.size == N_AXES * n
             else []
         )
         published = self._samples[self._next - 1][1].sample_index if self._next else -1

@@ -36,12 +36,11 @@ import numpy as np
 
 from amb_tools import topics
 from amb_tools.bag_read import BagData
+from amb_tools.names import AXIS_NAMES, SENSOR_NAMES
 
 DPI = 110
 UM = 1e6
 COLOURS = ("tab:blue", "tab:red", "tab:green", "tab:orange", "tab:purple", "tab:brown")
-SENSOR_NAMES = ("x1", "y1", "x2", "y2", "x3", "y3", "x4", "y4")
-AXIS_NAMES = ("b1x", "b1y", "b2x", "b2y")
 PLANE_NOTE = {
     1: "non-driven end",
     2: "inner, beside AMB 1",

@@ -29,6 +29,7 @@ SHARED_CORE = "amb_wavelet"
 VOCABULARY = {
     "amb_tools.paths",
     "amb_tools.topics",
+    "amb_tools.names",
     "amb_plant_sim.rig",
     "amb_fault_monitor.events",
 }
