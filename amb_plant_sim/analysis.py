@@ -1,8 +1,10 @@
 """
-Analyses of chapter 2 as arrays: Campbell data (figure 2.7), convergence with the number of
-elements (figure 2.6), frequencies against proportional gain (figure 2.13), singular values
-from AMB forces to sensors (figures 2.16-2.17), mode shapes (figures 2.4, 2.15), and the
-sensitivity function at each bearing axis with its ISO 14839-3 zone.
+Analyses of chapter 2 as arrays.
+
+Campbell data (figure 2.7), convergence with the number of elements (figure 2.6), frequencies
+against proportional gain (figure 2.13), singular values from AMB forces to sensors (figures
+2.16-2.17), mode shapes (figures 2.4, 2.15), and the sensitivity function at each bearing axis
+with its ISO 14839-3 zone.
 
 Sensitivity (ISO 14839-3): with all other loops closed, a signal injected at the controller
 output of one axis and the total signal after the summing point give ``G_s = 1 / (1 + G_o)``
@@ -81,8 +83,10 @@ def frequencies_vs_elements(
     rig: Rig, element_counts: list[int], count: int = 4
 ) -> NDArray[np.float64]:
     """
-    First ``count`` non-zero free-free natural frequencies (Hz) at zero speed per element
-    count (figure 2.6). Shape ``(len(element_counts), count)``.
+    Return the first free-free natural frequencies per element count (figure 2.6).
+
+    The first ``count`` non-zero ones (Hz) at zero speed; shape
+    ``(len(element_counts), count)``.
     """
     out = np.zeros((len(element_counts), count))
     for k, ne in enumerate(element_counts):
@@ -95,8 +99,9 @@ def frequencies_vs_gain(
     rig: Rig, kp_values: NDArray[np.float64], count: int = 5
 ) -> NDArray[np.float64]:
     """
-    First ``count`` zero-speed natural frequencies (Hz) against the proportional gain, with
-    integral and derivative gains zero (figure 2.13).
+    Return the zero-speed natural frequencies against the proportional gain (figure 2.13).
+
+    The first ``count`` (Hz), with integral and derivative gains zero.
 
     Unstable real eigenvalue pairs (negative stiffness not overcome) count as modes at 0 Hz,
     as in the thesis's figure. Shape ``(len(kp_values), count)``.
@@ -137,8 +142,10 @@ def singular_values(
     rig: Rig, freqs_hz: NDArray[np.float64], speed_hz: float = 0.0
 ) -> NDArray[np.float64]:
     """
-    Singular values of the PID closed loop's frequency response from the four AMB control
-    forces (N) to the eight sensors (m), figure 2.16 (eq. 2.54). Shape ``(nf, 4)``, m/N.
+    Return the singular values of the PID closed loop's frequency response (figure 2.16).
+
+    From the four AMB control forces (N) to the eight sensors (m), eq. 2.54. Shape
+    ``(nf, 4)``, m/N.
     """
     cl = build_closed_loop(rig, 2 * math.pi * speed_hz)
     G = _transfer(cl, cl.output(cl.plant.C_s), cl.B_u, freqs_hz)

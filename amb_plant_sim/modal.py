@@ -195,9 +195,10 @@ def critical_speeds(
     max_iter: int = 50,
 ) -> list[float]:
     """
-    Critical speeds (Hz) of the PID closed loop: running speeds equal to a forward-whirl
-    natural frequency, ``f_k(Omega) = Omega / 2 pi`` (crossings of the synchronous line of the
-    Campbell diagram, figure 2.7).
+    Return the critical speeds (Hz) of the PID closed loop.
+
+    Running speeds equal to a forward-whirl natural frequency, ``f_k(Omega) = Omega / 2 pi``
+    (crossings of the synchronous line of the Campbell diagram, figure 2.7).
 
     Solved by fixed-point iteration from the zero-speed frequencies, following the k-th
     forward mode (or the k-th mode when whirl is mixed).

@@ -324,8 +324,10 @@ class PlantSimulator:
 
     def _contact_matrices(self, d: SpeedDiscretisation) -> tuple[NDArray, NDArray, NDArray]:
         """
-        Response to contact forces held over one sub-step: state (nx, 2k), journal positions
-        (2k, 2k) and velocities (2k, 2k) per unit force at the clearance bearings.
+        Return the response to contact forces held over one sub-step.
+
+        State (nx, 2k), journal positions (2k, 2k) and velocities (2k, 2k) per unit force at
+        the clearance bearings.
         """
         key = id(d)
         hit = self._cmats.get(key)

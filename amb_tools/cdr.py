@@ -137,8 +137,11 @@ def _measurement_dtype(frame_id_bytes: int) -> tuple[np.dtype, int]:
 
 @dataclass(slots=True)
 class MeasurementView:
-    """A ``Measurement`` read from CDR (field names of ``amb_msgs/Measurement``; arrays are
-    read-only ``float64`` views)."""
+    """
+    A ``Measurement`` read from CDR.
+
+    Field names of ``amb_msgs/Measurement``; arrays are read-only ``float64`` views.
+    """
 
     header: HeaderView
     sample_index: int

@@ -76,12 +76,15 @@ class DrainedGroup(CallbackGroup):
     """
 
     def can_execute(self, entity: Any) -> bool:
+        """Never: the executor leaves the group's entities out of its wait set."""
         return False
 
     def beginning_execution(self, entity: Any) -> bool:
+        """Never begin one (nothing of the group is executed)."""
         return False
 
     def ending_execution(self, entity: Any) -> None:
+        """Nothing to release (nothing began)."""
         return None
 
 

@@ -1,8 +1,8 @@
-"""``amb-report``: thesis-style figures and ``metrics.json`` from any bag of this project.
+r"""``amb-report``: thesis-style figures and ``metrics.json`` from any bag of this project.
 
 ::
 
-    amb-report runs/pid/bag runs/wavelet/bag --labels "PID only,PID + wavelet" \\
+    amb-report runs/pid/bag runs/wavelet/bag --labels "PID only,PID + wavelet" \
                --scenario config/scenarios/mass_loss_first_critical.yaml --out report/
 
 reads one or more rosbag2 folders with the ``/amb/*`` topics (``amb-sim``, ``amb-run``'s

@@ -424,8 +424,12 @@ def orbit_figure(runs: list[Run], path: Path) -> Figure:
 
 
 def revolution_envelope(data: BagData) -> tuple[np.ndarray, np.ndarray]:
-    """Return ``(t, peak)``: per whole revolution, the time at its start and the peak radial
-    displacement ``max_n hypot(x_p[n], y_p[n])`` at each plane ``p`` (m, ``(R, 4)``)."""
+    """
+    Return ``(t, peak)`` per whole revolution.
+
+    The time at its start and the peak radial displacement ``max_n hypot(x_p[n], y_p[n])`` at
+    each plane ``p`` (m, ``(R, 4)``).
+    """
     m = data.measurements
     spr = data.samples_per_rev
     n_rev = m.time.size // spr

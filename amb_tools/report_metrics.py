@@ -227,8 +227,11 @@ def bag_metrics(
 
 
 def _applied_command_force(data: BagData, n_samples: int) -> np.ndarray:
-    """Return ``(n_samples, 4)`` N: the force of the command for each period, as the plant
-    applies it (zero in a period without a command), for a bag without ``/amb/measurement``."""
+    """
+    Return ``(n_samples, 4)`` N: each period's commanded force, as the plant applies it.
+
+    Zero in a period without a command; for a bag without ``/amb/measurement``.
+    """
     cmd = data.commands
     n = cmd.force.shape[2]
     wf = np.zeros((n_samples, 4))

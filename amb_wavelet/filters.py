@@ -61,7 +61,7 @@ def orthogonal_wavelet_names() -> list[str]:
 
 @dataclass(frozen=True)
 class FilterSet:
-    """
+    r"""
     Analysis and synthesis filters of one orthogonal wavelet.
 
     Attributes
@@ -75,7 +75,7 @@ class FilterSet:
         Synthesis filters :math:`g_0, g_1` (eq. 4.10), the time reverses of the analysis
         filters.
     orthonormality_error : float
-        :math:`\\max_k |\\sum_n h_0[n] h_0[n + 2k] - \\delta[k]|`, the accuracy to which
+        :math:`\max_k |\sum_n h_0[n] h_0[n + 2k] - \delta[k]|`, the accuracy to which
         the PyWavelets table satisfies eq. 4.16, exact for the tabulated doubles.
     """
 
@@ -131,7 +131,7 @@ def _filters(name: str) -> FilterSet:
 
 
 def _orthonormality_error(taps: list[float]) -> float:
-    """Exact :math:`\\max_k |\\sum_n h[n] h[n + 2k] - \\delta[k]|` of doubles (eq. 4.16)."""
+    r"""Exact :math:`\max_k |\sum_n h[n] h[n + 2k] - \delta[k]|` of doubles (eq. 4.16)."""
     h = [Fraction(t) for t in taps]
     lags = [sum(h[n] * h[n + 2 * k] for n in range(len(h) - 2 * k)) for k in range(len(h) // 2)]
     return float(max([abs(lags[0] - 1), *(abs(v) for v in lags[1:])]))

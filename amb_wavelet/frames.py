@@ -1,23 +1,23 @@
-"""
+r"""
 Fixed and synchronously rotating reference frames (thesis eq. 2.22-2.26, 5.1-5.2).
 
 This is the one place in the project where sensor displacements are transformed to the
-rotating frame. Per sensor plane, with the rotor angle :math:`\\theta` (rad, from the
+rotating frame. Per sensor plane, with the rotor angle :math:`\theta` (rad, from the
 once-per-revolution keyphasor, positive in the direction of rotation from +x towards +y):
 
 .. math::
 
-    \\begin{bmatrix} u \\\\ v \\end{bmatrix} =
-    \\begin{bmatrix} \\cos\\theta & \\sin\\theta \\\\ -\\sin\\theta & \\cos\\theta \\end{bmatrix}
-    \\begin{bmatrix} x \\\\ y \\end{bmatrix},
-    \\qquad u + i v = e^{-i\\theta} (x + i y).
+    \begin{bmatrix} u \\ v \end{bmatrix} =
+    \begin{bmatrix} \cos\theta & \sin\theta \\ -\sin\theta & \cos\theta \end{bmatrix}
+    \begin{bmatrix} x \\ y \end{bmatrix},
+    \qquad u + i v = e^{-i\theta} (x + i y).
 
-The matrix is :math:`\\mathbf{T}(t)` of eq. 2.26 with :math:`\\Omega t = \\theta`.
-Decision (thesis ambiguity): eq. 2.22 writes :math:`\\mathbf{x} = \\mathbf{T}\\mathbf{r}`,
-which with eq. 2.26 would make a forward synchronous orbit rotate at :math:`2\\Omega` in
-the "rotating" frame; eq. 5.1-5.2 (:math:`f_x + i f_y = m e \\Omega^2 e^{i\\Omega t}` and
-:math:`f_u + i f_v = m e \\Omega^2`) fix the intended transform as
-:math:`u + iv = e^{-i\\Omega t}(x + iy)`, i.e. :math:`\\mathbf{r} = \\mathbf{T}\\mathbf{x}`.
+The matrix is :math:`\mathbf{T}(t)` of eq. 2.26 with :math:`\Omega t = \theta`.
+Decision (thesis ambiguity): eq. 2.22 writes :math:`\mathbf{x} = \mathbf{T}\mathbf{r}`,
+which with eq. 2.26 would make a forward synchronous orbit rotate at :math:`2\Omega` in
+the "rotating" frame; eq. 5.1-5.2 (:math:`f_x + i f_y = m e \Omega^2 e^{i\Omega t}` and
+:math:`f_u + i f_v = m e \Omega^2`) fix the intended transform as
+:math:`u + iv = e^{-i\Omega t}(x + iy)`, i.e. :math:`\mathbf{r} = \mathbf{T}\mathbf{x}`.
 We follow eq. 5.1-5.2, so that a steady forward circular (unbalance) orbit is constant in
 (u, v) and its wavelet details vanish (eq. 5.4).
 
@@ -54,7 +54,7 @@ def _rotate(xy: ArrayLike, angle: ArrayLike, sign: float) -> np.ndarray:
 
 
 def to_rotating_frame(xy: ArrayLike, angle: ArrayLike) -> np.ndarray:
-    """
+    r"""
     Transform fixed-frame (x, y) pairs into the synchronously rotating frame (u, v).
 
     Parameters
@@ -62,7 +62,7 @@ def to_rotating_frame(xy: ArrayLike, angle: ArrayLike) -> np.ndarray:
     xy : array_like
         Shape ``(..., 2P)``: ``[x1, y1, ..., xP, yP]`` per sample (m, or any unit).
     angle : array_like
-        Rotor angle :math:`\\theta` (rad), shape ``xy.shape[:-1]`` (a scalar for one
+        Rotor angle :math:`\theta` (rad), shape ``xy.shape[:-1]`` (a scalar for one
         sample).
 
     Returns

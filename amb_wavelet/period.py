@@ -1,4 +1,4 @@
-"""
+r"""
 Period-sampled wavelet coefficients x_{p,q}(kT) and period averages x^0(kT) (eq. 6.1-6.4).
 
 The control period ``T`` is one revolution, ``samples_per_rev = 2**R`` samples. Within
@@ -19,10 +19,10 @@ wavelets at levels ``p = 1 .. R`` and translations ``q = 1 .. 2**(p - 1)``:
 Decisions (thesis ambiguities):
 
 * Scaling: the coefficients are the orthonormal discrete ones of the filterbank (eq. 4.6:
-  Haar level ``j`` weights are :math:`\\pm 2^{-j/2}`), not eq. 6.1's
-  :math:`|p|^{-1/2}\\int` (which is undefined for ``p = 0`` and mixes continuous time with
+  Haar level ``j`` weights are :math:`\pm 2^{-j/2}`), not eq. 6.1's
+  :math:`|p|^{-1/2}\int` (which is undefined for ``p = 0`` and mixes continuous time with
   levels). With this scaling eq. 6.2 holds exactly in discrete time for Haar:
-  ``x[n] = x0 + sum_{p,q} x_{p,q} psi_{p,q}[n]`` with unit-energy :math:`\\psi_{p,q}`.
+  ``x[n] = x0 + sum_{p,q} x_{p,q} psi_{p,q}[n]`` with unit-energy :math:`\psi_{p,q}`.
 * Average: :math:`x^0(kT)` is the arithmetic mean of the period's samples, for every
   wavelet (eq. 6.2: "the average value over [0, T]"). For Haar it equals the level-``R``
   approximation divided by :math:`2^{R/2}`.

@@ -63,7 +63,7 @@ def _basis(wavelet: str, level: int, kind: str) -> np.ndarray:
 
 
 def basis_function(wavelet: str, level: int, kind: str = DETAIL) -> np.ndarray:
-    """
+    r"""
     Return the discrete orthonormal wavelet (or scaling) function of one coefficient.
 
     Parameters
@@ -73,7 +73,7 @@ def basis_function(wavelet: str, level: int, kind: str = DETAIL) -> np.ndarray:
     level : int
         Level ``j >= 1``.
     kind : {"detail", "approximation"}
-        Wavelet function :math:`\\psi` or scaling function :math:`\\phi`.
+        Wavelet function :math:`\psi` or scaling function :math:`\phi`.
 
     Returns
     -------
@@ -91,11 +91,11 @@ def basis_function(wavelet: str, level: int, kind: str = DETAIL) -> np.ndarray:
 
 @cache
 def atom_time_centre(wavelet: str, level: int, kind: str = DETAIL) -> float:
-    """
+    r"""
     Return the time centre of one coefficient's atom, in samples after its first sample.
 
     The centre of the time-energy distribution of the unit-norm atom ``b`` of
-    :func:`basis_function`, :math:`u = \\sum_t t\\, b_t^2` (Mallat's time centre; eq. 4.34
+    :func:`basis_function`, :math:`u = \sum_t t\, b_t^2` (Mallat's time centre; eq. 4.34
     measures the spread about the same kind of centre, for the scaling filter). It is where the
     coefficient is most sensitive to a change of its input: the fault monitor back-dates a
     threshold crossing to it (:func:`amb_fault_monitor.monitor.estimate_onset`).

@@ -1,29 +1,29 @@
-"""
+r"""
 Heisenberg and balanced uncertainty of wavelet filters (thesis section 4.5, Table 4.1).
 
 From the ``L`` coefficients :math:`h_n` of the low-pass (scaling) analysis filter:
 
 .. math::
 
-    (\\Delta\\omega)^2 = \\frac{\\pi^2}{3} + 4 \\sum_{n=0}^{L-2} \\sum_{m=n+1}^{L-1}
-        \\frac{(-1)^{m-n}}{P (m-n)^2} h_m h_n  \\quad (4.32), \\qquad
-    P = \\sum_n h_n^2  \\quad (4.33)
+    (\Delta\omega)^2 = \frac{\pi^2}{3} + 4 \sum_{n=0}^{L-2} \sum_{m=n+1}^{L-1}
+        \frac{(-1)^{m-n}}{P (m-n)^2} h_m h_n  \quad (4.32), \qquad
+    P = \sum_n h_n^2  \quad (4.33)
 
 .. math::
 
-    (\\Delta t)^2 = \\sum_{n=0}^{L-1} (n - \\alpha)^2 h_n^2 \\quad (4.34), \\qquad
-    \\alpha = \\frac{\\sum n h_n}{\\sum h_n} \\quad (4.35), \\qquad
-    M(k) = (\\Delta\\omega)^2 + k (\\Delta t)^2 \\quad (4.36)
+    (\Delta t)^2 = \sum_{n=0}^{L-1} (n - \alpha)^2 h_n^2 \quad (4.34), \qquad
+    \alpha = \frac{\sum n h_n}{\sum h_n} \quad (4.35), \qquad
+    M(k) = (\Delta\omega)^2 + k (\Delta t)^2 \quad (4.36)
 
 Decisions (thesis typos), checked against Table 4.1:
 
 * Eq. 4.33 prints the sum for ``P`` up to ``L - 2``; with that bound the Haar filter gives
-  :math:`(\\Delta\\omega)^2 < 0`. The text says ``P = 1`` for orthogonal filters, which
+  :math:`(\Delta\omega)^2 < 0`. The text says ``P = 1`` for orthogonal filters, which
   is the sum over all ``L`` taps; that sum reproduces Table 4.1 and is used here.
 * The filter is the low-pass :math:`h_0` (``dec_lo``): the high-pass filter gives
   ``1.136 -> 2.30`` for Haar. Reversing the filter changes neither measure.
 
-Units: :math:`\\Delta t` in samples and :math:`\\Delta\\omega` in rad/sample of the
+Units: :math:`\Delta t` in samples and :math:`\Delta\omega` in rad/sample of the
 filter's own rate (the thesis's unit sample interval). At level ``j`` of a bank sampled at
 ``fs`` (Hz) the physical values are ``delta_t * 2**j / fs`` (s) and
 ``delta_omega * fs / 2**j`` (rad/s); the product is scale free.
@@ -43,7 +43,7 @@ __all__ = ["Uncertainty", "filter_uncertainty", "uncertainty"]
 
 @dataclass(frozen=True)
 class Uncertainty:
-    """
+    r"""
     Uncertainty measures of one filter (one row of Table 4.1).
 
     Attributes
@@ -51,11 +51,11 @@ class Uncertainty:
     wavelet : str
         PyWavelets name (``""`` for a bare filter).
     delta_omega : float
-        Bandwidth :math:`\\Delta\\omega` (rad/sample), eq. 4.32.
+        Bandwidth :math:`\Delta\omega` (rad/sample), eq. 4.32.
     delta_t : float
-        Time dispersion :math:`\\Delta t` (samples), eq. 4.34.
+        Time dispersion :math:`\Delta t` (samples), eq. 4.34.
     product : float
-        :math:`\\Delta\\omega \\Delta t` (>= 1/2, eq. 4.29).
+        :math:`\Delta\omega \Delta t` (>= 1/2, eq. 4.29).
     balanced : float
         :math:`M(k)`, eq. 4.36.
     k : float
@@ -75,7 +75,7 @@ class Uncertainty:
 
 
 def filter_uncertainty(h: ArrayLike, k: float = 1.0, wavelet: str = "") -> Uncertainty:
-    """
+    r"""
     Uncertainty measures from low-pass filter coefficients (eq. 4.32-4.36).
 
     Parameters
@@ -83,7 +83,7 @@ def filter_uncertainty(h: ArrayLike, k: float = 1.0, wavelet: str = "") -> Uncer
     h : array_like
         Low-pass filter coefficients :math:`h_0 .. h_{L-1}`, ``L >= 2``, nonzero sum.
     k : float
-        Weight of :math:`(\\Delta t)^2` in :math:`M(k)` (>= 0).
+        Weight of :math:`(\Delta t)^2` in :math:`M(k)` (>= 0).
     wavelet : str
         Name stored in the result.
 

@@ -44,6 +44,7 @@ def _executor():
 
 
 def role_publisher(args) -> dict:
+    """Publish the fan-out stream at ``--rate``; return its publish cost per message."""
     import rclpy
     from amb_msgs.msg import Measurement
     from rclpy.serialization import serialize_message
@@ -79,6 +80,7 @@ def role_publisher(args) -> dict:
 
 
 def role_subscriber(args) -> dict:
+    """Receive the fan-out stream; return this subscriber's receive cost per message."""
     import rclpy
     from amb_msgs.msg import Measurement
 
@@ -111,6 +113,7 @@ def role_subscriber(args) -> dict:
 
 
 def role_ping(args) -> dict:
+    """One end of the ping-pong (``--role ping`` or ``pong``); ping returns the round trips."""
     import rclpy
     from amb_msgs.msg import Measurement
 
@@ -173,6 +176,7 @@ def _result(p: subprocess.Popen) -> dict:
 
 
 def main() -> None:
+    """Run the fan-out and the ping-pong in subprocesses and print their costs."""
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--rate", type=float, default=2144.0, help="Hz, fan-out publish rate")
     ap.add_argument("--count", type=int, default=8000, help="fan-out messages")

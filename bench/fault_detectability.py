@@ -80,6 +80,7 @@ def noisy_run(case, wavelet: str):
 
 
 def first_above(trace: list, start: int, level: float) -> int | None:
+    """Samples after ``start`` until a traced ratio first exceeds ``level`` (None: never)."""
     for n, _level, _frame, _first, _last, ratio in trace:
         if n >= start and float(np.max(ratio)) > level:
             return n - start
@@ -87,6 +88,7 @@ def first_above(trace: list, start: int, level: float) -> int | None:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Print the noise-free detection bound of each case and wavelet (module docstring)."""
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[1])
     ap.add_argument("--scenarios", default=str(ROOT / "config" / "scenarios" / "faults"))
     ap.add_argument("--match", default="contact", help="only files whose name contains this")

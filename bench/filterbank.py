@@ -36,6 +36,7 @@ def _median_time(fn, repeats: int) -> float:
 
 
 def main() -> None:
+    """Time the streaming and block filterbanks and print the cost per sample and the ratios."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[1])
     ap.add_argument("--samples", type=int, default=8192)
     ap.add_argument("--repeats", type=int, default=5)

@@ -1,5 +1,7 @@
-"""Benchmark: the four-node loop over DDS (amb-run), lock-step real-time factor and the
-command latency in realtime mode.
+"""
+Benchmark: the four-node loop over DDS (amb-run).
+
+Lock-step real-time factor and the command latency in realtime mode.
 
 For each case (running speed, samples per revolution): a wavelet model from the FE route
 (``amb-sim --model fe``), then
@@ -119,6 +121,7 @@ def _row(label: str, r: dict) -> str:
 
 
 def main() -> None:
+    """Run each case ``--repeat`` times, lock-step and realtime; print every run and the load."""
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--duration", type=float, default=8.0, help="simulated s per run")
     ap.add_argument("--cases", default="11:64,67:32", help="speed_hz:samples_per_rev,...")

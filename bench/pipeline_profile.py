@@ -39,6 +39,7 @@ def cpu_in_window(usage: dict, t0: float, t1: float) -> float:
 
 
 def main() -> None:
+    """Run one case with per-node CPU logs and print the CPU per sample of each node."""
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--case", default="67:32", help="speed_hz:samples_per_rev")
     ap.add_argument("--duration", type=float, default=4.0, help="simulated s")

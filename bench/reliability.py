@@ -54,6 +54,7 @@ def start(name: str, log_dir: Path, params: dict) -> tuple[subprocess.Popen, Pat
 
 
 def main() -> int:
+    """Soak the four nodes and report lost messages and memory growth (module docstring)."""
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--soak-minutes", type=float, default=30.0, help="simulated minutes")
     p.add_argument("--hz", type=float, default=67.0, help="running speed, Hz")

@@ -1,4 +1,4 @@
-"""The simulated rig with all four nodes and the recorder (full ROS 2 Jazzy installs).
+r"""The simulated rig with all four nodes and the recorder (full ROS 2 Jazzy installs).
 
 What ``amb-run`` does where ``ros2 launch`` is not available: the same executables, the same
 params file, the same per-run parameters, built by the same function
@@ -6,8 +6,8 @@ params file, the same per-run parameters, built by the same function
 plant's scenario and subscriber count, the controller's choices, the recorder's bag). The
 launch ends when ``plant_sim`` has finished its scenario.
 
-    ros2 launch amb_wavelet_control amb_system.launch.py \\
-        scenario:=mass_loss_first_critical.yaml controller:=transient \\
+    ros2 launch amb_wavelet_control amb_system.launch.py \
+        scenario:=mass_loss_first_critical.yaml controller:=transient \
         model_file:=/path/model.npz start_mode:=active bag:=/tmp/run1
 
 To drive a real rig, leave out plant_sim (``with_plant:=false``) and start your I/O bridge.
