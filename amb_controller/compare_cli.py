@@ -245,7 +245,7 @@ class Matrix:
 
     def config(self, spec: Spec, scenario, **overrides):
         """Return the ControllerConfig of ``spec`` for ``scenario``."""
-        from amb_controller.pipeline import ControllerConfig
+        from amb_controller.config import ControllerConfig
 
         return ControllerConfig(
             samples_per_rev=self.spr or scenario.samples_per_rev or 64,

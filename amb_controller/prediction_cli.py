@@ -55,8 +55,9 @@ from pathlib import Path
 import numpy as np
 
 from amb_controller.basis import measurement_basis
+from amb_controller.config import ControllerConfig
 from amb_controller.inverse import pseudo_inverse_series
-from amb_controller.pipeline import ControllerConfig, ControllerPipeline
+from amb_controller.pipeline import ControllerPipeline
 
 __all__ = [
     "LEVELS",

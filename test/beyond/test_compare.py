@@ -193,7 +193,7 @@ def test_command_evaluation_is_a_small_fraction_of_a_period():
 
 def test_engage_on_starts_off_and_engages_at_the_detected_mass_loss(rig, first_critical):
     from amb_controller.closed_loop import fe_model, run_closed_loop
-    from amb_controller.pipeline import ControllerConfig
+    from amb_controller.config import ControllerConfig
 
     sc = replace(first_critical, duration=5.0)
     cfg = ControllerConfig(samples_per_rev=32, delay_periods=1)
