@@ -46,11 +46,11 @@ Why the timeouts count from the last coefficient message: in lock-step the plant
 period's samples at once and waits for the command, so a loaded filterbank that works through
 them slowly (each coefficient message still following the last within a fraction of a second)
 may deliver the period's last coefficients, and hold back the next measurements, longer than
-either timeout after the period's measurements arrived. Counted from the measurement only, a
-30-min lock-step soak at load average 17-28 answered three periods with zero force that way, a
-transient of the rotor. Counted from the stream's progress, only a filterbank silent for
-``coefficient_timeout`` (dead, or given no CPU for that long) is given up on, as before: its
-last message came before the measurement that waits. The default stays 1 s: the restart tests
+either timeout after the period's measurements arrived. Counted from the measurement only,
+such periods were answered with zero force (docs/controller_notes.md), a transient of the
+rotor. Counted from the stream's progress, only a filterbank silent for
+``coefficient_timeout`` (dead, or given no CPU for that long) is given up on: its last
+message came before the measurement that waits. The default stays 1 s: the restart tests
 (plant ``command_timeout`` 0.5 s) need a dead filterbank answered quickly.
 
 Parameters
