@@ -17,9 +17,13 @@ lti               small discrete state-space toolkit
 synthesis         coefficients -> force samples, per-axis force limit
 guard             divergence guard
 supervisor        OFF / IDENTIFYING / ACTIVE / HOLD mode logic for the node
+config            ControllerConfig: each field's default, description, range (node parameters)
+pipeline          records in, one command per period out (the node's core)
+status            ControllerStatus fields of a pipeline
 model_file        identified model .npz
 
 Applications above the core (they run the plant model): ``closed_loop`` (the in-process loop),
 ``plant_models`` (baselines' and per-level models from the simulated rig), the ``*_cli``
-commands, ``acceptability``, ``acceptance``.
+commands (``amb-compare`` with ``compare_cases``, ``compare_runs``, ``compare_report``),
+``acceptability``, ``acceptance``.
 """

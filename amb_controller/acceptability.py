@@ -204,7 +204,7 @@ class SweepSetup:
     rig : amb_plant_sim.rig.Rig
     scenario : amb_plant_sim.scenario.Scenario
     model : amb_controller.model_file.WaveletModel
-    config : amb_controller.pipeline.ControllerConfig
+    config : amb_controller.config.ControllerConfig
         Transient controller, Haar, 64 samples/rev, delay 2, 5th-order inverse, guard armed.
 
     """
@@ -236,7 +236,7 @@ class SweepSetup:
 
         """
         from amb_controller.closed_loop import fe_model
-        from amb_controller.pipeline import ControllerConfig
+        from amb_controller.config import ControllerConfig
         from amb_plant_sim.rig import load_rig
         from amb_plant_sim.scenario import load_scenario
         from amb_tools.paths import config_file
@@ -284,7 +284,7 @@ def run_until_runaway(rig, scenario, config, model):
     rig : amb_plant_sim.rig.Rig
     scenario : amb_plant_sim.scenario.Scenario
         Resolved scenario (constant speed).
-    config : amb_controller.pipeline.ControllerConfig
+    config : amb_controller.config.ControllerConfig
     model : amb_controller.model_file.WaveletModel or None
 
     Returns

@@ -30,8 +30,8 @@ from dataclasses import replace
 import numpy as np
 
 from amb_controller.closed_loop import fe_model, run_closed_loop
+from amb_controller.config import ControllerConfig
 from amb_controller.metrics import compute_metrics, inner_summary
-from amb_controller.pipeline import ControllerConfig
 from amb_tools.paths import config_file
 
 LIMIT = 0.5e-3  # m, the thesis's acceptability bound (sections 7.4.2, 8.5.1)

@@ -142,7 +142,7 @@ N_SENSORS = 8
 @dataclass(frozen=True)
 class BaselineSettings:
     """
-    Settings of the baselines not in :class:`~amb_controller.pipeline.ControllerConfig`.
+    Settings of the baselines not in :class:`~amb_controller.config.ControllerConfig`.
 
     Attributes
     ----------
@@ -673,6 +673,6 @@ class HarmonicPipeline:
 
     def status(self) -> dict:
         """Return the ``ControllerStatus`` fields (as :meth:`ControllerPipeline.status`)."""
-        from amb_controller.pipeline import status_fields
+        from amb_controller.status import status_fields
 
         return status_fields(self, 1.0, "")

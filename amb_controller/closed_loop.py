@@ -46,14 +46,10 @@ from typing import ClassVar
 import numpy as np
 
 from amb_controller.basis import control_basis
+from amb_controller.config import BASELINE_CONTROLLERS, ControllerConfig
 from amb_controller.inverse import pseudo_inverse_series
 from amb_controller.model_file import WaveletModel
-from amb_controller.pipeline import (
-    BASELINE_CONTROLLERS,
-    ControllerConfig,
-    ControllerPipeline,
-    selected_measurement_basis,
-)
+from amb_controller.pipeline import ControllerPipeline, selected_measurement_basis
 from amb_controller.supervisor import Command, Mode
 from amb_controller.wavelet_dynamics import wavelet_markov
 from amb_tools import topics

@@ -46,11 +46,11 @@ Why the timeouts count from the last coefficient message: in lock-step the plant
 period's samples at once and waits for the command, so a loaded filterbank that works through
 them slowly (each coefficient message still following the last within a fraction of a second)
 may deliver the period's last coefficients, and hold back the next measurements, longer than
-either timeout after the period's measurements arrived. Counted from the measurement only, a
-30-min lock-step soak at load average 17-28 answered three periods with zero force that way, a
-transient of the rotor. Counted from the stream's progress, only a filterbank silent for
-``coefficient_timeout`` (dead, or given no CPU for that long) is given up on, as before: its
-last message came before the measurement that waits. The default stays 1 s: the restart tests
+either timeout after the period's measurements arrived. Counted from the measurement only,
+such periods were answered with zero force (docs/controller_notes.md), a transient of the
+rotor. Counted from the stream's progress, only a filterbank silent for
+``coefficient_timeout`` (dead, or given no CPU for that long) is given up on: its last
+message came before the measurement that waits. The default stays 1 s: the restart tests
 (plant ``command_timeout`` 0.5 s) need a dead filterbank answered quickly.
 
 Parameters
@@ -77,6 +77,7 @@ import math
 import time
 from array import array
 from collections import deque
+from dataclasses import dataclass, fields
 from pathlib import Path
 
 import numpy as np
@@ -89,11 +90,12 @@ from amb_msgs.msg import (
 )
 from amb_msgs.srv import SetControllerMode, StartIdentification
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
+from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.node import Node
 
+from amb_controller.config import ControllerConfig, default_of, param, parameter_fields
 from amb_controller.errors import ControllerValueError
-from amb_controller.pipeline import ControllerConfig, ControllerPipeline
+from amb_controller.pipeline import ControllerPipeline
 from amb_controller.supervisor import Mode
 from amb_controller.synthesis import ForceLimiter
 from amb_plant_sim.errors import RigError
@@ -109,70 +111,107 @@ from amb_tools.conversions import (
     controller_status_msg,
     stamp_seconds,
 )
-from amb_tools.node_main import ConfigurationError, run_node
+from amb_tools.node_main import ConfigurationError, descriptor, run_node
 from amb_tools.paths import config_file
 from amb_tools.streams import COMMAND_QOS, FRAME_CODES, QUAD_CODES, stream_qos
 from amb_wavelet.frontend import FRAMES, QUADRATURES, ChannelFrontEnd
 
 START_MODES = ("off", "active", "identify")
-#: Controller parameters that may change at run time (applied at a period boundary).
-TUNABLES = ("w", "v", "rate", "gain", "force_limit")
-#: Node settings (s): (default, description, lowest, highest).
-SETTINGS = {
-    "measurement_timeout": (
-        2.0,
-        "watchdog: wall s without a measurement or coefficient message before holding zero "
-        "and reporting",
-        0.05,
-        600.0,
-    ),
-    "coefficient_timeout": (
-        # 1 s: the restart tests (plant command_timeout 0.5 s) need the controller to answer a
-        # missing filterbank quickly. Counted from the later of the sample's measurement and
-        # the last coefficient message (module notes): a 30-min lock-step soak at load 17-28,
-        # when it counted from the measurement only, saw the wait exceed 1 s three times.
-        1.0,
-        "wall s without a coefficient message (and since the sample's measurement) before "
-        "a sample is processed without its coefficients",
-        0.01,
-        600.0,
-    ),
-    "status_period": (1.0, "period of the /diagnostics report, wall s", 0.05, 60.0),
-}
 #: Coefficient messages more than this many periods ahead of the measurements are refused.
 COEFFICIENT_HORIZON_PERIODS = 8
 
-# ROS parameter -> (default, description). Defaults equal ControllerConfig's; bounds of 0.0
-# mean "off" for the guards (ROS parameters cannot hold inf).
-PARAMETERS: dict[str, tuple[object, str]] = {
-    "wavelet": ("haar", "PyWavelets name (analysis and control)"),
-    "samples_per_rev": (64, "samples per revolution, power of two"),
-    "samples_per_period": (0, "control period in samples (0 = samples_per_rev)"),
-    "levels": ([1], "thesis levels p (1 = 1 x running speed)"),
-    "quadratures": (["even", "odd"], "quadrature channels (section 4.3)"),
-    "sensors": ([2, 3, 4, 5], "sensor channels 0..7 measured (default: the inner planes)"),
-    "delay_periods": (2, "evaluation delay i, periods (eq. 8.10)"),
-    "controller": ("transient", "none | proportional | moderated | transient"),
-    "response": ("exponential", "exponential (w, v) | linear (rate) | series"),
-    "w": (0.75, "exponential response gain w, 0 < w < 1 (eq. 8.6)"),
-    "v": (0.75, "exponential response pole v, 0 <= v < 1 (eq. 8.6)"),
-    "rate": (0.2, "linear decay per period"),
-    "series": ([0.0], "c_1..c_K of eq. 8.7 (response series; [0.0] = unused)"),
-    "gain": (0.21, "dimensionless k of the proportional/moderated controllers"),
-    "inverse_order": (5, "truncation order of the pseudo-inverse (eq. 6.35)"),
-    "inverse_regularisation": (0.0, "Tikhonov weight of the inverse"),
-    "predictor_dc_weight": (10.0, "weight of B(1) G(1) = I in the predictor (eq. 7.6)"),
-    "force_limit": ([1000.0] * 4, "wavelet force limit per axis, N (<= bearing capacity)"),
-    "coefficient_bound": (0.0, "guard: any measured coefficient, m sqrt(samples) (0 = off)"),
-    "displacement_bound": (0.0, "guard: peak displacement of a period, m (0 = off)"),
-    "growth_factor": (1.5, "guard: per-period growth ratio counted as divergence"),
-    "growth_periods": (8, "guard: consecutive growing periods that trip it"),
-    "fault_actions": (["2:hold"], "FaultEvent type:action (hold | off | ignore)"),
-    "model_file": ("", "wavelet model .npz to load at start ('' = none)"),
-    "identification_order": (12, "Markov order fitted by identification"),
-    "identification_amplitude": (20.0, "default step, N sqrt(samples)"),
-    "identification_periods_per_step": (16, "default periods per identification step"),
+
+@dataclass(frozen=True)
+class NodeSettings:
+    """The node's own parameters, beside the controller's (:class:`ControllerConfig`)."""
+
+    measurement_timeout: float = param(
+        2.0,
+        description="watchdog: wall s without a measurement or coefficient message before "
+        "holding zero and reporting",
+        runtime=True,
+        floats=(0.05, 600.0),
+    )
+    # 1 s: the restart tests (plant command_timeout 0.5 s) need the controller to answer a
+    # missing filterbank quickly. Counted from the later of the sample's measurement and the
+    # last coefficient message (module notes).
+    coefficient_timeout: float = param(
+        1.0,
+        description="wall s without a coefficient message (and since the sample's measurement) "
+        "before a sample is processed without its coefficients",
+        runtime=True,
+        floats=(0.01, 600.0),
+    )
+    status_period: float = param(
+        1.0,
+        description="period of the /diagnostics report, wall s",
+        runtime=True,
+        floats=(0.05, 60.0),
+    )
+    rig_file: str = param("", description="rig YAML ('' = package's)")
+    start_mode: str = param(
+        "off",
+        description="off | active | identify (on-line identification from the start, model "
+        "written to model_file_out)",
+        allowed=f"one of {START_MODES}",
+    )
+    model_file_out: str = param(
+        "", description="where identification writes the model ('' = none)", runtime=True
+    )
+
+
+#: The controller's ROS parameters: the fields of ControllerConfig (all but ``frames``).
+PARAMETERS = tuple(f.name for f in parameter_fields(ControllerConfig))
+#: Controller parameters that may change at run time (applied at a period boundary).
+TUNABLES = tuple(f.name for f in parameter_fields(ControllerConfig) if f.metadata["runtime"])
+#: Node settings with a range (s): name -> (lowest, highest).
+SETTINGS = {f.name: f.metadata["floats"] for f in fields(NodeSettings) if f.metadata["floats"]}
+#: Parameters launch/amb_system.launch.py sets from its arguments. Declared from the fields
+#: above; named here so that a renamed field fails on import (and test/system/test_launch_file.py,
+#: which reads this source for them) rather than a user's ``ros2 launch`` on the rig.
+LAUNCH_PARAMETERS = ("controller", "start_mode", "model_file", "model_file_out")
+_undeclared = set(LAUNCH_PARAMETERS) - {*PARAMETERS, *(f.name for f in fields(NodeSettings))}
+if _undeclared:
+    raise ImportError(f"launch parameters {sorted(_undeclared)} are not declared by the node")
+#: How a ROS parameter carries the values it cannot hold (inf, an empty list, a dict).
+ROS_FORMS = {
+    "coefficient_bound": "as a ROS parameter 0 = off",
+    "displacement_bound": "as a ROS parameter 0 = off",
+    "series": "as a ROS parameter [0.0] = unused",
+    "fault_actions": "as a ROS parameter 'TYPE:ACTION' strings, e.g. '2:hold'",
 }
+
+
+def parameter_value(name: str, value):
+    """A field's value as its ROS parameter (:func:`config_from_parameters` maps it back)."""
+    if name in ("coefficient_bound", "displacement_bound") and math.isinf(value):
+        return 0.0
+    if name == "series" and not value:
+        return [0.0]
+    if name == "fault_actions":
+        return [f"{code}:{action}" for code, action in value.items()]
+    return list(value) if isinstance(value, tuple) else value
+
+
+def parameter_descriptor(f: dataclasses.Field) -> ParameterDescriptor:
+    """The ROS descriptor of a :func:`~amb_controller.config.param` field.
+
+    Its description (with the ROS form of inf, empty and mapping values, and the allowed
+    values), read-only unless settable at run time, the range rclpy enforces (if any) and the
+    allowed values also as ``additional_constraints`` (``ros2 param describe`` shows both).
+    """
+    meta = f.metadata
+    description = meta["description"]
+    if f.name in ROS_FORMS:
+        description += f" ({ROS_FORMS[f.name]})"
+    if meta["allowed"]:
+        description += f"; allowed: {meta['allowed']}"
+    out = descriptor(
+        description, read_only=not meta["runtime"], ints=meta["ints"], floats=meta["floats"]
+    )
+    if meta["allowed"]:
+        out.additional_constraints = meta["allowed"]
+    return out
 
 
 def config_from_parameters(values: dict) -> dict:
@@ -201,40 +240,10 @@ class WaveletControllerNode(Node):
 
     def __init__(self) -> None:
         super().__init__("wavelet_controller")
-        for name, (default, description) in PARAMETERS.items():
-            self.declare_parameter(
-                name,
-                default,
-                ParameterDescriptor(description=description, read_only=name not in TUNABLES),
-            )
-        for name, (default, description, lo, hi) in SETTINGS.items():
-            self.declare_parameter(
-                name,
-                default,
-                ParameterDescriptor(
-                    description=description,
-                    floating_point_range=[FloatingPointRange(from_value=lo, to_value=hi)],
-                ),
-            )
-        self.declare_parameter(
-            "rig_file",
-            "",
-            ParameterDescriptor(description="rig YAML ('' = package's)", read_only=True),
-        )
-        self.declare_parameter(
-            "start_mode",
-            "off",
-            ParameterDescriptor(
-                description="off | active | identify (on-line identification from the start, "
-                "model written to model_file_out)",
-                read_only=True,
-            ),
-        )
-        self.declare_parameter(
-            "model_file_out",
-            "",
-            ParameterDescriptor(description="where identification writes the model ('' = none)"),
-        )
+        for cls in (ControllerConfig, NodeSettings):
+            for f in parameter_fields(cls):
+                default = parameter_value(f.name, default_of(f))
+                self.declare_parameter(f.name, default, parameter_descriptor(f))
         self._configure()
         qos = stream_qos(self._pipe.samples_per_period)
         self._cmd_pub = self.create_publisher(ControlCommand, topics.COMMAND, COMMAND_QOS)
@@ -322,7 +331,7 @@ class WaveletControllerNode(Node):
         for name in SETTINGS:
             if name in changes:
                 value = changes[name]
-                lo, hi = SETTINGS[name][2:]
+                lo, hi = SETTINGS[name]
                 if not (isinstance(value, float) and lo <= value <= hi):
                     return SetParametersResult(
                         successful=False,

@@ -43,18 +43,25 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 
 import numpy as np
 
-from amb_controller.basis import QUADRATURES, BasisSet, control_basis, measurement_basis
+from amb_controller.basis import BasisSet, control_basis, measurement_basis
+from amb_controller.config import (
+    BASELINE_CONTROLLERS,
+    N_AXES,
+    SENSOR_NAMES,
+    ConfigError,
+    ControllerConfig,
+)
 from amb_controller.errors import ControllerValueError
 from amb_controller.guard import DivergenceGuard, GuardConfig
 from amb_controller.identification import MarkovIdentifier, StepExperiment
 from amb_controller.inverse import dc_gain, pseudo_inverse_series
 from amb_controller.model_file import WaveletModel
 from amb_controller.response import PrescribedResponse
+from amb_controller.status import status_fields
 from amb_controller.steady_state import (
     ProportionalController,
     SteadyStatePredictor,
@@ -65,319 +72,10 @@ from amb_controller.synthesis import ForceLimiter
 from amb_controller.transient import TransientController
 
 __all__ = [
-    "CONTROLLERS",
-    "RESPONSES",
-    "ConfigError",
-    "ControllerConfig",
     "ControllerPipeline",
+    "prescribed_response",
+    "selected_measurement_basis",
 ]
-
-CONTROLLERS = ("none", "proportional", "moderated", "transient", "synchronous", "harmonic")
-#: 1 x Fourier baselines, run by :class:`amb_controller.baselines.HarmonicPipeline`.
-BASELINE_CONTROLLERS = ("synchronous", "harmonic")
-RESPONSES = ("exponential", "linear", "series")
-FAULT_ACTIONS = ("hold", "off", "ignore")
-SENSOR_NAMES = ("x1", "y1", "x2", "y2", "x3", "y3", "x4", "y4")
-N_AXES = 4
-
-
-class ConfigError(ControllerValueError):
-    """A controller configuration field has an invalid value (the message names it)."""
-
-
-def _fail(name: str, value, allowed: str) -> ConfigError:
-    return ConfigError(
-        f"controller config field '{name}' = {value!r} is invalid: expected {allowed}; "
-        "correct the parameter (params file or amb-sim option) and restart"
-    )
-
-
-@dataclass(frozen=True)
-class ControllerConfig:
-    """
-    Plain configuration of :class:`ControllerPipeline` (the node's ROS parameters).
-
-    Attributes
-    ----------
-    wavelet : str
-        Orthogonal PyWavelets name (analysis and control wavelet).
-    samples_per_rev : int
-        Samples per revolution, a power of two >= 4.
-    samples_per_period : int
-        Control period in samples; 0 means ``samples_per_rev``. Only one revolution is
-        supported (the thesis's T, chapters 7-8).
-    levels : tuple of int
-        Thesis levels p used for measurement and control (1 = 1 x running speed).
-    quadratures : tuple of str
-        Quadrature channels, ``("even", "odd")`` (section 4.3) or a subset.
-    frames : tuple of str
-        Frames the controller reads; only ``("fixed",)`` is supported (the bearing forces
-        act in the fixed frame).
-    sensors : tuple of int
-        Sensor channels 0..7 ([x1, y1, ..., x4, y4]) the controller measures: the selection
-        ``B^(m)`` of eq. 7.2. Default: the inner planes 2 and 3 beside the AMBs, so that
-        ``G B_u`` is square (4 sensors, 4 axes) and the inverse of eq. 6.35 is a true
-        inverse; with more sensors than axes the least-squares inverse leaves an oblique
-        residual ``I - G (B G)^-1 B`` that the integral action of eq. 8.10 cannot remove
-        (section 8.2) and that, on the FE model, amplifies the outer planes' 1 x vibration.
-    delay_periods : int
-        Evaluation delay i >= 1 (thesis: 2 in chapter 8, 3 in section 7.4.2).
-    controller : str
-        ``none``, ``proportional`` (eq. 7.7), ``moderated`` (eq. 7.9) or ``transient``
-        (eq. 8.10); ``synchronous`` and ``harmonic`` are the 1 x Fourier baselines of
-        :mod:`amb_controller.baselines` (run by its ``HarmonicPipeline``, not by this one).
-    response : str
-        Prescribed response of the transient controller: ``exponential`` (eq. 8.6, ``w``,
-        ``v``), ``linear`` (``rate`` per period) or ``series`` (``series`` = c_1..c_K,
-        eq. 8.7).
-    w, v : float
-        Exponential response, ``0 < w < 1``, ``0 <= v < 1``.
-    rate : float
-        Linear decay per period, ``0 < rate < 1``.
-    series : tuple of float
-        c_1 .. c_K of eq. 8.7 (c_1 != 0).
-    gain : float
-        Dimensionless k of the proportional / moderated controllers (module docstring), > 0.
-    inverse_order : int
-        Truncation order K of the pseudo-inverse (eq. 6.35; the thesis uses 5), >= 0.
-    inverse_regularisation : float
-        Tikhonov weight of the inverse (model units), >= 0.
-    predictor_dc_weight : float
-        Weight of ``B(1) G(1) = I`` in the steady-state predictor's inverse (eq. 7.6), >= 0.
-    force_limit : tuple of float
-        Wavelet force limit per axis [b1x, b1y, b2x, b2y] in N, each in
-        ``(0, amb.force_limit]`` of the rig.
-    coefficient_bound : float
-        Divergence guard on any measured coefficient (m sqrt(samples)); ``inf`` = off.
-    displacement_bound : float
-        Divergence guard on the peak displacement of a period (m); ``inf`` = off.
-    growth_factor : float
-        Guard: per-period growth ratio counted as divergence (> 1).
-    growth_periods : int
-        Guard: consecutive growing periods that trip it (>= 1).
-    fault_actions : dict of int to str
-        ``FaultEvent.fault_type`` -> ``hold``, ``off`` or ``ignore``.
-    model_file : str
-        Wavelet model ``.npz`` to load at start ('' = none).
-    identification_order : int
-        Markov order K fitted by on-line identification (>= 1).
-    identification_amplitude : float
-        Default step in one control coefficient (N sqrt(samples)), != 0.
-    identification_periods_per_step : int
-        Default periods each step is held on (and then off); > identification_order.
-
-    """
-
-    wavelet: str = "haar"
-    samples_per_rev: int = 64
-    samples_per_period: int = 0
-    levels: tuple[int, ...] = (1,)
-    quadratures: tuple[str, ...] = QUADRATURES
-    frames: tuple[str, ...] = ("fixed",)
-    sensors: tuple[int, ...] = (2, 3, 4, 5)
-    delay_periods: int = 2
-    controller: str = "transient"
-    response: str = "exponential"
-    w: float = 0.75
-    v: float = 0.75
-    rate: float = 0.2
-    series: tuple[float, ...] = ()
-    gain: float = 0.21
-    inverse_order: int = 5
-    inverse_regularisation: float = 0.0
-    predictor_dc_weight: float = 10.0
-    force_limit: tuple[float, ...] = (1000.0, 1000.0, 1000.0, 1000.0)
-    coefficient_bound: float = math.inf
-    displacement_bound: float = math.inf
-    growth_factor: float = 1.5
-    growth_periods: int = 8
-    fault_actions: dict[int, str] = field(default_factory=lambda: {2: "hold"})
-    model_file: str = ""
-    identification_order: int = 12
-    identification_amplitude: float = 20.0
-    identification_periods_per_step: int = 16
-
-    def __post_init__(self) -> None:
-        self._validate()
-
-    # ------------------------------------------------------------------ construction
-    @classmethod
-    def from_dict(cls, d: dict, capacity: float | None = None) -> ControllerConfig:
-        """
-        Build and validate a configuration from a plain mapping.
-
-        Parameters
-        ----------
-        d : dict
-            Field name -> value (unknown names are refused). ``force_limit`` may be one
-            number for all axes.
-        capacity : float, optional
-            Bearing capacity in N (``amb.force_limit`` of the rig); when given every force
-            limit must not exceed it.
-
-        Returns
-        -------
-        ControllerConfig
-
-        Raises
-        ------
-        ConfigError
-            Naming the field, the value and the allowed range.
-
-        """
-        if not isinstance(d, dict):
-            raise ConfigError(f"controller config must be a mapping, got {type(d).__name__}")
-        known = {f.name for f in fields(cls)}
-        unknown = sorted(set(d) - known)
-        if unknown:
-            raise ConfigError(
-                f"unknown controller config field(s) {unknown}; allowed: {sorted(known)}"
-            )
-        kw = dict(d)
-        for name in ("levels", "quadratures", "frames", "series", "sensors"):
-            if name in kw:
-                value = kw[name]
-                kw[name] = tuple(value) if isinstance(value, list | tuple) else (value,)
-        if "force_limit" in kw:
-            fl = kw["force_limit"]
-            fl = tuple(fl) if isinstance(fl, list | tuple) else (fl,) * N_AXES
-            kw["force_limit"] = fl
-        if "fault_actions" in kw:
-            try:
-                kw["fault_actions"] = {int(k): str(a) for k, a in dict(kw["fault_actions"]).items()}
-            except (TypeError, ValueError) as exc:
-                raise _fail(
-                    "fault_actions", d["fault_actions"], "a mapping fault_type -> action"
-                ) from exc
-        config = cls(**kw)
-        if capacity is not None:
-            config.check_capacity(capacity)
-        return config
-
-    def to_dict(self) -> dict:
-        """Return the fields as plain Python values (lists for tuples)."""
-        out = asdict(self)
-        for k, v in out.items():
-            if isinstance(v, tuple):
-                out[k] = list(v)
-        return out
-
-    def check_capacity(self, capacity: float) -> None:
-        """Raise :class:`ConfigError` if a force limit exceeds the bearing capacity (N)."""
-        if any(f > capacity for f in self.force_limit):
-            raise _fail(
-                "force_limit",
-                list(self.force_limit),
-                f"each limit in (0, {capacity:g}] N (amb.force_limit of the rig)",
-            )
-
-    @property
-    def period_samples(self) -> int:
-        """Samples per control period (``samples_per_period`` or ``samples_per_rev``)."""
-        return self.samples_per_period or self.samples_per_rev
-
-    # ------------------------------------------------------------------ validation
-    def _validate(self) -> None:
-        import pywt
-
-        if not isinstance(self.wavelet, str) or self.wavelet not in pywt.wavelist(kind="discrete"):
-            raise _fail("wavelet", self.wavelet, "an orthogonal PyWavelets name (pywt.wavelist)")
-        if not pywt.Wavelet(self.wavelet).orthogonal:
-            raise _fail("wavelet", self.wavelet, "an orthogonal wavelet (haar, dbN, symN, coifN)")
-        spr = self.samples_per_rev
-        if not _is_int(spr) or spr < 4 or spr & (spr - 1):
-            raise _fail("samples_per_rev", spr, "a power of two >= 4")
-        if not _is_int(self.samples_per_period) or self.samples_per_period not in (0, spr):
-            raise _fail(
-                "samples_per_period",
-                self.samples_per_period,
-                f"0 or samples_per_rev = {spr} (one revolution per control period)",
-            )
-        r = spr.bit_length() - 1
-        if (
-            not self.levels
-            or any(not _is_int(p) or not 1 <= p <= r for p in self.levels)
-            or len(set(self.levels)) != len(self.levels)
-        ):
-            raise _fail("levels", list(self.levels), f"distinct thesis levels p in 1..{r}")
-        if (
-            not self.quadratures
-            or any(q not in QUADRATURES for q in self.quadratures)
-            or len(set(self.quadratures)) != len(self.quadratures)
-        ):
-            raise _fail("quadratures", list(self.quadratures), f"a subset of {QUADRATURES}")
-        if tuple(self.frames) != ("fixed",):
-            raise _fail("frames", list(self.frames), "['fixed'] (forces act in the fixed frame)")
-        if (
-            not self.sensors
-            or any(not _is_int(c) or not 0 <= c < len(SENSOR_NAMES) for c in self.sensors)
-            or len(set(self.sensors)) != len(self.sensors)
-        ):
-            raise _fail("sensors", list(self.sensors), "distinct sensor channels in 0..7")
-        if not _is_int(self.delay_periods) or not 1 <= self.delay_periods <= 16:
-            raise _fail("delay_periods", self.delay_periods, "an integer in 1..16 periods")
-        if self.controller not in CONTROLLERS:
-            raise _fail("controller", self.controller, f"one of {CONTROLLERS}")
-        if self.response not in RESPONSES:
-            raise _fail("response", self.response, f"one of {RESPONSES}")
-        if not (_finite(self.w) and 0.0 < self.w < 1.0):
-            raise _fail("w", self.w, "0 < w < 1 (eq. 8.6)")
-        if not (_finite(self.v) and 0.0 <= self.v < 1.0):
-            raise _fail("v", self.v, "0 <= v < 1 (|v| < 1, eq. 8.6; v < 0 alternates)")
-        if not (_finite(self.rate) and 0.0 < self.rate < 1.0):
-            raise _fail("rate", self.rate, "0 < rate < 1 per period")
-        if self.response == "series" and (
-            not self.series or not all(_finite(c) for c in self.series) or self.series[0] == 0
-        ):
-            raise _fail("series", list(self.series), "finite c_1..c_K with c_1 != 0 (eq. 8.7)")
-        if not (_finite(self.gain) and self.gain > 0.0):
-            raise _fail("gain", self.gain, "a dimensionless k > 0")
-        if not _is_int(self.inverse_order) or not 0 <= self.inverse_order <= 50:
-            raise _fail("inverse_order", self.inverse_order, "an integer in 0..50")
-        if not (_finite(self.inverse_regularisation) and self.inverse_regularisation >= 0):
-            raise _fail("inverse_regularisation", self.inverse_regularisation, ">= 0")
-        if not (_finite(self.predictor_dc_weight) and self.predictor_dc_weight >= 0):
-            raise _fail("predictor_dc_weight", self.predictor_dc_weight, ">= 0")
-        if len(self.force_limit) != N_AXES or not all(
-            _finite(f) and f > 0 for f in self.force_limit
-        ):
-            raise _fail("force_limit", list(self.force_limit), "4 limits > 0 N (one per axis)")
-        for name in ("coefficient_bound", "displacement_bound"):
-            value = getattr(self, name)
-            if not (isinstance(value, int | float) and value > 0):
-                raise _fail(name, value, "> 0 (inf = off)")
-        if not (_finite(self.growth_factor) and self.growth_factor > 1.0):
-            raise _fail("growth_factor", self.growth_factor, "> 1")
-        if not _is_int(self.growth_periods) or self.growth_periods < 1:
-            raise _fail("growth_periods", self.growth_periods, "an integer >= 1")
-        for fault, action in self.fault_actions.items():
-            if action not in FAULT_ACTIONS or not 0 <= int(fault) <= 255:
-                raise _fail(
-                    "fault_actions",
-                    dict(self.fault_actions),
-                    f"fault_type 0..255 -> {FAULT_ACTIONS}",
-                )
-        if not isinstance(self.model_file, str):
-            raise _fail("model_file", self.model_file, "a path string ('' = none)")
-        if not _is_int(self.identification_order) or not 1 <= self.identification_order <= 60:
-            raise _fail("identification_order", self.identification_order, "an integer in 1..60")
-        if not (_finite(self.identification_amplitude) and self.identification_amplitude != 0):
-            raise _fail("identification_amplitude", self.identification_amplitude, "finite, != 0")
-        pps = self.identification_periods_per_step
-        if not _is_int(pps) or pps <= self.identification_order:
-            raise _fail(
-                "identification_periods_per_step",
-                pps,
-                f"an integer > identification_order = {self.identification_order}",
-            )
-
-
-def _is_int(value) -> bool:
-    return isinstance(value, int | np.integer) and not isinstance(value, bool)
-
-
-def _finite(value) -> bool:
-    return isinstance(value, int | float | np.floating) and math.isfinite(value)
 
 
 def selected_measurement_basis(config: ControllerConfig) -> BasisSet:
@@ -840,46 +538,6 @@ class ControllerPipeline:
         commands_sent, commands_late, inputs_rejected, model_file, message.
         """
         return status_fields(self, float(self.supervisor.identification_progress), self._model_file)
-
-
-def status_fields(pipeline, identification_progress: float, model_file: str) -> dict:
-    """The ``ControllerStatus`` fields of a pipeline (this one or a baseline's).
-
-    Parameters
-    ----------
-    pipeline : ControllerPipeline or amb_controller.baselines.HarmonicPipeline
-        Anything with ``config``, ``supervisor``, ``_last_command``, ``_last_period``,
-        ``_compute_time`` (s) and ``_stats`` (commands_sent, commands_late, inputs_rejected).
-    identification_progress : float
-        0..1.
-    model_file : str
-        Model file in use ('' = none).
-
-    Returns
-    -------
-    dict
-        Keys as the message fields (see :meth:`ControllerPipeline.status`).
-    """
-    sup = pipeline.supervisor
-    cmd = pipeline._last_command
-    peak = np.zeros(N_AXES) if cmd is None else np.max(np.abs(cmd.force), axis=1)
-    stats = pipeline._stats
-    return {
-        "mode": int(sup.mode),
-        "controller": pipeline.config.controller,
-        "period_index": int(pipeline._last_period),
-        "delay_periods": int(pipeline.config.delay_periods),
-        "compute_time": float(pipeline._compute_time),
-        "peak_wavelet_force": peak.astype(float),
-        "saturated": bool(cmd is not None and np.any(cmd.saturated)),
-        "guard_tripped": bool(sup.guard is not None and sup.guard.tripped),
-        "identification_progress": float(identification_progress),
-        "commands_sent": int(stats["commands_sent"]),
-        "commands_late": int(stats["commands_late"]),
-        "inputs_rejected": int(stats["inputs_rejected"]),
-        "model_file": model_file,
-        "message": (cmd.message if cmd is not None and cmd.message else sup.message),
-    }
 
 
 def _rank_rtol(config: ControllerConfig) -> float:

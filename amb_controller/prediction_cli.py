@@ -55,8 +55,9 @@ from pathlib import Path
 import numpy as np
 
 from amb_controller.basis import measurement_basis
+from amb_controller.config import ControllerConfig
 from amb_controller.inverse import pseudo_inverse_series
-from amb_controller.pipeline import ControllerConfig, ControllerPipeline
+from amb_controller.pipeline import ControllerPipeline
 
 __all__ = [
     "LEVELS",
@@ -95,7 +96,7 @@ class PredictionValueError(ValueError):
 
 
 def coefficient_stream(
-    displacement: np.ndarray, config: ControllerConfig
+    displacement: np.ndarray, config: ControllerConfig, capacity: float | None = None
 ) -> tuple[np.ndarray, tuple[str, ...]]:
     """
     Return the measured coefficient vector of every period, as the controller node sees it.
@@ -107,6 +108,9 @@ def coefficient_stream(
         ``2 pi n / samples_per_rev``, the simulator's keyphasor convention).
     config : ControllerConfig
         Wavelet, levels, quadratures and sensors of the vector.
+    capacity : float, optional
+        Bearing capacity per axis, N; default the rig's (``amb.force_limit`` of
+        config/rig.yaml). The pipeline only measures here (controller ``none``).
 
     Returns
     -------
@@ -115,6 +119,7 @@ def coefficient_stream(
         (start-up of long wavelets), and the labels (``p1/q1/even/c0``...).
 
     """
+    from amb_plant_sim.rig import load_rig
     from amb_wavelet.analysis import AnalysisFilterbank
     from amb_wavelet.frontend import FRAMES, QUADRATURES, ChannelFrontEnd
 
@@ -125,7 +130,9 @@ def coefficient_stream(
     cfg = replace(config, controller="none")
     front = ChannelFrontEnd(spr, FRAMES, QUADRATURES)
     bank = AnalysisFilterbank(cfg.wavelet, spr.bit_length(), front.n_channels)
-    pipeline = ControllerPipeline(cfg, 1000.0, None, channel_labels=front.labels)
+    if capacity is None:
+        capacity = load_rig().amb.force_limit
+    pipeline = ControllerPipeline(cfg, capacity, None, channel_labels=front.labels)
     n_periods = x.shape[0] // spr
     out = np.full((n_periods, pipeline.measured.n_coefficients), np.nan)
     angle = 2 * np.pi * (np.arange(n_periods * spr) % spr) / spr
@@ -394,7 +401,7 @@ def predict_run(
     config = ControllerConfig(
         wavelet=wavelet, samples_per_rev=spr, levels=LEVELS, sensors=tuple(range(8))
     )
-    q, labels = coefficient_stream(result.displacement, config)
+    q, labels = coefficient_stream(result.displacement, config, rig.amb.force_limit)
     n_periods = q.shape[0]
     w = np.full_like(q, np.nan)
     index = {lab: i for i, lab in enumerate(labels)}

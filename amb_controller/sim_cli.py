@@ -25,9 +25,15 @@ import argparse
 import json
 import sys
 import time
+from dataclasses import fields
 from pathlib import Path
 
 import numpy as np
+
+from amb_controller.config import CONTROLLERS, ControllerConfig, default_of
+
+#: The controller's defaults (ControllerConfig's fields), the options' defaults.
+DEFAULTS = {f.name: default_of(f) for f in fields(ControllerConfig)}
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -40,23 +46,36 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--scenario", required=True, help="scenario YAML (config/scenarios/)")
     ap.add_argument(
         "--controller",
-        default="transient",
-        choices=("none", "proportional", "moderated", "transient", "synchronous", "harmonic"),
+        default=DEFAULTS["controller"],
+        choices=CONTROLLERS,
         help="none = PID only (default: transient, chapter 8); synchronous = adaptive "
         "influence-coefficient 1 x control, harmonic = sampled-harmonic transient control "
         "(amb_controller.baselines; --k is their convergence gain a, --w/--v the decay)",
     )
-    ap.add_argument("--w", type=float, default=0.75, help="exponential response gain (eq. 8.6)")
-    ap.add_argument("--v", type=float, default=0.75, help="exponential decay ratio (eq. 8.6)")
+    ap.add_argument(
+        "--w", type=float, default=DEFAULTS["w"], help="exponential response gain (eq. 8.6)"
+    )
+    ap.add_argument(
+        "--v", type=float, default=DEFAULTS["v"], help="exponential decay ratio (eq. 8.6)"
+    )
     ap.add_argument("--linear", type=float, default=None, help="linear decay rate per period")
-    ap.add_argument("--k", type=float, default=0.21, help="dimensionless gain (ch. 7 control)")
-    ap.add_argument("--delay", type=int, default=2, help="evaluation delay i in periods")
-    ap.add_argument("--order", type=int, default=5, help="inverse truncation order (eq. 6.35)")
-    ap.add_argument("--wavelet", default="haar", help="PyWavelets name (orthogonal)")
+    ap.add_argument(
+        "--k", type=float, default=DEFAULTS["gain"], help="dimensionless gain (ch. 7 control)"
+    )
+    ap.add_argument(
+        "--delay", type=int, default=DEFAULTS["delay_periods"], help="evaluation delay i in periods"
+    )
+    ap.add_argument(
+        "--order",
+        type=int,
+        default=DEFAULTS["inverse_order"],
+        help="inverse truncation order (eq. 6.35)",
+    )
+    ap.add_argument("--wavelet", default=DEFAULTS["wavelet"], help="PyWavelets name (orthogonal)")
     ap.add_argument("--samples-per-rev", type=int, default=None, help="default: scenario or 64")
     ap.add_argument(
         "--sensors",
-        default="2,3,4,5",
+        default=",".join(str(c) for c in DEFAULTS["sensors"]),
         help="measured sensor channels 0..7 (default inner planes: x2,y2,x3,y3)",
     )
     ap.add_argument("--force-limit", type=float, default=None, help="N per axis (default rig)")
@@ -96,8 +115,6 @@ class _Progress:
 
 def config_from_args(args, spr: int, capacity: float):
     """Return the :class:`ControllerConfig` the options ask for."""
-    from amb_controller.pipeline import ControllerConfig
-
     d = {
         "wavelet": args.wavelet,
         "samples_per_rev": spr,

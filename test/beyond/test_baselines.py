@@ -24,9 +24,10 @@ from amb_controller.baselines import (
     real_from_complex,
     real_gain,
 )
+from amb_controller.config import ConfigError, ControllerConfig
 from amb_controller.errors import ControllerValueError
 from amb_controller.inverse import dc_gain
-from amb_controller.pipeline import ConfigError, ControllerConfig, ControllerPipeline
+from amb_controller.pipeline import ControllerPipeline
 from amb_controller.plant_models import harmonic_model, influence_by_trials
 
 N = 32

@@ -20,6 +20,7 @@ import pytest
 from scipy import signal
 
 from amb_controller.basis import control_basis
+from amb_controller.config import ControllerConfig
 from amb_controller.errors import ControllerValueError, ShapeError
 from amb_controller.lti import static_gain
 from amb_controller.multilevel import (
@@ -28,7 +29,7 @@ from amb_controller.multilevel import (
     block_diagonal_model,
     level_indices,
 )
-from amb_controller.pipeline import ControllerConfig, selected_measurement_basis
+from amb_controller.pipeline import selected_measurement_basis
 from amb_controller.response import PrescribedResponse
 from amb_controller.stability import closed_loop, spectral_radius
 from amb_controller.transient import TransientController

@@ -4,8 +4,9 @@ import numpy as np
 import pytest
 import pywt
 
+from amb_controller.config import ConfigError, ControllerConfig
 from amb_controller.model_file import WaveletModel
-from amb_controller.pipeline import ConfigError, ControllerConfig, ControllerPipeline
+from amb_controller.pipeline import ControllerPipeline
 from amb_controller.supervisor import Mode
 from amb_wavelet.analysis import AnalysisFilterbank
 from amb_wavelet.frontend import ChannelFrontEnd

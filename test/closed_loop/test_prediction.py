@@ -12,7 +12,7 @@ import pytest
 import pywt
 
 from amb_controller.closed_loop import run_closed_loop
-from amb_controller.pipeline import ControllerConfig
+from amb_controller.config import ControllerConfig
 from amb_controller.prediction_cli import (
     DEFAULT_INVERSE_SENSORS,
     INVERSE_SENSORS,

@@ -56,6 +56,9 @@ APPLICATION = {
     "amb_tools.system",
     "amb_controller.acceptability",
     "amb_controller.acceptance",
+    "amb_controller.compare_cases",  # amb-compare: the matrix (loads the rig, runs the loop)
+    "amb_controller.compare_runs",  # amb-compare: running it
+    "amb_controller.compare_report",  # amb-compare: its report
     "amb_fault_monitor.evaluation",
     "amb_fault_monitor.eval_figures",
     "amb_plant_sim.plots",

@@ -1,0 +1,125 @@
+"""The matrix of ``amb-compare``: scenarios, controller rows, and the rig and models they share.
+
+:data:`SCENARIOS` and :data:`SPECS` name the cases (:mod:`amb_controller.compare_cli` says what
+each is); :class:`Matrix` loads the rig and the scenarios once, builds each row's
+``ControllerConfig`` (same force limit for every row, the rig's bearing capacity unless given)
+and computes each row's model once per speed.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+SCENARIOS = {
+    "mass_loss_1st": "mass_loss_first_critical.yaml",
+    "mass_loss_2nd": "mass_loss_second_critical.yaml",
+    "sync_150N_3rd": "sync_force_150N_third_critical.yaml",
+    "contact_case2": "mass_loss_contact_case2.yaml",
+}
+CONTROLLERS = ("pid", "wavelet_i1", "wavelet_i2", "harmonic_i1", "synchronous_i1")
+BASELINE_ROWS = ("harmonic_i1", "synchronous_i1")
+MULTILEVEL = ("wavelet_124_coupled", "wavelet_124_perlevel")
+ML_LEVELS = (1, 2, 3)
+MASS_LOSS = 1
+AUX_BEARING_CONTACT = 2
+#: closed-loop radius above which a row is reported as marginal (model check)
+MARGINAL_RADIUS = 0.95
+#: HOLD ramp-to-zero of ``wavelet_reconf_alarm_ramp`` (periods; supervisor module docstring)
+HOLD_RAMP_PERIODS = 4
+
+
+@dataclass(frozen=True)
+class Spec:
+    """One controller of the matrix: ControllerConfig fields and the model route."""
+
+    name: str
+    controller: str
+    delay: int = 1
+    model: str = "fe"  # fe | harmonic | trials | none
+
+
+SPECS = {
+    "pid": Spec("pid", "none", 1, "none"),
+    "wavelet_i1": Spec("wavelet_i1", "transient", 1, "fe"),
+    "wavelet_i2": Spec("wavelet_i2", "transient", 2, "fe"),
+    "harmonic_i1": Spec("harmonic_i1", "harmonic", 1, "harmonic"),
+    "synchronous_i1": Spec("synchronous_i1", "synchronous", 1, "trials"),
+}
+
+
+class Matrix:
+    """Rig, scenarios and models shared by the runs (models computed once per speed)."""
+
+    def __init__(self, scenario_dir: Path, samples_per_rev: int | None, force_limit, quick):
+        from amb_plant_sim.rig import load_rig
+        from amb_plant_sim.scenario import load_scenario
+
+        self.rig = load_rig()
+        self.force_limit = float(force_limit or self.rig.amb.force_limit)
+        self.scenarios = {}
+        for key, name in SCENARIOS.items():
+            sc = load_scenario(scenario_dir / name, self.rig)
+            if quick:  # 4 s, or 2 s after a later fault
+                fault = max((e.time for e in sc.events), default=0.0)
+                sc = replace(sc, duration=min(sc.duration, max(4.0, fault + 2.0)))
+            self.scenarios[key] = sc
+        self.spr = samples_per_rev
+        self._models: dict = {}
+
+    def config(self, spec: Spec, scenario, **overrides):
+        """Return the ControllerConfig of ``spec`` for ``scenario``."""
+        from amb_controller.config import ControllerConfig
+
+        return ControllerConfig(
+            samples_per_rev=self.spr or scenario.samples_per_rev or 64,
+            controller=spec.controller,
+            delay_periods=spec.delay,
+            w=0.75,
+            v=0.75,
+            gain=0.5,
+            inverse_order=5,
+            force_limit=(self.force_limit,) * 4,
+            **overrides,
+        )
+
+    def model(self, spec: Spec, scenario, config, speed_hz: float | None = None):
+        """Return (and cache) the model of ``spec`` identified at ``speed_hz``."""
+        from amb_controller.closed_loop import fe_model
+        from amb_controller.plant_models import harmonic_model, influence_by_trials
+
+        if spec.model == "none":
+            return None
+        hz = scenario.speed_hz if speed_hz is None else speed_hz
+        key = (
+            spec.model,
+            round(hz, 6),
+            config.samples_per_rev,
+            config.delay_periods,
+            config.levels,
+            config.sensors,
+        )
+        if key not in self._models:
+            omega = 2 * math.pi * hz
+            if spec.model == "fe":
+                self._models[key] = fe_model(self.rig, omega, config)
+            elif spec.model == "harmonic":
+                self._models[key] = harmonic_model(self.rig, omega, config)
+            else:
+                self._models[key] = influence_by_trials(
+                    self.rig, replace(scenario, speed_hz=hz), config
+                )
+        return self._models[key]
+
+    def run(self, spec: Spec, key: str, model=None, speed_hz=None, **kw):
+        """Run ``spec`` on scenario ``key``; return the RunResult."""
+        from amb_controller.closed_loop import run_closed_loop
+
+        scenario = self.scenarios[key]
+        config = self.config(spec, scenario)
+        if model is None:
+            model = self.model(spec, scenario, config)
+        if speed_hz is not None:
+            scenario = replace(scenario, speed_hz=speed_hz)
+        return run_closed_loop(self.rig, scenario, config, model, **kw)

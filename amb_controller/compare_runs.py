@@ -1,0 +1,356 @@
+"""Running the ``amb-compare`` matrix and the metrics of each run.
+
+:func:`comparison` runs every row of :mod:`amb_controller.compare_cases` on every scenario,
+:func:`robustness` the rows with perturbed models, :func:`command_timing` times one command.
+
+Metrics (per run; inner sensors x2, y2, x3, y3 unless said)
+-----------------------------------------------------------
+* ``peak``: largest |x| after the fault (m).
+* ``revs_to_10``: revolutions after the fault period until the per-revolution peak |x|
+  stays below 10 % of ``peak`` (``None``: not within the run).
+* ``revs_to_10_1x``: the same on the per-revolution 1 x amplitude (one-revolution DFT bin 1
+  of each inner sensor, the largest), i.e. the settling of the synchronous vibration the
+  controllers act on, without the harmonics a control waveform may add.
+* ``attenuation_db``: ``20 log10`` of the steady 1 x amplitude (last 10 revolutions,
+  largest inner sensor) over the PID-only one (negative = reduction).
+* ``peak_force`` / ``rms_force``: largest ``hypot(f_x, f_y)`` of the added force over the
+  run, and its RMS over all axes after the fault (N).
+* ``contacts``: contact onsets (simulator truth).
+* ``non1x_um`` / ``harmonics_um``: over the last 10 revolutions, the largest |x| without
+  each revolution's own mean and 1 x, and the largest 2 x, 3 x, 5 x, 7 x amplitudes (um)
+  (:func:`harmonic_content`; ``residual_um``, a 1 x fit over all 10 revolutions, also
+  counts a 1 x still decaying in a short ``--quick`` run).
+* ``model_radius``: exact closed-loop spectral radius of the row's eq.-8.10 controller on
+  its own FE model (:func:`model_radius`), before the run; >= 1 predicts divergence.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import replace
+
+import numpy as np
+
+from amb_controller.compare_cases import (
+    CONTROLLERS,
+    HOLD_RAMP_PERIODS,
+    MASS_LOSS,
+    ML_LEVELS,
+    MULTILEVEL,
+    SPECS,
+    Matrix,
+)
+from amb_controller.metrics import INNER, steady_sync_amplitude
+
+
+def run_metrics(result, speed_hz: float, pid_steady: float | None = None) -> dict:
+    """
+    Return the comparison metrics of one :class:`~amb_controller.closed_loop.RunResult`.
+
+    Parameters
+    ----------
+    result : RunResult
+    speed_hz : float
+        Running speed in Hz.
+    pid_steady : float, optional
+        PID-only steady 1 x amplitude (m) for ``attenuation_db``.
+
+    Returns
+    -------
+    dict
+        Module docstring, "Metrics".
+
+    """
+    spr = result.samples_per_rev
+    x = result.displacement[:, list(INNER)]
+    k_f = min(math.floor(result.fault_time * speed_hz + 1e-9), len(x) // spr - 1)
+    per_rev = np.abs(x[: (len(x) // spr) * spr]).reshape(-1, spr, x.shape[1]).max(axis=(1, 2))
+    after = per_rev[k_f:]
+    peak = float(after.max())
+    above = np.flatnonzero(after > 0.1 * peak)
+    revs = int(above[-1]) + 1 if above.size else 0
+    revs_to_10 = None if revs >= len(after) else revs
+    n_rev = len(x) // spr
+    amp_1x = np.abs(np.fft.rfft(x[: n_rev * spr].reshape(n_rev, spr, -1), axis=1)[:, 1])
+    after_1x = amp_1x[k_f:].max(axis=1) * 2 / spr  # per-revolution 1 x amplitude (m)
+    above_1x = np.flatnonzero(after_1x > 0.1 * after_1x.max())
+    revs_1x = int(above_1x[-1]) + 1 if above_1x.size else 0
+    steady = float(steady_sync_amplitude(x, spr).max())
+    wf = result.wavelet_force
+    hyp = np.hypot(wf[:, 0::2], wf[:, 1::2])
+    post = wf[k_f * spr :]
+    contact_any = result.contact.any(axis=1) if result.contact.size else np.zeros(0, bool)
+    contacts = int(np.count_nonzero(np.diff(contact_any.astype(int), prepend=0) == 1))
+    att = None
+    if pid_steady is not None and pid_steady > 0 and steady > 0:
+        att = 20 * math.log10(steady / pid_steady)
+    return {
+        "peak": peak,
+        "peak_all_sensors": float(np.abs(result.displacement[k_f * spr :]).max()),
+        "revs_to_10": revs_to_10,
+        "revs_to_10_1x": None if revs_1x >= len(after_1x) else revs_1x,
+        "peak_1x": float(after_1x.max()),
+        "steady_1x": steady,
+        "attenuation_db": att,
+        "peak_force": float(hyp.max()),
+        "rms_force": float(np.sqrt(np.mean(post**2))) if post.size else 0.0,
+        "contacts": contacts,
+    }
+
+
+def residual_after_1x(result, revs: int = 10) -> float:
+    """Peak inner displacement (m) of the last ``revs`` revolutions minus its 1 x fit."""
+    spr = result.samples_per_rev
+    x = result.displacement[-revs * spr :, list(INNER)]
+    theta = 2 * np.pi * np.arange(x.shape[0]) / spr
+    basis = np.column_stack([np.ones(theta.size), np.cos(theta), np.sin(theta)])
+    coef, *_ = np.linalg.lstsq(basis, x, rcond=None)
+    return float(np.abs(x - basis @ coef).max())
+
+
+def model_radius(matrix: Matrix, name: str, key: str) -> float | None:
+    """
+    Exact closed-loop spectral radius of controller ``name`` on its own model at ``key``.
+
+    The eq.-8.10 controller (wavelet or harmonic, delay and ``alpha`` of the run) closed
+    around the FIR realisation of the model's Markov parameters
+    (:func:`~amb_controller.stability.closed_loop`): >= 1 predicts divergence on the FE
+    model itself, before any run. ``None`` for PID, the synchronous baseline (no dynamic
+    model) and the multi-level rows (their radii are in :mod:`amb_controller.multilevel`).
+    """
+    from amb_controller.lti import fir_state_space
+    from amb_controller.pipeline import prescribed_response
+    from amb_controller.stability import closed_loop, spectral_radius
+    from amb_controller.transient import TransientController
+
+    scenario = matrix.scenarios[key]
+    if name == "wavelet_i1_8sensors":
+        spec = SPECS["wavelet_i1"]
+        config = replace(matrix.config(spec, scenario), sensors=tuple(range(8)))
+    else:
+        spec = SPECS.get("wavelet_i1" if name.startswith("wavelet_reconf") else name)
+        if spec is None or spec.model not in ("fe", "harmonic"):
+            return None
+        config = matrix.config(spec, scenario)
+    model = matrix.model(spec, scenario, config)
+    controller = TransientController(
+        model.inverse, prescribed_response(config), config.delay_periods
+    )
+    return spectral_radius(closed_loop(fir_state_space(model.markov), controller.state_space()))
+
+
+def harmonic_content(result, revs: int = 10) -> dict:
+    """
+    What is left besides 1 x over the last ``revs`` revolutions, revolution by revolution.
+
+    Each revolution of each inner sensor is split by its own DFT (so a 1 x still decaying
+    from revolution to revolution is removed too, unlike a 1 x fit over all ``revs``).
+
+    Returns
+    -------
+    dict
+        ``non1x_um``: largest |x| without the revolution's mean and 1 x (um);
+        ``harmonics_um``: ``{"2x": .., "3x": .., "5x": .., "7x": ..}`` largest amplitude (um).
+
+    """
+    spr = result.samples_per_rev
+    x = result.displacement[-revs * spr :, list(INNER)].reshape(revs, spr, len(INNER))
+    spectrum = np.fft.rfft(x, axis=1)
+    rest = spectrum.copy()
+    rest[:, :2] = 0.0
+    non1x = np.fft.irfft(rest, n=spr, axis=1)
+    amplitude = np.abs(spectrum) * 2 / spr
+    return {
+        "non1x_um": float(np.abs(non1x).max() * 1e6),
+        "harmonics_um": {f"{h}x": float(amplitude[:, h].max() * 1e6) for h in (2, 3, 5, 7)},
+    }
+
+
+def run_multilevel(matrix: Matrix, name: str, key: str):
+    """Run ``wavelet_124_coupled`` or ``wavelet_124_perlevel`` on scenario ``key``."""
+    from amb_controller.basis import control_basis
+    from amb_controller.closed_loop import run_closed_loop
+    from amb_controller.multilevel import LevelResponse, MultiLevelController, block_diagonal_model
+    from amb_controller.pipeline import selected_measurement_basis
+
+    scenario = matrix.scenarios[key]
+    config = replace(matrix.config(SPECS["wavelet_i1"], scenario), levels=ML_LEVELS)
+    coupled = matrix.model(SPECS["wavelet_i1"], scenario, config)
+    # plain least-squares inverse of fe_model for the coupled model (not the truncated SVD
+    # the pipeline uses at p >= 2 when it recomputes the inverse): exact closed-loop radius
+    # on the FE model at the first critical speed 1.0 plain vs 1.076 truncated (64 samples)
+    controller = None
+    if name == "wavelet_124_perlevel":
+        controller = MultiLevelController.from_models(
+            block_diagonal_model(coupled, config.inverse_order),
+            {p: LevelResponse(p, config.w, config.v) for p in ML_LEVELS},
+            config.delay_periods,
+            selected_measurement_basis(config).labels,
+            control_basis(config.wavelet, config.period_samples, ML_LEVELS).labels,
+        )
+    return run_closed_loop(matrix.rig, scenario, config, coupled, controller=controller)
+
+
+def _engage_at_alarm(loop) -> bool:
+    """``stop`` hook of run_closed_loop: set ACTIVE once the fault monitor's alarm is raised."""
+    from amb_controller.supervisor import Mode
+
+    if loop.monitor.core.alarm and loop.pipeline.supervisor.mode == Mode.OFF:
+        loop.pipeline.set_mode(Mode.ACTIVE)
+    return False
+
+
+def _engage_at_alarm_ramp(loop) -> bool:
+    """As :func:`_engage_at_alarm`, HOLD ramping to zero over ``HOLD_RAMP_PERIODS``."""
+    loop.pipeline.supervisor.hold_ramp_periods = HOLD_RAMP_PERIODS
+    return _engage_at_alarm(loop)
+
+
+def comparison(
+    matrix: Matrix, controllers=CONTROLLERS, progress=None, multilevel: bool = False
+) -> dict:
+    """Run every controller on every scenario; return ``{scenario: {controller: metrics}}``."""
+    from amb_controller.closed_loop import run_closed_loop
+
+    table: dict = {}
+    traces: dict = {}
+    for key, scenario in matrix.scenarios.items():
+        table[key] = {}
+        traces[key] = {}
+        pid_steady = None
+        names = list(controllers)
+        if key == "contact_case2":
+            names += ["wavelet_reconf", "wavelet_reconf_alarm", "wavelet_reconf_alarm_ramp"]
+        if multilevel and key.startswith("mass_loss"):
+            names += list(MULTILEVEL)
+        if key == "sync_150N_3rd":
+            names += ["wavelet_i1_8sensors"]
+        for name in names:
+            t0 = time.perf_counter()
+            if name == "wavelet_reconf":
+                result = matrix.run(
+                    SPECS["wavelet_i1"], key, fault_monitor=True, engage_on=(MASS_LOSS,)
+                )
+            elif name == "wavelet_reconf_alarm":
+                result = matrix.run(
+                    SPECS["wavelet_i1"], key, fault_monitor=True, engage_on=(MASS_LOSS,),
+                    stop=_engage_at_alarm,
+                )  # fmt: skip
+            elif name == "wavelet_reconf_alarm_ramp":
+                result = matrix.run(
+                    SPECS["wavelet_i1"], key, fault_monitor=True, engage_on=(MASS_LOSS,),
+                    stop=_engage_at_alarm_ramp,
+                )  # fmt: skip
+            elif name in MULTILEVEL:
+                result = run_multilevel(matrix, name, key)
+            elif name == "wavelet_i1_8sensors":
+                spec = SPECS["wavelet_i1"]
+                config = replace(matrix.config(spec, scenario), sensors=tuple(range(8)))
+                model = matrix.model(spec, scenario, config)
+                result = run_closed_loop(matrix.rig, scenario, config, model)
+            else:
+                result = matrix.run(SPECS[name], key)
+            m = run_metrics(result, scenario.speed_hz, pid_steady)
+            if name == "pid":
+                pid_steady = m["steady_1x"]
+            m["wall_time"] = time.perf_counter() - t0
+            m["residual_um"] = residual_after_1x(result) * 1e6
+            m.update(harmonic_content(result))
+            m["model_radius"] = model_radius(matrix, name, key)
+            if name.startswith("wavelet_reconf"):
+                spr = result.samples_per_rev
+                m["fault_events"] = [
+                    [e["fault_type"], e["detection_sample_index"] / spr / scenario.speed_hz]
+                    for e in result.fault_events
+                ]
+            table[key][name] = m
+            traces[key][name] = (result.time, result.displacement[:, 2], result.fault_time)
+            if progress is not None:
+                progress(f"{key} {name}: peak {m['peak'] * 1e6:.1f} um")
+    return {"table": table, "traces": traces}
+
+
+def robustness(matrix: Matrix, progress=None) -> dict:
+    """
+    Every controller with its model off by +-30 % gain, +-30 deg phase, and at +-10 % speed.
+
+    On the first-critical mass loss; the model stays the one of the nominal speed.
+    """
+    from amb_controller.baselines import perturb_model
+
+    key = "mass_loss_1st"
+    scenario = matrix.scenarios[key]
+    cases = {
+        "nominal": {},
+        "gain +30%": {"gain": 1.3},
+        "gain -30%": {"gain": 0.7},
+        "phase +30deg": {"phase": math.radians(30)},
+        "phase -30deg": {"phase": math.radians(-30)},
+        "speed +10%": {"speed": 1.1},
+        "speed -10%": {"speed": 0.9},
+    }
+    out: dict = {}
+    for name in ("wavelet_i1", "wavelet_i2", "harmonic_i1", "synchronous_i1"):
+        spec = SPECS[name]
+        config = matrix.config(spec, scenario)
+        nominal = matrix.model(spec, scenario, config)
+        out[name] = {}
+        for case, p in cases.items():
+            model = perturb_model(
+                nominal, p.get("gain", 1.0), p.get("phase", 0.0), config.inverse_order
+            )
+            hz = scenario.speed_hz * p.get("speed", 1.0)
+            result = matrix.run(spec, key, model=model, speed_hz=hz)
+            pid = matrix.run(SPECS["pid"], key, speed_hz=hz) if "speed" in p else None
+            pid_steady = None if pid is None else run_metrics(pid, hz)["steady_1x"]
+            m = run_metrics(result, hz, pid_steady)
+            if pid is not None:
+                m["pid_peak"] = run_metrics(pid, hz)["peak"]
+            out[name][case] = m
+            if progress is not None:
+                progress(f"robustness {name} {case}: peak {m['peak'] * 1e6:.1f} um")
+    return out
+
+
+def command_timing(
+    samples_per_rev: int = 64, repeats: int = 2000, force_limit: float | None = None
+) -> dict:
+    """
+    Median time of one command (controller step + synthesis + force limit), s.
+
+    The work done at the end of a period, after its last sample, before the command for
+    the next period can be sent: what must fit in a small fraction of a period for i = 1.
+    ``force_limit`` (N per axis, also the capacity) defaults to the rig's bearing capacity
+    (``amb.force_limit`` of config/rig.yaml).
+    """
+    from amb_controller.baselines import InfluenceCoefficientController
+    from amb_controller.basis import control_basis
+    from amb_controller.response import PrescribedResponse
+    from amb_controller.synthesis import ForceLimiter
+    from amb_controller.transient import TransientController
+    from amb_plant_sim.rig import load_rig
+
+    if force_limit is None:
+        force_limit = load_rig().amb.force_limit
+    rng = np.random.default_rng(0)
+    cb = control_basis("haar", samples_per_rev, (1,), 4)
+    limiter = ForceLimiter(cb, force_limit, force_limit)
+    ctl = {
+        "transient": TransientController(
+            rng.normal(size=(6, 8, 8)), PrescribedResponse.exponential(0.75, 0.75), 1
+        ),
+        "synchronous": InfluenceCoefficientController(
+            rng.normal(size=(4, 4)) + 1j * rng.normal(size=(4, 4)), 0.5, 1
+        ),
+    }
+    out = {}
+    q = rng.normal(size=(repeats, 8)) * 1e-9
+    for name, c in ctl.items():
+        times = np.empty(repeats)
+        for k in range(repeats):
+            t0 = time.perf_counter()
+            limiter.apply(c.step(k, q[k]).coefficients)
+            times[k] = time.perf_counter() - t0
+        out[name] = {"median_s": float(np.median(times)), "p99_s": float(np.quantile(times, 0.99))}
+    return out
