@@ -328,7 +328,8 @@ class _Monitor:
     """The ``amb_fault_monitor`` core fed from the filterbank records (optional)."""
 
     def __init__(self, samples_per_rev: int, wavelet: str) -> None:
-        from amb_fault_monitor.monitor import FaultMonitor, MonitorConfig
+        from amb_fault_monitor.config import MonitorConfig
+        from amb_fault_monitor.monitor import FaultMonitor
 
         self.core = FaultMonitor(MonitorConfig(samples_per_rev=samples_per_rev))
         self.spr = samples_per_rev

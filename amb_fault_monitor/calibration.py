@@ -22,16 +22,23 @@ false crossing in 10 simulated minutes at 67 Hz with 32 samples/rev, 6 levels, 2
 4 planes (``about 1e8`` tests). Crossings must further be confirmed (see
 :mod:`amb_fault_monitor.monitor`). The floor ``theta_min`` (m) covers noise-free
 signals, where MAD is 0 and any round-off would otherwise cross.
+
+:class:`CalibrationWindow` collects the healthy features of the monitor (per level and frame,
+the synchronous phasor change, the finest-level magnitudes of the stuck-channel test) and sets
+the thresholds once its window is full and stationary.
 """
 
 from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from amb_fault_monitor.errors import FaultMonitorError
 
-__all__ = ["MAD_TO_SIGMA", "robust_threshold"]
+__all__ = ["MAD_TO_SIGMA", "Calibration", "CalibrationWindow", "robust_threshold"]
 
 MAD_TO_SIGMA = 1.4826
 
@@ -74,3 +81,132 @@ def robust_threshold(samples: ArrayLike, k: float, floor: float, axis: int = 0) 
     med = np.median(a, axis=axis)
     mad = np.median(np.abs(a - np.expand_dims(med, axis)), axis=axis)
     return np.maximum(med + k * MAD_TO_SIGMA * mad, floor)
+
+
+@dataclass(frozen=True)
+class Calibration:
+    """
+    The outcome of a healthy calibration window.
+
+    Attributes
+    ----------
+    thresholds : dict
+        Per (level, frame): plane thresholds (4,), m.
+    sync_threshold : numpy.ndarray
+        Per plane threshold of the synchronous phasor change (4,), m.
+    dead_reference : numpy.ndarray or None
+        Per channel median of the finest-level coefficient magnitude (8,), m; None when no
+        finest level was received.
+    end : int
+        Sample index at which the window was accepted.
+    """
+
+    thresholds: dict[tuple[int, str], np.ndarray]
+    sync_threshold: np.ndarray
+    dead_reference: np.ndarray | None
+    end: int
+
+
+class CalibrationWindow:
+    """
+    The sliding healthy window over which the monitor's thresholds are calibrated.
+
+    The window holds the last ``calibration_revs`` revolutions. It is accepted when, for
+    every (level, frame) and for the synchronous phasor change, the median of the first half
+    (planes pooled) is at most ``settle_ratio`` times the median of the second half: a
+    start-up or run-up transient that still decays fails the test, and the window slides on
+    (the rotor may be started, or the monitor restarted, in a transient, and thresholds
+    calibrated on it would be far above the noise-only ones). The window is refused too while
+    a feature of its last revolution exceeds the thresholds it gives: a disturbance that began
+    in the window's last revolutions moves neither half's median, and would then be reported
+    once calibrated, with an onset at the calibration's end. The test runs once per
+    revolution.
+
+    Parameters
+    ----------
+    config : MonitorConfig
+        Or anything with its ``samples_per_rev``, ``calibration_revs``, ``settle_ratio``,
+        ``k`` and ``threshold_floor``.
+
+    Attributes
+    ----------
+    retries : int
+        Times the window was refused (still settling, or disturbed in its last revolution).
+    """
+
+    def __init__(self, config) -> None:
+        self.config = config
+        self.retries = 0
+        self._features: dict[tuple[int, str], deque] = {}
+        self._sync: deque = deque()
+        self._dead: deque = deque()
+        self._start: int | None = None
+        self._tried = -(2**62)
+
+    def add_sync(self, n: int, planes: np.ndarray) -> None:
+        """Collect a healthy change (4,) of the synchronous phasor completed at sample ``n``."""
+        self._sync.append((n, planes))
+
+    def add_dead(self, n: int, magnitudes: np.ndarray) -> None:
+        """Collect healthy finest-level magnitudes (8,) completed at sample ``n``."""
+        self._dead.append((n, magnitudes))
+
+    def add_feature(self, n: int, key: tuple[int, str], planes: np.ndarray) -> Calibration | None:
+        """
+        Collect a healthy plane feature (4,) of ``key`` = (level, frame) completed at ``n``.
+
+        Returns
+        -------
+        Calibration or None
+            The thresholds once the window is full, stationary and undisturbed; None before.
+        """
+        cfg = self.config
+        spr = cfg.samples_per_rev
+        if self._start is None:
+            self._start = n
+        self._features.setdefault(key, deque()).append((n, planes))
+        window = cfg.calibration_revs * spr
+        if n - self._start < window or n - self._tried < spr:
+            return None
+        self._tried = n
+        lo = n - window
+        for q in (*self._features.values(), self._sync, self._dead):
+            while q and q[0][0] <= lo:
+                q.popleft()
+        if any(len(v) < 8 for v in self._features.values()) or len(self._sync) < 8:
+            return None  # coarse levels (few coefficients per revolution) still filling
+        mid = n - window / 2
+        for q in (*self._features.values(), self._sync):
+            first = [v for m, v in q if m <= mid]
+            second = [v for m, v in q if m > mid]
+            if not first or not second:
+                return None
+            if np.median(first) > cfg.settle_ratio * max(np.median(second), cfg.threshold_floor):
+                self.retries += 1
+                return None  # still settling
+        thr = {k: self._plane_thresholds(q) for k, q in self._features.items()}
+        last = n - spr
+        if any(m > last and np.any(v > thr[k]) for k, q in self._features.items() for m, v in q):
+            self.retries += 1
+            return None  # a disturbance in the window's last revolution: not healthy yet
+        sync = robust_threshold(np.array([v for _m, v in self._sync]), cfg.k, cfg.threshold_floor)
+        dead = None
+        if self._dead:
+            dead = np.median(np.abs(np.array([v for _m, v in self._dead])), axis=0)
+        self._features.clear()
+        return Calibration(thr, sync, dead, n)
+
+    def _plane_thresholds(self, q: deque) -> np.ndarray:
+        """
+        Plane thresholds: the larger of the per-plane and the planes-pooled robust threshold.
+
+        Coarse levels give few coefficients per window (one per two revolutions at the level
+        below 1 x: 8 in 16 revolutions); the MAD of 8 values is too uncertain. Pooling the
+        four planes (sensor noise is common to the probes) gives 4 times the observations;
+        the per-plane value is kept where a plane moves more.
+        """
+        cfg = self.config
+        a = np.array([v for _m, v in q])
+        per_plane = robust_threshold(a, cfg.k, cfg.threshold_floor)
+        pooled = robust_threshold(a.ravel(), cfg.k, cfg.threshold_floor)
+        return np.maximum(per_plane, pooled)

@@ -39,7 +39,7 @@ inconsistent or constant signal of one transducer. The rules, in order:
    4 Omega coefficients) without a lasting synchronous change; the count is the number of
    separate bursts.
    Contacts *during* another fault's ring-down are found by the monitor's rise test
-   (:mod:`amb_fault_monitor.monitor`, step 4) and reported as their own event.
+   (:mod:`amb_fault_monitor.bursts`) and reported as their own event.
 5. ``UNKNOWN``: anything else (Table 5.1 "unidentified").
 """
 
@@ -173,7 +173,7 @@ def classify(ev: EpisodeEvidence, config: ClassifierThresholds) -> Decision:
     ----------
     ev : EpisodeEvidence
     config : ClassifierThresholds
-        A :class:`~amb_fault_monitor.monitor.MonitorConfig`, or anything with its thresholds.
+        A :class:`~amb_fault_monitor.config.MonitorConfig`, or anything with its thresholds.
         Uses ``isolation``, ``base_coherence``, ``base_dominance``, ``sync_change`` and
         ``confirm_ratio``.
 

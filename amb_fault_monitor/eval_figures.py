@@ -3,7 +3,7 @@ Figures of ``amb-fault-eval --figures DIR`` (matplotlib, Agg backend, PNG).
 
 The conventions of :mod:`amb_tools.report_figures` (its DPI, palette PNG writer, µm, plane
 names): displacement in µm, time in s from sample 0 (``sample_index / fs``, constant speed),
-detection ratios dimensionless (feature / threshold, :mod:`amb_fault_monitor.monitor`).
+detection ratios dimensionless (feature / threshold, :mod:`amb_fault_monitor.features`).
 
 * :func:`case_figure`: one scenario with one wavelet, in a window around the first true fault
   onset (2 revolutions before to 4 after, stretched to the detection of the events found

@@ -54,9 +54,10 @@ from typing import Any
 import numpy as np
 import yaml
 
+from amb_fault_monitor.config import MonitorConfig
 from amb_fault_monitor.errors import FaultMonitorError
 from amb_fault_monitor.events import FaultEvent, FaultType
-from amb_fault_monitor.monitor import FaultMonitor, MonitorConfig
+from amb_fault_monitor.monitor import FaultMonitor
 from amb_fault_monitor.records import FilterbankAdapter
 from amb_wavelet.filters import get_filters
 from amb_wavelet.levels import support_length

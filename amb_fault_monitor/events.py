@@ -37,7 +37,7 @@ class FaultEvent:
     onset_sample_index : int
         Estimated onset: the first crossing back-dated within the support of the wavelet
         that saw it, to the time centre of its atom (the strongest of the coefficients that
-        crossed first; see :func:`amb_fault_monitor.monitor.estimate_onset`).
+        crossed first; see :func:`amb_fault_monitor.onset.estimate_onset`).
     detection_sample_index : int
         The sample at which the detection was confirmed (alarm).
     decision_sample_index : int

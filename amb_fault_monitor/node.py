@@ -81,10 +81,11 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.serialization import serialize_message
 
 from amb_fault_monitor.blackbox import BlackBox
+from amb_fault_monitor.config import MonitorConfig
 from amb_fault_monitor.errors import FaultMonitorError, RecordError
 from amb_fault_monitor.event_log import EventLog
 from amb_fault_monitor.events import FaultEvent, FaultType
-from amb_fault_monitor.monitor import FaultMonitor, MonitorConfig
+from amb_fault_monitor.monitor import FaultMonitor
 from amb_fault_monitor.records import N_SENSORS, CoefficientSet, SampleCoefficients
 from amb_fault_monitor.trips import SynchronousAmplitude, TripMonitor, clearance_levels
 from amb_plant_sim.errors import RigError

@@ -98,7 +98,7 @@ def atom_time_centre(wavelet: str, level: int, kind: str = DETAIL) -> float:
     :func:`basis_function`, :math:`u = \sum_t t\, b_t^2` (Mallat's time centre; eq. 4.34
     measures the spread about the same kind of centre, for the scaling filter). It is where the
     coefficient is most sensitive to a change of its input: the fault monitor back-dates a
-    threshold crossing to it (:func:`amb_fault_monitor.monitor.estimate_onset`).
+    threshold crossing to it (:func:`amb_fault_monitor.onset.estimate_onset`).
     Daubechies atoms (extremal phase) have their energy late in the support, on the most
     recent samples: db4 at level 1 ``u = 5.54`` of 0..7; Haar's is the middle.
 

@@ -36,8 +36,9 @@ sys.path.insert(0, str(ROOT))
 
 import numpy as np  # noqa: E402
 
+from amb_fault_monitor.config import MonitorConfig  # noqa: E402
 from amb_fault_monitor.evaluation import run_case, simulate_case  # noqa: E402
-from amb_fault_monitor.monitor import FaultMonitor, MonitorConfig  # noqa: E402
+from amb_fault_monitor.monitor import FaultMonitor  # noqa: E402
 from amb_fault_monitor.records import FilterbankAdapter  # noqa: E402
 from amb_plant_sim.rig import load_rig  # noqa: E402
 
@@ -55,8 +56,7 @@ def clean_ratios(case, wavelet: str, thresholds: dict, sync_threshold) -> list:
         monitor.step(rec)
         if monitor.calibrated and monitor.trace is None:
             # the noisy run's thresholds replace the ones calibrated on noise-free data
-            monitor._thr = {k: v.copy() for k, v in thresholds.items()}
-            monitor._sync_thr = sync_threshold
+            monitor.set_thresholds(thresholds, sync_threshold)
             monitor.trace = trace
     return trace
 

@@ -11,9 +11,11 @@ import pytest
 from synthetic import SPR, add_base_motion, make_run, run_monitor
 
 from amb_fault_monitor.classifier import EpisodeEvidence, classify
+from amb_fault_monitor.config import MonitorConfig
+from amb_fault_monitor.episodes import Episode
 from amb_fault_monitor.errors import FaultMonitorError
 from amb_fault_monitor.events import FaultType
-from amb_fault_monitor.monitor import FaultMonitor, MonitorConfig, _Episode
+from amb_fault_monitor.monitor import FaultMonitor
 
 WAVELETS = ("haar", "db2", "db4")
 ONSET_REV = 30.3
@@ -47,11 +49,11 @@ def test_same_motion_on_one_plane_only_is_not_base_motion():
 )  # fmt: skip
 def test_low_coherence_closed_form(pattern, expected):
     monitor = FaultMonitor(MonitorConfig(SPR))
-    ep = _Episode(start=0)
+    ep = Episode(start=0)
     for scale in (1.0, -2.0, 0.5):  # several coefficients, either sign
         delta = np.zeros(8)
         delta[0::2] = scale * np.asarray(pattern) * 1e-5
-        monitor._low_coherence(ep, delta)
+        ep.add_low_change(delta, monitor.channel_mask)
     assert ep.low_coherent / ep.low_energy == pytest.approx(expected, abs=1e-12)
     assert ep.low_peak == pytest.approx(2e-5)
 

@@ -12,8 +12,9 @@ import pytest
 from scipy import optimize, stats
 from synthetic import OMEGA, SPR, run_monitor
 
+from amb_fault_monitor.config import MonitorConfig
 from amb_fault_monitor.errors import FaultMonitorError
-from amb_fault_monitor.monitor import FaultMonitor, MonitorConfig
+from amb_fault_monitor.monitor import FaultMonitor
 
 SIGMA = 2e-7
 

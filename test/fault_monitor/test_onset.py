@@ -3,8 +3,10 @@
 import numpy as np
 import pytest
 
+from amb_fault_monitor.config import MonitorConfig
 from amb_fault_monitor.errors import FaultMonitorError
-from amb_fault_monitor.monitor import Crossing, FaultMonitor, MonitorConfig, estimate_onset
+from amb_fault_monitor.monitor import FaultMonitor
+from amb_fault_monitor.onset import Crossing, estimate_onset
 from amb_fault_monitor.records import CoefficientSet, SampleCoefficients
 
 
@@ -45,4 +47,4 @@ def test_monitor_takes_the_centre_from_the_stream_wavelet(wavelet, centre):
     mon = FaultMonitor(MonitorConfig(samples_per_rev=32))
     mon.step(SampleCoefficients(7, 100.0, (), wavelet))
     s = CoefficientSet(1, "detail", "fixed", "even", 0, 0, 7, np.zeros(8), True)
-    assert mon._centre(s) == pytest.approx(centre, abs=0.01)
+    assert mon.atom_centre(s) == pytest.approx(centre, abs=0.01)

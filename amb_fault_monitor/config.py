@@ -1,0 +1,185 @@
+"""
+Parameters of the fault monitor (:class:`MonitorConfig`), all times in revolutions of the rotor.
+
+Where each parameter acts is documented with the part that uses it: the features and the
+episode logic in :mod:`amb_fault_monitor.monitor`, the calibration window in
+:mod:`amb_fault_monitor.calibration`, the synchronous level in :mod:`amb_fault_monitor.phasor`,
+the contact bursts in :mod:`amb_fault_monitor.bursts`, the control transients in
+:mod:`amb_fault_monitor.control_transients`, the stuck channels in
+:mod:`amb_fault_monitor.dead_channels` and the classification in
+:mod:`amb_fault_monitor.classifier`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+from amb_fault_monitor.errors import FaultMonitorError
+
+__all__ = ["FRAMES", "MonitorConfig", "with_levels"]
+
+FRAMES = ("fixed", "rotating")
+
+
+@dataclass(frozen=True)
+class MonitorConfig:
+    """
+    Parameters of :class:`FaultMonitor` (all times in revolutions of the rotor).
+
+    Attributes
+    ----------
+    samples_per_rev : int
+        Samples per revolution (power of two >= 4).
+    levels : tuple of int
+        Detail levels used; empty = every level received.
+    frames : tuple of str
+        ``"fixed"`` and/or ``"rotating"``.
+    calibration_revs : float
+        Length of the healthy calibration window.
+    settle_ratio : float
+        Stationarity test of the calibration window: the median feature of its first half may
+        exceed that of its second half by at most this factor (per level and frame, planes
+        pooled), or the window slides on by one revolution (a start-up transient still decaying).
+    k : float
+        Robust standard deviations of the threshold (see ``calibration``).
+    threshold_floor : float
+        m, smallest threshold (noise-free signals).
+    confirm_ratio, confirm_features, confirm_revs
+        Detection confirmation (:mod:`amb_fault_monitor.monitor`, step 2).
+    quiet_revs, decision_revs, max_tail_revs
+        Episode timing (:mod:`amb_fault_monitor.monitor`, steps 3-4).
+    decision_max_revs : float
+        Longest wait for the decision while the 1 x level is still moving far from its
+        reference (:mod:`amb_fault_monitor.phasor`); at least ``decision_revs``.
+    rearm_revs : float
+        After an episode ends, a new one needs a strong crossing (``confirm_ratio``) for this
+        many revolutions: the ring-down of a large transient hovers at the threshold and would
+        otherwise confirm on two weak features (:mod:`amb_fault_monitor.monitor`, step 4).
+    isolation : float
+        Share of the fixed-frame change energy in one channel that makes a sensor fault.
+    base_coherence : float
+        Plane coherence (0..1) of the fixed-frame changes below 1 x that makes base motion
+        (classifier rule 2): 1 when the four planes move alike along x and along y.
+    base_dominance : float
+        Base motion also needs the largest change below 1 x (m) to be at least this multiple
+        of the larger of the lasting 1 x phasor change and the largest change above 1 x (m):
+        the slow motion dominates.
+    sync_change : float
+        Ratio over threshold of the synchronous phasor change that makes a new steady level.
+    sync_relative_floor : float
+        Smallest synchronous change counted, as a fraction of the pre-fault 1 x level.
+    sustain : float
+        The mean synchronous change over the latest ``settle_revs`` revolutions must be at
+        least this fraction of the mean over the ``settle_revs`` before (a new level is
+        sustained; a ring-down after a contact decays).
+    settle_revs : int
+        Revolutions of the synchronous-level settling test (:mod:`amb_fault_monitor.phasor`).
+    settle_spread : float
+        The synchronous change has settled when its spread (max - min) over the latest
+        ``settle_revs`` revolutions is at most this fraction of its mean.
+    burst_gap_revs : float
+        Quiet gap separating two fine-level bursts (contacts).
+    tail_rise : float
+        A finest-level coefficient one revolution or more into an episode counts as a contact
+        burst if its ratio is at least this many times the largest finest-level ratio of the
+        preceding revolution (its last quarter excluded): a new impulse above the ringing's
+        own envelope (:mod:`amb_fault_monitor.bursts`).
+    tail_rise_median : float
+        From a quarter revolution into an episode, a fixed-frame finest-level coefficient is also
+        a contact burst if its ratio, or its change from the previous coefficient, is at least
+        this many times the *median* of the same quantity since the episode began (at most one
+        revolution back, its last eighth excluded): the robust envelope that an earlier contact
+        spike does not inflate (:mod:`amb_fault_monitor.bursts`).
+    dead_fraction, dead_revs
+        Stuck/zero channel test (:mod:`amb_fault_monitor.dead_channels`).
+    control_step : float
+        N, change of the applied control force on an axis from one revolution to the next
+        that makes a control step (:mod:`amb_fault_monitor.control_transients`). The default
+        lies well above the steady per-revolution adjustments of the controller and below the
+        smallest drop that made an event (measurements: ``docs/fault_monitor_notes.md``).
+    control_window_revs : float
+        How long after a step run an episode's estimated onset may lie to be its transient
+        (:mod:`amb_fault_monitor.control_transients`). One revolution (one control period)
+        leaves a margin and keeps short the time in which a real fault would be taken for the
+        step.
+    """
+
+    samples_per_rev: int
+    levels: tuple[int, ...] = ()
+    frames: tuple[str, ...] = FRAMES
+    calibration_revs: float = 16.0
+    settle_ratio: float = 2.0
+    k: float = 8.0
+    threshold_floor: float = 2.0e-8
+    confirm_ratio: float = 3.0
+    confirm_features: int = 2
+    confirm_revs: float = 1.0
+    quiet_revs: float = 2.0
+    decision_revs: float = 16.0
+    max_tail_revs: float = 200.0
+    decision_max_revs: float = 32.0
+    rearm_revs: float = 16.0
+    isolation: float = 0.9
+    base_coherence: float = 0.8
+    base_dominance: float = 2.0
+    sync_change: float = 1.5
+    sync_relative_floor: float = 0.05
+    sustain: float = 0.8
+    settle_revs: int = 4
+    settle_spread: float = 0.25
+    burst_gap_revs: float = 0.5
+    tail_rise: float = 1.7
+    tail_rise_median: float = 3.0
+    dead_fraction: float = 0.02
+    dead_revs: float = 1.0
+    control_step: float = 2.0
+    control_window_revs: float = 1.0
+
+    def __post_init__(self) -> None:
+        spr = self.samples_per_rev
+        if isinstance(spr, bool) or not isinstance(spr, int) or spr < 4 or spr & (spr - 1):
+            raise FaultMonitorError(f"samples_per_rev must be a power of two >= 4, got {spr!r}")
+        bad = [f for f in self.frames if f not in FRAMES]
+        if bad or not self.frames:
+            raise FaultMonitorError(
+                f"frames must be a non-empty subset of {FRAMES}, got {self.frames}"
+            )
+        if any(int(j) != j or j < 1 for j in self.levels):
+            raise FaultMonitorError(f"levels must be integers >= 1, got {self.levels}")
+        positive = (
+            "calibration_revs", "settle_ratio", "k", "confirm_ratio", "confirm_revs", "quiet_revs",
+            "decision_revs", "max_tail_revs", "isolation", "sync_change", "burst_gap_revs",
+            "tail_rise", "tail_rise_median", "dead_revs", "base_coherence", "base_dominance",
+            "rearm_revs", "control_step", "control_window_revs",
+        )  # fmt: skip
+        for name in positive:
+            if not getattr(self, name) > 0:
+                raise FaultMonitorError(f"{name} must be > 0, got {getattr(self, name)}")
+        if self.settle_ratio < 1:
+            raise FaultMonitorError(f"settle_ratio must be >= 1, got {self.settle_ratio}")
+        if self.threshold_floor < 0 or self.sync_relative_floor < 0 or self.dead_fraction < 0:
+            raise FaultMonitorError(
+                "threshold_floor, sync_relative_floor and dead_fraction must be >= 0"
+            )
+        if self.settle_revs < 2 or not self.settle_spread > 0:
+            raise FaultMonitorError(
+                f"settle_revs must be >= 2 and settle_spread > 0, got {self.settle_revs}, "
+                f"{self.settle_spread}"
+            )
+        if self.decision_max_revs < self.decision_revs:
+            raise FaultMonitorError(
+                f"decision_max_revs ({self.decision_max_revs}) must be >= decision_revs "
+                f"({self.decision_revs})"
+            )
+        if self.confirm_features < 1:
+            raise FaultMonitorError(f"confirm_features must be >= 1, got {self.confirm_features}")
+        if self.isolation > 1 or self.base_coherence > 1:
+            raise FaultMonitorError(
+                f"isolation and base_coherence are shares in (0, 1], got {self.isolation}, "
+                f"{self.base_coherence}"
+            )
+
+
+def with_levels(config: MonitorConfig, levels: tuple[int, ...]) -> MonitorConfig:
+    """Copy of ``config`` using ``levels``."""
+    return replace(config, levels=tuple(levels))

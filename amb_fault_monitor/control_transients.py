@@ -1,0 +1,130 @@
+"""
+Control transients: episodes the controller's own force step explains (monitor step 5).
+
+The controller's wavelet force moves the rotor too, and a change of it from one revolution to
+the next excites the same transient features as a fault (a late command, a steady synchronous
+force answered by zero for one period, was called a contact). The node tells the monitor the
+force applied in each sample; it is compared with the force one revolution earlier (the lag
+of the features: a steady force periodic in the revolution changes nothing), and the samples
+where an axis changed by more than ``control_step`` (N) form step runs (joined across gaps
+under half a revolution; a one-revolution drop is a two-revolution run, the drop and the
+return).
+
+An episode is a *control transient* when a step run began before its first crossing completed
+and its estimated onset lies in the run or at most ``control_window_revs`` after it (or before
+it by less than the shortest crossing support, the estimate's own back-dating). Its decision
+emits no event, whatever the class: it is counted (``transients``) and kept
+(``last_transient``: the step, the onset and the class it would have had). The step must come
+first: the controller's reaction to a disturbance begins at the earliest with the period
+after the one that measured it (``delay_periods`` >= 1, 2 by default: a period later still),
+so it begins after the disturbance's onset and does not excuse it. Only with
+``delay_periods`` 1 and a disturbance in the last samples of a period (fewer than the
+shortest crossing support, 2 with haar, up to 8 with db4 at 32 samples per revolution) can the
+two not be told apart. Within such an episode, the contact bursts
+(:mod:`amb_fault_monitor.bursts`) inside a step run or up to ``control_window_revs`` after it
+are the response to that step (a second late command a few revolutions on re-excites the
+finest level like an impulse) and are not counted; bursts outside are contacts and reported as
+in any episode. Without a force step nothing changes. The price: a fault that begins while a
+control transient's episode is open (its decision wait and its ring-down) is decided with it
+and not reported unless its bursts rise above the ring-down envelope.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+
+import numpy as np
+
+from amb_fault_monitor.events import FaultEvent
+from amb_fault_monitor.onset import Crossing, estimate_onset
+
+__all__ = ["ControlSteps"]
+
+
+class ControlSteps:
+    """
+    Step runs of the applied control force, and the episodes they explain.
+
+    Parameters
+    ----------
+    config : MonitorConfig
+        Or anything with its ``samples_per_rev``, ``control_step`` and
+        ``control_window_revs``.
+
+    Attributes
+    ----------
+    transients : int
+        Episodes decided as control transients.
+    last_transient : dict or None
+        The latest of them: onset and decision sample, the step run's first and last sample
+        and largest change (N), and the class the episode would have had.
+    """
+
+    def __init__(self, config) -> None:
+        self.config = config
+        spr = config.samples_per_rev
+        self._force = np.zeros((spr, 4))
+        self._force_at = np.full(spr, -(2**62), dtype=np.int64)
+        self._steps: deque[list] = deque(maxlen=32)  # [first, last, largest change N]
+        self.transients = 0
+        self.last_transient: dict | None = None
+
+    def record(self, sample_index: int, force: np.ndarray) -> None:
+        """
+        Record the force (4,), N per axis, applied during sample ``sample_index``.
+
+        Compared with the force of ``sample_index - samples_per_rev`` (if recorded): a change
+        of more than ``control_step`` on an axis extends the current step run, or starts one.
+        """
+        n = int(sample_index)
+        spr = self.config.samples_per_rev
+        slot = n % spr
+        f = np.asarray(force, dtype=float)
+        if self._force_at[slot] == n - spr:
+            change = float(np.abs(f - self._force[slot]).max())
+            if change > self.config.control_step:
+                steps = self._steps
+                if steps and steps[-1][0] <= n <= steps[-1][1] + spr // 2:
+                    run = steps[-1]
+                    run[1], run[2] = n, max(run[2], change)
+                else:
+                    steps.append([n, n, change])
+        self._force[slot] = f
+        self._force_at[slot] = n
+
+    def run_explaining(self, crossings: list[Crossing], start: int) -> list | None:
+        """
+        The step run ``[first, last, change]`` that explains an episode, or None.
+
+        The run began before the episode's first crossing completed (``start``; a step at
+        sample ``s`` moves the rotor from ``s + 1``), and the estimated onset lies in the run
+        or at most ``control_window_revs`` after it, or before it by less than the shortest
+        crossing support (the estimate is the earliest sample the change can be at).
+        """
+        if not crossings or not self._steps:
+            return None
+        window = self.config.control_window_revs * self.config.samples_per_rev
+        onset = estimate_onset(crossings)
+        support = min(c.last - c.first + 1 for c in crossings)
+        for run in self._steps:
+            if run[0] < start and run[0] < onset + support and onset <= run[1] + window:
+                return run
+        return None
+
+    def in_window(self, n: int) -> bool:
+        """True if sample ``n`` lies in a step run or up to ``control_window_revs`` after it."""
+        window = self.config.control_window_revs * self.config.samples_per_rev
+        return any(run[0] < n <= run[1] + window for run in self._steps)
+
+    def count(self, run: list, ev: FaultEvent) -> None:
+        """Count a decided episode explained by step ``run`` instead of emitting ``ev``."""
+        first, last, change = run
+        self.transients += 1
+        self.last_transient = {
+            "onset_sample_index": int(ev.onset_sample_index),
+            "decision_sample_index": int(ev.decision_sample_index),
+            "step_first_sample_index": int(first),
+            "step_last_sample_index": int(last),
+            "step_n": float(change),
+            "classified_as": ev.fault_type.name,
+        }
