@@ -31,8 +31,10 @@ def _pct(a: float, b: float) -> str:
 
 def verdict(table: dict, force_limit: float) -> list[str]:
     """
-    Per mass-loss case: does ``wavelet_i1`` beat each baseline on peak and revolutions to
-    10 %, and the measured reason where it does not (issue 9 target).
+    Say, per mass-loss case, whether ``wavelet_i1`` beats each baseline.
+
+    On peak and revolutions to 10 %, with the measured reason where it does not (issue 9
+    target).
 
     Returns
     -------

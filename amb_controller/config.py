@@ -109,9 +109,10 @@ def _fail(name: str, value, allowed: str | None = None) -> ConfigError:
 @dataclass(frozen=True)
 class ControllerConfig:
     """
-    Plain configuration of :class:`~amb_controller.pipeline.ControllerPipeline` (the node's ROS
-    parameters): each field's description, unit and allowed range are its :func:`param`
-    metadata. Validated on construction (:class:`ConfigError`).
+    Plain configuration of :class:`~amb_controller.pipeline.ControllerPipeline`.
+
+    The node's ROS parameters: each field's description, unit and allowed range are its
+    :func:`param` metadata. Validated on construction (:class:`ConfigError`).
     """
 
     wavelet: str = param(

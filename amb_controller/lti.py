@@ -75,17 +75,17 @@ class DiscreteStateSpace:
 
     def markov(self, n_terms: int) -> np.ndarray:
         """
-            Return the Markov parameters ``d, c b, c a b, ...``.
+        Return the Markov parameters ``d, c b, c a b, ...``.
 
-            Parameters
-            ----------
-            n_terms : int
-                Number of terms.
+        Parameters
+        ----------
+        n_terms : int
+            Number of terms.
 
-            Returns
+        Returns
         -------
-            numpy.ndarray
-                Shape ``(n_terms, p, m)``; term k multiplies ``z^-k``.
+        numpy.ndarray
+            Shape ``(n_terms, p, m)``; term k multiplies ``z^-k``.
 
         """
         out = np.empty(
@@ -102,19 +102,19 @@ class DiscreteStateSpace:
 
     def simulate(self, u: np.ndarray, x0: np.ndarray | None = None) -> np.ndarray:
         """
-            Return the output sequence for the input sequence ``u`` (shape ``(K, m)``).
+        Return the output sequence for the input sequence ``u`` (shape ``(K, m)``).
 
-            Parameters
-            ----------
-            u : numpy.ndarray
-                Inputs, one row per period.
-            x0 : numpy.ndarray, optional
-                Initial state (zero by default).
+        Parameters
+        ----------
+        u : numpy.ndarray
+            Inputs, one row per period.
+        x0 : numpy.ndarray, optional
+            Initial state (zero by default).
 
-            Returns
+        Returns
         -------
-            numpy.ndarray
-                Outputs, shape ``(K, p)``.
+        numpy.ndarray
+            Outputs, shape ``(K, p)``.
 
         """
         u = np.asarray(u)
@@ -127,16 +127,16 @@ class DiscreteStateSpace:
 
     def frequency_response(self, z: np.ndarray) -> np.ndarray:
         """
-            Return ``c (zI - a)^-1 b + d`` at the points ``z``, shape ``(len(z), p, m)``.
+        Return ``c (zI - a)^-1 b + d`` at the points ``z``, shape ``(len(z), p, m)``.
 
-            Parameters
-            ----------
-            z : numpy.ndarray
-                Complex points.
+        Parameters
+        ----------
+        z : numpy.ndarray
+            Complex points.
 
-            Returns
+        Returns
         -------
-            numpy.ndarray of complex
+        numpy.ndarray of complex
 
         """
         z = np.atleast_1d(np.asarray(z, dtype=complex))

@@ -1,6 +1,7 @@
 """
-Identified wavelet-domain model file (``.npz``), written after identification and loaded
-at start by the ``wavelet_controller`` node.
+Identified wavelet-domain model file (``.npz``).
+
+Written after identification and loaded at start by the ``wavelet_controller`` node.
 
 Arrays: ``markov`` (A^(k), eq. 6.34), ``inverse`` (B^(k), eq. 6.35), ``offset`` and
 ``residual_rms`` of the fit. Metadata (JSON string ``meta``): wavelet, samples_per_rev,

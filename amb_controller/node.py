@@ -166,13 +166,6 @@ PARAMETERS = tuple(f.name for f in parameter_fields(ControllerConfig))
 TUNABLES = tuple(f.name for f in parameter_fields(ControllerConfig) if f.metadata["runtime"])
 #: Node settings with a range (s): name -> (lowest, highest).
 SETTINGS = {f.name: f.metadata["floats"] for f in fields(NodeSettings) if f.metadata["floats"]}
-#: Parameters launch/amb_system.launch.py sets from its arguments. Declared from the fields
-#: above; named here so that a renamed field fails on import (and test/system/test_launch_file.py,
-#: which reads this source for them) rather than a user's ``ros2 launch`` on the rig.
-LAUNCH_PARAMETERS = ("controller", "start_mode", "model_file", "model_file_out")
-_undeclared = set(LAUNCH_PARAMETERS) - {*PARAMETERS, *(f.name for f in fields(NodeSettings))}
-if _undeclared:
-    raise ImportError(f"launch parameters {sorted(_undeclared)} are not declared by the node")
 #: How a ROS parameter carries the values it cannot hold (inf, an empty list, a dict).
 ROS_FORMS = {
     "coefficient_bound": "as a ROS parameter 0 = off",

@@ -1,9 +1,9 @@
-"""
+r"""
 ``amb-sim``: the in-process closed loop (no ROS graph), a bag and ``metrics.json``.
 
 ::
 
-    amb-sim --scenario config/scenarios/mass_loss_first_critical.yaml \\
+    amb-sim --scenario config/scenarios/mass_loss_first_critical.yaml \
             --controller transient --w 0.75 --v 0.75 --delay 2 --out runs/ml1
 
 composes the simulated rig, the filterbank front end and the controller pipeline in the

@@ -1,4 +1,4 @@
-"""
+r"""
 Thresholds calibrated automatically from a healthy window (robust statistics).
 
 Every detection feature (a non-negative magnitude, one per level, frame and sensor plane) is
@@ -6,8 +6,8 @@ collected over the calibration window and its threshold set to
 
 .. math::
 
-    \\theta = \\max\\left(\\operatorname{median}(c) + k \\cdot 1.4826
-    \\operatorname{MAD}(c),\\; \\theta_{\\min}\\right),
+    \theta = \max\left(\operatorname{median}(c) + k \cdot 1.4826
+    \operatorname{MAD}(c),\; \theta_{\min}\right),
 
 where MAD is the median absolute deviation from the median and ``1.4826`` makes
 ``1.4826 MAD`` equal to the standard deviation for Gaussian data. Median and MAD ignore up to

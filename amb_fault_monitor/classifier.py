@@ -64,8 +64,12 @@ __all__ = [
 
 
 class ClassifierThresholds(Protocol):
-    """The thresholds :func:`classify` reads (``MonitorConfig`` has them; its docstring says
-    what each means)."""
+    """
+    The thresholds :func:`classify` reads.
+
+    :class:`~amb_fault_monitor.config.MonitorConfig` has them; its docstring says what each
+    means.
+    """
 
     isolation: float
     base_coherence: float

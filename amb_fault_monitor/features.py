@@ -1,4 +1,4 @@
-"""
+r"""
 Detection features: the change of each completed detail coefficient (thesis chapter 5).
 
 Per completed detail coefficient, per level ``j``, frame and sensor plane ``p``, coefficients
@@ -10,9 +10,9 @@ revolution:
 
 .. math::
 
-    \\Delta_j[k] = c_j[k] - c_j[k - m_j], \\quad
-    m_j = \\max(1, 2^{R - j}), \\qquad
-    e_{j,p}[k] = \\sqrt{\\Delta_{j,x_p}^2 + \\Delta_{j,y_p}^2},
+    \Delta_j[k] = c_j[k] - c_j[k - m_j], \quad
+    m_j = \max(1, 2^{R - j}), \qquad
+    e_{j,p}[k] = \sqrt{\Delta_{j,x_p}^2 + \Delta_{j,y_p}^2},
 
 with ``R = log2(samples_per_rev)`` (level ``R`` is 1 x running speed). Decision (a
 generalisation of the thesis): for ``j < R`` the thesis's coefficient-to-coefficient change

@@ -42,6 +42,7 @@ class Crossing(tuple):
         ratio: float,
         centre: float | None = None,
     ):
+        """Make a crossing (``centre`` None: no atom centre known)."""
         return super().__new__(
             cls, (level, frame, plane, first, last, ratio, first if centre is None else centre)
         )

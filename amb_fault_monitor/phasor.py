@@ -1,5 +1,5 @@
 """
-The synchronous (1 x) level: has it changed for good after an episode (thesis Table 5.1)?
+The synchronous (1 x) level: whether it changed for good after an episode (thesis Table 5.1).
 
 The synchronous phasor per channel is ``P = c_even + i c_odd`` at level ``R`` (1 x running
 speed) in the fixed frame (the odd channel is delayed a quarter revolution, section 4.3, so
@@ -134,10 +134,11 @@ class SynchronousLevel:
 
     def moving(self, p_ref: np.ndarray | None, onset: int, mask: np.ndarray) -> bool:
         """
-        True while the 1 x level stayed at least ``sync_change`` from ``p_ref`` over the
-        latest ``2 settle_revs`` revolutions after ``onset``: it has not returned and is still
-        settling, so the decision waits on up to ``decision_max_revs`` for the new steady
-        state of Table 5.1.
+        True while the 1 x level still moves after ``onset``.
+
+        That is, it stayed at least ``sync_change`` from ``p_ref`` over the latest
+        ``2 settle_revs`` revolutions: it has not returned and is still settling, so the
+        decision waits on up to ``decision_max_revs`` for the new steady state of Table 5.1.
         """
         if p_ref is None or self.threshold is None:
             return False
