@@ -67,6 +67,7 @@ def test_nominal_linear_rate_limit_matches_hand_written_characteristic_polynomia
     assert not _nominal_linear_stable(limit + 0.01, delay)
 
 
+@pytest.mark.slow
 def test_thesis_linear_rate_lies_at_the_nominal_delay_2_limit():
     # thesis 8.5.1: 0.31 per step at delay 2; the nominal loop allows up to 0.294
     assert nominal_linear_rate_limit(2) == pytest.approx(0.31, abs=0.02)

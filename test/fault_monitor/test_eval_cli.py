@@ -12,6 +12,8 @@ from amb_fault_monitor.eval_cli import main
 from amb_fault_monitor.evaluation import run_case, simulate_case
 from amb_plant_sim.rig import load_rig
 
+pytestmark = pytest.mark.slow  # command lines writing figures
+
 SUITE = Path(__file__).resolve().parents[2] / "config" / "scenarios" / "faults"
 
 
@@ -77,7 +79,6 @@ def test_fault_inside_the_calibration_window_is_flagged(tmp_path, capsys):
     assert end is None or end > match["true_onset_sample"]
 
 
-@pytest.mark.slow
 def test_eval_cli_figures_are_written_and_readable(tmp_path, capsys):
     """--figures: one PNG per scenario and wavelet plus summary.png, listed on stdout; the
     exit status and the tables are those of a run without figures."""
@@ -110,7 +111,6 @@ def test_eval_cli_figures_are_written_and_readable(tmp_path, capsys):
         assert image.std() > 0.05, png.name  # drawn, not a blank canvas
 
 
-@pytest.mark.slow
 def test_eval_cli_figures_keep_json_on_stdout(tmp_path, capsys):
     status = main(
         [
@@ -129,7 +129,6 @@ def test_eval_cli_figures_keep_json_on_stdout(tmp_path, capsys):
     assert str(tmp_path / "summary.png") in captured.err
 
 
-@pytest.mark.slow
 def test_trace_holds_a_crossing_at_every_detection_sample():
     """The recorded ratios are the monitor's: at each event's detection sample some recorded
     feature is above its threshold (ratio > 1; an alarm is raised by a crossing, a contact in

@@ -139,6 +139,7 @@ def test_cli_json(capsys):
     assert len(out["critical_speeds_hz"]) == 4
 
 
+@pytest.mark.slow
 def test_cli_free_free_and_plots(tmp_path, capsys):
     assert main(["--free-free", "--json", "--plot-dir", str(tmp_path), "--elements", "12"]) == 0
     out = json.loads(capsys.readouterr().out)

@@ -51,6 +51,7 @@ def _impact(params, mass, v0, clearance=1e-4):
     return sol.y[0].max() - clearance, sol.y[1, -1]
 
 
+@pytest.mark.slow
 def test_hertz_impact_matches_closed_form_and_conserves_energy(rig):
     params = dataclasses.replace(rig.contact, damping=0.0, friction=0.0, model="hertz")
     m, v0 = 20.0, 0.05
@@ -61,6 +62,7 @@ def test_hertz_impact_matches_closed_form_and_conserves_energy(rig):
     assert v_out == pytest.approx(-v0, rel=1e-3)  # elastic: no energy lost
 
 
+@pytest.mark.slow
 def test_penalty_impact_matches_closed_form(rig):
     params = dataclasses.replace(rig.contact, damping=0.0, friction=0.0, model="penalty")
     m, v0 = 20.0, 0.05

@@ -23,6 +23,8 @@ from amb_tools.bag_writer import BagWriter
 from amb_tools.report_metrics import NOT_IN_BAG, bag_metrics, choose_fault_time
 from amb_tools.topics import COEFFICIENTS, MEASUREMENT
 
+pytestmark = pytest.mark.slow  # command lines writing figures
+
 FIGURES = ("displacement", "coefficients_1x", "forces", "orbits", "fault_timeline")
 LABELS = ("PID only", "PID + wavelet")
 #: ControllerConfig keys the bag carries (ControllerStatus, ControlCommand, coefficients).
@@ -54,7 +56,6 @@ def _assert_same_metrics(ours: dict, ref: dict) -> None:
         assert ours["controller"][key] == ref["controller"][key], key
 
 
-@pytest.mark.slow
 def test_every_figure_is_written_and_linked(report) -> None:
     md = (report / "report.md").read_text()
     for name in FIGURES:

@@ -36,6 +36,7 @@ def test_json_and_k(capsys: pytest.CaptureFixture[str]) -> None:
     assert doc["units"] == {"delta_omega": "rad/sample", "delta_t": "samples"}
 
 
+@pytest.mark.slow
 def test_plot_writes_pngs(tmp_path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["--wavelets", "haar,db2", "--plot", str(tmp_path)]) == 0
     names = sorted(p.name for p in tmp_path.iterdir())
