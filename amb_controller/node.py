@@ -22,8 +22,8 @@ sample is processed without it and the pipeline answers that period with zero fo
 
 Bad input and dead peers
 ------------------------
-Measurements are validated (:func:`amb_tools.conversions.check_measurement`) and sequenced
-(:class:`amb_tools.conversions.SampleSequencer`: repeats, stray indices and impossible stamps
+Measurements are validated (:func:`amb_tools.validation.check_measurement`) and sequenced
+(:class:`amb_tools.validation.SampleSequencer`: repeats, stray indices and impossible stamps
 are dropped; a confirmed gap or restart makes the pipeline answer the broken period with a
 held zero command). Coefficient messages are rejected if their wavelet or ``samples_per_rev``
 is not the controller's, their sample index lies before the stream or more than eight periods
@@ -104,8 +104,6 @@ from amb_tools import topics
 from amb_tools.cdr import CoefficientsView, MeasurementView, read_coefficients, read_measurement
 from amb_tools.conversions import (
     MessageError,
-    SampleSequencer,
-    check_measurement,
     coefficient_records,
     command_msg,
     controller_status_msg,
@@ -114,6 +112,7 @@ from amb_tools.conversions import (
 from amb_tools.node_main import ConfigurationError, descriptor, run_node
 from amb_tools.paths import config_file
 from amb_tools.streams import COMMAND_QOS, FRAME_CODES, QUAD_CODES, stream_qos
+from amb_tools.validation import SampleSequencer, check_measurement
 from amb_wavelet.frontend import FRAMES, QUADRATURES, ChannelFrontEnd
 
 START_MODES = ("off", "active", "identify")

@@ -32,15 +32,15 @@ detection stamps are back-dated from it by ``(sample_index - n) / fs`` at the cu
 
 Bad input (issue 8)
 -------------------
-Measurements are validated (:func:`amb_tools.conversions.check_measurement`: array lengths,
+Measurements are validated (:func:`amb_tools.validation.check_measurement`: array lengths,
 finite values, ``rotor_speed`` > 0, ``rotor_angle`` in [0, 2 pi), ``samples_per_rev``) and
-sequenced (:class:`amb_tools.conversions.SampleSequencer`: repeats, stray indices and stamps
+sequenced (:class:`amb_tools.validation.SampleSequencer`: repeats, stray indices and stamps
 going back or from the future are dropped; a confirmed gap or restart empties the 1 x window).
 Coefficient messages are validated by :func:`check_coefficients` (``samples_per_rev``, known
 level, kind, frame and quadrature codes, 8 finite values per set, a support ending at the
 message's sample) and sequenced the same way: the finest level completes a coefficient every
 second sample (fig. 4.3), so ``sample_index // 2`` of consecutive messages is consecutive and
-the coefficient stream is a :class:`~amb_tools.conversions.SampleSequencer` stream at half the
+the coefficient stream is a :class:`~amb_tools.validation.SampleSequencer` stream at half the
 sample rate. A confirmed gap or restart of the coefficient stream (a filterbank or plant
 restarted, samples lost) resets the monitor, which calibrates again: its change features
 compare coefficients a revolution apart and must not straddle a discontinuity. Nothing
@@ -92,16 +92,15 @@ from amb_plant_sim.errors import RigError
 from amb_tools import topics
 from amb_tools.conversions import (
     MessageError,
-    SampleSequencer,
     check_finite,
     check_length,
-    check_measurement,
     from_float_array,
     stamp,
     stamp_seconds,
 )
 from amb_tools.node_main import ConfigurationError, descriptor, run_node
 from amb_tools.streams import stream_qos
+from amb_tools.validation import SampleSequencer, check_measurement
 from amb_wavelet.levels import revolution_level
 
 KIND = {CoefficientSetMsg.KIND_DETAIL: "detail", CoefficientSetMsg.KIND_APPROXIMATION: "approx"}

@@ -27,7 +27,7 @@ Run modes (ARCHITECTURE.md, "Time")
     end and the command latency (``latency_summary``) is measured from there.
 
 A command is rejected (counted, reported, never applied) if its period has already started
-(``late``), if it is malformed (:func:`amb_tools.conversions.check_command`: sizes, indices,
+(``late``), if it is malformed (:func:`amb_tools.validation.check_command`: sizes, indices,
 non-finite force), if it was made for another ``delay_periods`` than the plant's (controller and
 plant disagree on i, eq. 8.10), if it repeats a period already commanded (the first is kept), if
 it is stamped after the last published sample or based on a period not yet measured (from the
@@ -81,17 +81,12 @@ from amb_plant_sim.rig import load_rig
 from amb_plant_sim.scenario import load_scenario, resolve_samples_per_rev
 from amb_plant_sim.simulator import MeasurementBlock, PlantSimulator
 from amb_tools import topics
-from amb_tools.conversions import (
-    MessageError,
-    check_command,
-    measurement_bytes,
-    stamp,
-    stamp_seconds,
-)
+from amb_tools.conversions import MessageError, measurement_bytes, stamp, stamp_seconds
 from amb_tools.names import N_AXES
 from amb_tools.node_main import ConfigurationError, descriptor, run_node
 from amb_tools.paths import config_file
 from amb_tools.streams import COMMAND_QOS, stream_qos
+from amb_tools.validation import check_command
 
 MODES = ("lockstep", "realtime")
 #: Commands may target at most this many periods beyond ``next period + delay_periods``.

@@ -9,9 +9,9 @@ completes is published at once, all of them in one ``WaveletCoefficients`` messa
 (:mod:`amb_tools.cdr`: the measurement subscribed ``raw``, the coefficients serialised without
 building rclpy message objects), the cost that dominated this node at 67 Hz x 32 samples/rev.
 
-Every measurement is validated first (:func:`amb_tools.conversions.check_measurement`: array
+Every measurement is validated first (:func:`amb_tools.validation.check_measurement`: array
 lengths, finite values, ``rotor_speed`` > 0, ``rotor_angle`` in [0, 2 pi), the configured
-``samples_per_rev``) and then sequenced (:class:`amb_tools.conversions.SampleSequencer`):
+``samples_per_rev``) and then sequenced (:class:`amb_tools.validation.SampleSequencer`):
 a repeated index is dropped; a stamp that goes back or lies impossibly far ahead of the
 sample interval is rejected; a jump or a step back is held until the next sample confirms
 it. A confirmed gap or restart (a lost sample, a restarted plant) resets the filterbank at
@@ -38,15 +38,10 @@ from rclpy.node import Node
 
 from amb_tools import topics
 from amb_tools.cdr import MeasurementView, read_measurement
-from amb_tools.conversions import (
-    MessageError,
-    SampleSequencer,
-    check_measurement,
-    coefficients_bytes,
-    stamp_seconds,
-)
+from amb_tools.conversions import MessageError, coefficients_bytes, stamp_seconds
 from amb_tools.node_main import ConfigurationError, descriptor, run_node
 from amb_tools.streams import FRAME_CODES, QUAD_CODES, stream_qos
+from amb_tools.validation import SampleSequencer, check_measurement
 from amb_wavelet.analysis import AnalysisFilterbank
 from amb_wavelet.errors import LevelError, WaveletNameError
 from amb_wavelet.filters import get_filters

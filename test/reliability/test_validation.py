@@ -15,14 +15,13 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from amb_tools.conversions import (
+from amb_tools.conversions import MessageError, to_float_array
+from amb_tools.validation import (
     STAMP_TOLERANCE,
-    MessageError,
     SampleSequencer,
     check_command,
     check_measurement,
     stamp_step_error,
-    to_float_array,
 )
 
 SPR = 16

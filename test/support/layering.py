@@ -37,6 +37,7 @@ ROS = {
     "amb_tools.conversions",
     "amb_tools.cdr",
     "amb_tools.streams",
+    "amb_tools.validation",
     "amb_tools.node_main",
     "amb_tools.recorder_node",
     "amb_tools.replay_bridge",
