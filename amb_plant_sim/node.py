@@ -62,7 +62,6 @@ from __future__ import annotations
 import math
 import time
 from collections import deque
-from pathlib import Path
 
 import numpy as np
 import yaml
@@ -84,7 +83,7 @@ from amb_tools import topics
 from amb_tools.conversions import MessageError, measurement_bytes, stamp, stamp_seconds
 from amb_tools.names import N_AXES
 from amb_tools.node_main import ConfigurationError, descriptor, run_node
-from amb_tools.paths import config_file
+from amb_tools.paths import config_file, scenario_file
 from amb_tools.streams import COMMAND_QOS, stream_qos
 from amb_tools.validation import check_command
 
@@ -212,22 +211,17 @@ class PlantSimNode(Node):
             rig = load_rig(rig_file)
         except RigError as exc:
             raise ConfigurationError(f"parameter 'rig_file' = {rig_file!r}: {exc}") from exc
-        scenario_file = p("scenario_file")
-        if not scenario_file:
+        name = p("scenario_file")
+        if not name:
             raise ConfigurationError("parameter 'scenario_file' is empty: name a scenario YAML")
-        if not Path(scenario_file).is_file():
-            candidate = config_file(Path("scenarios") / scenario_file)
-            if not candidate.is_file():
-                raise ConfigurationError(
-                    f"parameter 'scenario_file' = {scenario_file!r}: no such file"
-                )
-            scenario_file = str(candidate)
         try:
-            scenario = load_scenario(scenario_file, rig)
+            path = scenario_file(name)
+        except FileNotFoundError as exc:
+            raise ConfigurationError(f"parameter 'scenario_file' = {name!r}: no such file") from exc
+        try:
+            scenario = load_scenario(path, rig)
         except ScenarioError as exc:
-            raise ConfigurationError(
-                f"parameter 'scenario_file' = {scenario_file!r}: {exc}"
-            ) from exc
+            raise ConfigurationError(f"parameter 'scenario_file' = {str(path)!r}: {exc}") from exc
         spr = resolve_samples_per_rev(p("samples_per_rev"), scenario)
         if spr < 4 or spr & (spr - 1):
             raise ConfigurationError(

@@ -236,5 +236,9 @@ def load_scenario(
     p = Path(path)
     if not p.is_file():
         raise ScenarioError(f"scenario file not found: {p}")
-    with p.open(encoding="utf-8") as fh:
-        return scenario_from_dict(yaml.safe_load(fh), rig, critical_hz)
+    try:
+        with p.open(encoding="utf-8") as fh:
+            data = yaml.safe_load(fh)
+    except yaml.YAMLError as exc:
+        raise ScenarioError(f"scenario {p}: not readable YAML: {exc}") from exc
+    return scenario_from_dict(data, rig, critical_hz)

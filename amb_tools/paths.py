@@ -31,3 +31,21 @@ def config_file(name: str | Path) -> Path:
     except (ImportError, LookupError, ValueError):
         pass
     return SOURCE_ROOT / "config" / name
+
+
+def scenario_file(name: str | Path) -> Path:
+    """
+    Return the scenario file ``name``: a path, else a name in the package's ``config/scenarios``.
+
+    Raises
+    ------
+    FileNotFoundError
+        If neither exists.
+    """
+    path = Path(name)
+    if path.is_file():
+        return path.resolve()
+    path = config_file(Path("scenarios") / name)
+    if not path.is_file():
+        raise FileNotFoundError(f"scenario {str(name)!r} not found (nor in config/scenarios)")
+    return path.resolve()

@@ -47,8 +47,8 @@ from pathlib import Path
 
 from amb_plant_sim.errors import ScenarioError
 from amb_tools import topics
-from amb_tools.paths import config_file
-from amb_tools.system import NODE_MODULES, NODES, find_scenario, ros_arguments, run_parameters
+from amb_tools.paths import config_file, scenario_file
+from amb_tools.system import NODE_MODULES, NODES, ros_arguments, run_parameters
 
 INSTALL_LIB = Path(__file__).resolve().parent.parent / "install" / "amb_wavelet_control" / "lib"
 #: Nice value added to the nodes that are not on the control loop's chain.
@@ -236,7 +236,7 @@ class _Progress:
 def run(args: argparse.Namespace) -> int:
     """Start the nodes, wait for the scenario to end, stop them; return the exit status."""
     try:
-        scenario = find_scenario(args.scenario)
+        scenario = scenario_file(args.scenario)
     except FileNotFoundError as exc:
         print(f"amb-run: {exc}", file=sys.stderr)
         return 2

@@ -22,14 +22,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import yaml
-
-from amb_plant_sim.errors import ScenarioError
-from amb_plant_sim.scenario import scenario_from_dict
+from amb_plant_sim.scenario import load_scenario
 from amb_tools import topics
-from amb_tools.paths import config_file
 
-__all__ = ["NODES", "NODE_MODULES", "find_scenario", "ros_arguments", "run_parameters"]
+__all__ = ["NODES", "NODE_MODULES", "ros_arguments", "run_parameters"]
 
 #: The nodes of a run, in start order (the plant last: it waits for the others).
 NODES = ("recorder", "wavelet_filterbank", "fault_monitor", "wavelet_controller", "plant_sim")
@@ -41,24 +37,6 @@ NODE_MODULES = {
     "wavelet_controller": "amb_controller.node",
     "plant_sim": "amb_plant_sim.node",
 }
-
-
-def find_scenario(name: str | Path) -> Path:
-    """
-    The scenario file ``name``: a path, else a name in the package's ``config/scenarios``.
-
-    Raises
-    ------
-    FileNotFoundError
-        If neither exists.
-    """
-    path = Path(name)
-    if path.is_file():
-        return path.resolve()
-    path = config_file(Path("scenarios") / name)
-    if not path.is_file():
-        raise FileNotFoundError(f"scenario {str(name)!r} not found (nor in config/scenarios)")
-    return path.resolve()
 
 
 def run_parameters(
@@ -78,7 +56,7 @@ def run_parameters(
     Parameters
     ----------
     scenario : pathlib.Path
-        The scenario file (:func:`find_scenario`).
+        The scenario file (:func:`amb_tools.paths.scenario_file`).
     nodes : tuple of str
         The nodes started (a subset of :data:`NODES`; ``plant_sim`` among them).
     controller, start_mode, model_file, model_file_out : str
@@ -98,13 +76,7 @@ def run_parameters(
     amb_plant_sim.errors.ScenarioError
         If the scenario file is not a valid scenario.
     """
-    try:
-        data = yaml.safe_load(Path(scenario).read_text())
-    except (OSError, yaml.YAMLError) as exc:
-        raise ScenarioError(f"scenario {scenario}: {exc}") from exc
-    if not isinstance(data, dict):
-        raise ScenarioError(f"scenario {scenario}: expected a mapping")
-    spr = scenario_from_dict(data).samples_per_rev
+    spr = load_scenario(scenario).samples_per_rev
     out: dict[str, dict[str, object]] = {n: {} for n in nodes}
     for name, params in out.items():
         if spr and name != "recorder":  # the recorder does not sample

@@ -19,7 +19,8 @@ from launch.substitutions import LaunchConfiguration, PathJoinSubstitution
 from launch_ros.actions import Node
 from launch_ros.substitutions import FindPackageShare
 
-from amb_tools.system import NODES, find_scenario, run_parameters
+from amb_tools.paths import scenario_file
+from amb_tools.system import NODES, run_parameters
 from launch import LaunchDescription
 
 PACKAGE = "amb_wavelet_control"
@@ -49,7 +50,7 @@ def _nodes(context) -> list:
     with_plant = value["with_plant"].lower() in ("true", "1", "yes")
     names = NODES if with_plant else tuple(n for n in NODES if n != "plant_sim")
     overrides = run_parameters(
-        find_scenario(value["scenario"]),
+        scenario_file(value["scenario"]),
         NODES,
         controller=value["controller"],
         start_mode=value["start_mode"],

@@ -132,3 +132,10 @@ def test_malformed_rig_file_raises_rig_error(tmp_path, text, words):
     bad.write_text(text)
     with pytest.raises(RigError, match=words):
         load_rig(bad)
+
+
+def test_a_malformed_scenario_file_is_a_scenario_error(tmp_path):
+    bad = tmp_path / "scenario.yaml"
+    bad.write_text("speed: {hz: [unclosed\n")
+    with pytest.raises(ScenarioError, match="not readable YAML"):
+        load_scenario(bad)

@@ -18,7 +18,8 @@ from pathlib import Path
 import pytest
 
 from amb_plant_sim.errors import ScenarioError
-from amb_tools.system import NODES, find_scenario, run_parameters
+from amb_tools.paths import scenario_file
+from amb_tools.system import NODES, run_parameters
 
 ROOT = Path(__file__).resolve().parents[2]
 LAUNCH = ROOT / "launch" / "amb_system.launch.py"
@@ -82,7 +83,7 @@ def _declared(name: str) -> set[str] | None:
 
 def test_run_parameters_are_declared_by_the_nodes() -> None:
     overrides = run_parameters(
-        find_scenario("contact_misalignment_second_bending.yaml"),
+        scenario_file("contact_misalignment_second_bending.yaml"),
         controller="transient",
         start_mode="active",
         model_file="/tmp/m.npz",
@@ -100,7 +101,7 @@ def test_run_parameters_are_declared_by_the_nodes() -> None:
 
 
 def test_a_scenarios_samples_per_rev_reaches_every_node() -> None:
-    path = find_scenario("contact_misalignment_second_bending.yaml")
+    path = scenario_file("contact_misalignment_second_bending.yaml")
     assert "samples_per_rev: 32" in path.read_text()
     overrides = run_parameters(path)
     sampling = [n for n in NODES if n != "recorder"]
@@ -123,7 +124,7 @@ def test_a_scenario_without_samples_per_rev_leaves_the_params_file_in_force(tmp_
 
 def test_a_bad_scenario_is_refused_with_its_name(tmp_path: Path) -> None:
     with pytest.raises(FileNotFoundError, match="no_such"):
-        find_scenario("no_such.yaml")
+        scenario_file("no_such.yaml")
     bad = tmp_path / "bad.yaml"
     bad.write_text("speed: {hz: 20.0}\nduration: 1.0\nsamples_per_rev: 24\n")
     with pytest.raises(ScenarioError, match="power of two"):
