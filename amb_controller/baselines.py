@@ -120,6 +120,7 @@ from amb_controller.model_file import WaveletModel
 from amb_controller.supervisor import Command, Mode, WaveletControlSupervisor
 from amb_controller.synthesis import ForceLimiter
 from amb_controller.transient import ControlStep, TransientController
+from amb_tools.names import N_AXES, N_SENSORS
 
 __all__ = [
     "BASELINES",
@@ -135,8 +136,6 @@ __all__ = [
 ]
 
 BASELINES = ("synchronous", "harmonic")
-N_AXES = 4
-N_SENSORS = 8
 
 
 @dataclass(frozen=True)

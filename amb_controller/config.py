@@ -18,14 +18,13 @@ import numpy as np
 
 from amb_controller.basis import QUADRATURES
 from amb_controller.errors import ControllerValueError
+from amb_tools.names import N_AXES, SENSOR_NAMES
 
 __all__ = [
     "BASELINE_CONTROLLERS",
     "CONTROLLERS",
     "FAULT_ACTIONS",
-    "N_AXES",
     "RESPONSES",
-    "SENSOR_NAMES",
     "ConfigError",
     "ControllerConfig",
     "default_of",
@@ -38,8 +37,6 @@ CONTROLLERS = ("none", "proportional", "moderated", "transient", "synchronous", 
 BASELINE_CONTROLLERS = ("synchronous", "harmonic")
 RESPONSES = ("exponential", "linear", "series")
 FAULT_ACTIONS = ("hold", "off", "ignore")
-SENSOR_NAMES = ("x1", "y1", "x2", "y2", "x3", "y3", "x4", "y4")
-N_AXES = 4
 
 
 def param(

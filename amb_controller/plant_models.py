@@ -16,7 +16,6 @@ from dataclasses import replace
 import numpy as np
 
 from amb_controller.baselines import (
-    N_AXES,
     BaselineSettings,
     complex_from_real,
     fourier_control_basis,
@@ -30,6 +29,7 @@ from amb_controller.model_file import WaveletModel
 from amb_controller.wavelet_dynamics import wavelet_markov
 from amb_plant_sim.closed_loop import build_closed_loop
 from amb_plant_sim.simulator import PlantSimulator
+from amb_tools.names import N_AXES
 
 __all__ = ["harmonic_model", "influence_by_trials", "level_models"]
 

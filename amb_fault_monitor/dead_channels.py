@@ -14,7 +14,7 @@ import math
 import numpy as np
 
 from amb_fault_monitor.events import FaultEvent, FaultType
-from amb_fault_monitor.records import N_SENSORS
+from amb_tools.names import N_SENSORS
 
 __all__ = ["DeadChannels"]
 

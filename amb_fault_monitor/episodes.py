@@ -21,7 +21,7 @@ from amb_fault_monitor.bursts import ContactBursts
 from amb_fault_monitor.classifier import EpisodeEvidence
 from amb_fault_monitor.events import FaultEvent
 from amb_fault_monitor.onset import Crossing
-from amb_fault_monitor.records import N_SENSORS
+from amb_tools.names import N_SENSORS
 
 __all__ = ["Episode"]
 

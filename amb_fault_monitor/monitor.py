@@ -57,7 +57,8 @@ from amb_fault_monitor.events import FaultEvent, FaultType
 from amb_fault_monitor.features import ChangeFeatures, normalise
 from amb_fault_monitor.onset import AtomCentres, estimate_onset, onset_sample
 from amb_fault_monitor.phasor import SynchronousLevel
-from amb_fault_monitor.records import N_SENSORS, SampleCoefficients
+from amb_fault_monitor.records import SampleCoefficients
+from amb_tools.names import N_SENSORS
 from amb_wavelet.analysis import DETAIL
 from amb_wavelet.levels import revolution_level
 

@@ -86,7 +86,7 @@ from amb_fault_monitor.errors import FaultMonitorError, RecordError
 from amb_fault_monitor.event_log import EventLog
 from amb_fault_monitor.events import FaultEvent, FaultType
 from amb_fault_monitor.monitor import FaultMonitor
-from amb_fault_monitor.records import N_SENSORS, CoefficientSet, SampleCoefficients
+from amb_fault_monitor.records import CoefficientSet, SampleCoefficients
 from amb_fault_monitor.trips import SynchronousAmplitude, TripMonitor, clearance_levels
 from amb_plant_sim.errors import RigError
 from amb_tools import topics
@@ -98,6 +98,7 @@ from amb_tools.conversions import (
     stamp,
     stamp_seconds,
 )
+from amb_tools.names import N_SENSORS
 from amb_tools.node_main import ConfigurationError, descriptor, run_node
 from amb_tools.streams import stream_qos
 from amb_tools.validation import SampleSequencer, check_measurement

@@ -17,13 +17,12 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike
 
+from amb_tools.names import N_SENSORS
 from amb_wavelet.analysis import AnalysisFilterbank
 from amb_wavelet.frontend import FRAMES, QUADRATURES, ChannelFrontEnd
 from amb_wavelet.levels import revolution_level
 
-__all__ = ["N_SENSORS", "CoefficientSet", "FilterbankAdapter", "SampleCoefficients"]
-
-N_SENSORS = 8
+__all__ = ["CoefficientSet", "FilterbankAdapter", "SampleCoefficients"]
 
 
 class CoefficientSet(NamedTuple):

@@ -34,7 +34,6 @@ from amb_plant_sim.rig import Rig
 from amb_plant_sim.rotor import build_rotor
 from amb_tools.names import AXIS_NAMES
 
-AXES = AXIS_NAMES
 ISO_ZONE_LIMITS = ((3.0, "A"), (4.0, "B"), (5.0, "C"))
 #: An eigenvalue with |Im| below this fraction of |lambda| is real (see frequencies_vs_gain).
 REAL_REL = 1e-5
@@ -205,7 +204,7 @@ def sensitivity_peaks(
     f = np.geomspace(f_min, f_max, n)
     S = np.abs(sensitivity(rig, f, speed_hz))
     out = []
-    for a, name in enumerate(AXES):
+    for a, name in enumerate(AXIS_NAMES):
         k = int(np.argmax(S[:, a]))
         lo, hi = f[max(k - 1, 0)], f[min(k + 1, n - 1)]
         fr = np.linspace(lo, hi, 201)

@@ -39,7 +39,6 @@ from typing import Any
 from amb_plant_sim.errors import ScenarioError
 from amb_tools.names import AXIS_NAMES
 
-AXES = AXIS_NAMES
 KINDS = {
     "unbalance": {"me"},
     "mass_loss": {"me"},
@@ -181,9 +180,9 @@ def event_from_dict(d: dict[str, Any]) -> Event:
         if params["mode"] == "noise" and params["value"] < 0:
             raise ScenarioError("sensor_fault noise: value (standard deviation, m) must be >= 0")
     elif kind == "amb_channel_loss":
-        if params["axis"] not in AXES:
+        if params["axis"] not in AXIS_NAMES:
             raise ScenarioError(
-                f"amb_channel_loss: axis must be one of {AXES}, got {params['axis']}"
+                f"amb_channel_loss: axis must be one of {AXIS_NAMES}, got {params['axis']}"
             )
         coils = params.get("coils", "both")
         if coils not in ("both", "positive", "negative"):

@@ -28,6 +28,7 @@ from amb_plant_sim.errors import RigError
 from amb_plant_sim.modal import closed_loop_modes, critical_speeds, distinct_modes, free_free_modes
 from amb_plant_sim.rig import DEFAULT_RIG_PATH, load_rig
 from amb_plant_sim.rotor import build_rotor
+from amb_tools.names import AXIS_NAMES
 
 
 def _speeds(text: str) -> list[float]:
@@ -126,7 +127,7 @@ def make_plots(rig, plot_dir: Path, free_free: bool, speeds: list[float], elemen
     fs = np.geomspace(1.0, 2000.0, 1500)
     out.append(
         plots.plot_sensitivity(
-            fs, analysis.sensitivity(rig, fs), analysis.AXES, plot_dir / "sensitivity.png"
+            fs, analysis.sensitivity(rig, fs), AXIS_NAMES, plot_dir / "sensitivity.png"
         )
     )
     return [str(p) for p in out]

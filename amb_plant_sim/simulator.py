@@ -37,7 +37,6 @@ from amb_plant_sim.contact import contact_forces
 from amb_plant_sim.discretize import SpeedDiscretisation, discretise
 from amb_plant_sim.errors import SimulationError
 from amb_plant_sim.events import (
-    AXES,
     Event,
     base_acceleration,
     event_from_dict,
@@ -48,6 +47,7 @@ from amb_plant_sim.pid import pid_state_space
 from amb_plant_sim.rig import Rig
 from amb_plant_sim.rotor import build_rotor
 from amb_plant_sim.scenario import Scenario
+from amb_tools.names import AXIS_NAMES
 
 
 @dataclass
@@ -422,7 +422,7 @@ class PlantSimulator:
                         self._stuck[idx] = float(self._C_s[ch] @ x0 + offset[ch])
                     stuck[ch] = self._stuck[idx]
             elif ev.kind == "amb_channel_loss":
-                ch_mode[AXES.index(ev.get("axis"))] = amb_law.CHANNEL_MODES[ev.get("coils")]
+                ch_mode[AXIS_NAMES.index(ev.get("axis"))] = amb_law.CHANNEL_MODES[ev.get("coils")]
         lay_static = np.concatenate([f_e, a_b])
         sigma = np.hypot(self.scenario.measurement_noise, extra_sigma)
         inner_override = any(c in self._inner_channels for c in stuck) or bool(

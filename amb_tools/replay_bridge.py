@@ -41,9 +41,7 @@ from amb_tools import topics
 from amb_tools.conversions import from_float_array, stamp_seconds
 from amb_tools.names import N_AXES
 from amb_tools.node_main import ConfigurationError, descriptor, run_node
-from amb_tools.streams import stream_qos
-
-COMMAND_QOS_DEPTH = 16
+from amb_tools.streams import COMMAND_QOS, stream_qos
 
 
 class ReplayBridge(Node):
@@ -65,9 +63,7 @@ class ReplayBridge(Node):
             raise ConfigurationError(f"parameter 'bag' = {bag!r}: no /amb/measurement messages")
         spr = self._samples[0][1].samples_per_rev
         self._pub = self.create_publisher(Measurement, topics.MEASUREMENT, stream_qos(spr))
-        self.create_subscription(
-            ControlCommand, topics.COMMAND, self._on_command, COMMAND_QOS_DEPTH
-        )
+        self.create_subscription(ControlCommand, topics.COMMAND, self._on_command, COMMAND_QOS)
         log = self.get_parameter("command_log").value
         self._log = open(log, "w") if log else None
         self._scale = self.get_parameter("time_scale").value
