@@ -25,7 +25,7 @@ from pathlib import Path
 from amb_plant_sim.scenario import load_scenario
 from amb_tools import topics
 
-__all__ = ["NODES", "NODE_MODULES", "ros_arguments", "run_parameters"]
+__all__ = ["NODES", "NODE_MODULES", "param_text", "ros_arguments", "run_parameters"]
 
 #: The nodes of a run, in start order (the plant last: it waits for the others).
 NODES = ("recorder", "wavelet_filterbank", "fault_monitor", "wavelet_controller", "plant_sim")
@@ -110,15 +110,16 @@ def ros_arguments(node: str, params: dict[str, object]) -> list[str]:
     """
     args: list[str] = []
     for name, value in params.items():
-        args += ["-p", f"{node}:{name}:={_param_text(value)}"]
+        args += ["-p", f"{node}:{name}:={param_text(value)}"]
     return args
 
 
-def _param_text(value: object) -> str:
+def param_text(value: object) -> str:
+    """A value as the text of a ``-p name:=value`` argument (YAML: bools, lists, quoted strings)."""
     if isinstance(value, bool):
         return "true" if value else "false"
     if isinstance(value, (list, tuple)):
         return (
-            "[" + ",".join(f'"{v}"' if isinstance(v, str) else _param_text(v) for v in value) + "]"
+            "[" + ",".join(f'"{v}"' if isinstance(v, str) else param_text(v) for v in value) + "]"
         )
     return str(value)

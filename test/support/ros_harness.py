@@ -26,6 +26,8 @@ import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
+from amb_tools.system import param_text
+
 ROOT = Path(__file__).resolve().parents[2]
 INSTALL_LIB = ROOT / "install" / "amb_wavelet_control" / "lib" / "amb_wavelet_control"
 _domain_lock = None
@@ -214,7 +216,7 @@ class NodeProcess:
         if params_file is not None:
             ros_args += ["--params-file", str(params_file)]
         for key, value in (params or {}).items():
-            ros_args += ["-p", f"{key}:={_param_text(value)}"]
+            ros_args += ["-p", f"{key}:={param_text(value)}"]
         ros_args += list(extra_args)
         if ros_args:
             cmd += ["--ros-args", *ros_args]
@@ -270,14 +272,6 @@ class NodeProcess:
             ) from None
         self._log.close()
         return code
-
-
-def _param_text(value: object) -> str:
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, (list, tuple)):
-        return "[" + ",".join(_param_text(v) for v in value) + "]"
-    return str(value)
 
 
 def configuration_refusals(cases: list[tuple[str, NodeProcess, tuple[str, ...]]]) -> list[str]:
