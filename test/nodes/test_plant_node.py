@@ -160,8 +160,14 @@ def test_realtime_publishes_each_sample_at_its_instant(ros, node_process, tmp_pa
     # once (the median spread failed with two busy processes beside it): published at the
     # sample instants, several periods still arrive spread; published in bursts, none does.
     assert np.count_nonzero(spread > 0.5 * (SPR - 1) / fs) >= 3, spread
-    run = arrivals[-1, -1] - arrivals[0, 0]
-    assert run > 0.8 * (10 * SPR - 1) / fs, run  # the whole run took its real time
+    # The run took its real time: arrivals can be late (never early), so a hold of the test's
+    # process at the start compresses the first samples into a burst; after it, they track the
+    # sample instants. Some sample of the first half must be followed by the last one no sooner
+    # than 0.8 x the real time between them (a burst-publishing plant: ms for every sample).
+    flat = arrivals.ravel()
+    ahead = (flat.size - 1 - np.arange(flat.size // 2)) / fs  # s between sample i and the last
+    took = flat[-1] - flat[: flat.size // 2]
+    assert np.any(took > 0.8 * ahead), np.max(took / ahead)
     for k in range(10):  # each period ran with its command or, if that was late, none
         wf = np.array([m.wavelet_force for m in loop.samples[k * SPR : (k + 1) * SPR]])
         assert not wf.any() or (k >= DELAY and np.array_equal(wf, _force(k))), k
