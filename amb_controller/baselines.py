@@ -7,61 +7,16 @@ bearing axis through the same :class:`~amb_controller.synthesis.ForceLimiter` (s
 peak force limit) and the same :class:`~amb_controller.supervisor.WaveletControlSupervisor`
 (delay ``i``, anti-windup hold, fault actions), so that only the control law differs.
 
-Fourier basis (sampled harmonics)
----------------------------------
-Over control period k (samples ``n = 0 .. N-1`` of the period, ``theta_n = 2 pi n / N``)::
-
-    q_cos = sqrt(2/N) sum_n x[n] cos(theta_n),   q_sin = sqrt(2/N) sum_n x[n] sin(theta_n)
-    f[n]  = sqrt(2/N) (u_cos cos(theta_n) + u_sin sin(theta_n))
-
-The weights are orthonormal over the period, so the coefficient units are those of the
-Haar coefficients (m sqrt(samples), N sqrt(samples)); a sinusoid of amplitude ``F`` N has
-``|u| = F sqrt(N/2)``. The Haar square wave of the same peak force carries ``4/pi`` (1.27)
-times more 1 x force: at equal peak limits the wavelet controller has this advantage, which
-the comparison report states.
-
-Complex form: ``Y = q_cos - i q_sin`` so that ``x[n] = sqrt(2/N) Re(Y e^{i theta_n})``; for a
-linear time-invariant plant the steady-state map ``Y = T U`` is complex, and the real
-``(cos, sin)`` block matrix is ``[[Tr, Ti], [-Ti, Tr]]`` (``T = Tr + i Ti``).
+This module holds the baselines' settings (:class:`BaselineSettings`), their models
+(:func:`fourier_model`, :func:`perturb_model`) and :class:`HarmonicPipeline`, which runs either
+law. The 1 x Fourier bases and the complex <-> real (cos, sin) layout are in
+:mod:`amb_controller.fourier_basis`.
 
 (a) Adaptive open-loop synchronous control (``controller = "synchronous"``)
 ---------------------------------------------------------------------------
-Influence-coefficient control of Burrows & Sahinkaya [1]_ as used on magnetic bearings by
-Knospe et al. [2]_: a 1 x force, open loop with respect to the fast dynamics, updated once
-per window of ``window`` periods from the window mean ``Y_j``::
-
-    U_{j+1} = U_j - a (T^H T + R)^-1 T^H Y_j                                    (B.1)
-
-with ``T`` the steady-state influence coefficients (complex, sensors x axes) identified by trial
-injections (:func:`~amb_controller.plant_models.influence_by_trials`: each axis in turn driven
-with a known 1 x force, the change of the steady 1 x response measured), ``a`` the convergence
-gain (``ControllerConfig.gain``) and ``R = rho ||T||_F^2 / n_u I``. On a plant ``Y = T_p U + D``
-the update error obeys ``E_{j+1} = (I - a (T^H T + R)^-1 T^H T_p) E_j``: it converges iff that
-matrix has spectral radius < 1 (with ``T = T_p``, ``R = 0``: ``|1 - a| < 1``, one update cancels
-a steady disturbance at ``a = 1``). ``R`` only shapes the step: the fixed point is ``T^H Y = 0``
-(the least-squares cancelling force) whatever ``rho``; it is NOT the control-effort penalty of a
-weighted least-squares cost ``Y^H Y + U^H R U`` (whose recursive form adds ``R U_j`` inside the
-bracket and leaves a residual), which is the version Dyer et al. [4]_ recommend for robustness.
-Both facts are tested (``test/beyond/test_baselines.py``).
-
-What eq. B.1 rests on, and what could not be checked
-~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~
-* The thesis (section 1.1; chapter 9) describes [1] as "an open-loop
-  technique to eliminate synchronous vibration" and Knospe et al. as "adaptive open-loop
-  control methods updating control currents on a cyclic basis": a 1 x force updated once
-  per cycle (window) from the measured 1 x response, as here.
-* The abstract of [2] (the stored copy reachable here had the abstract only, not the
-  equations) names three algorithms of this "adaptive open loop" class: a non-recursive
-  law with simultaneous estimation, a recursive law with simultaneous estimation, and a
-  recursive law with gain scheduling by speed. Eq. B.1 is a recursive law with ``T``
-  identified beforehand by trial injections (no simultaneous estimation; one speed, so
-  no schedule): the third algorithm at one speed is the closest; the first two, which
-  re-estimate ``T`` on line, are not implemented.
-* The least-squares direction ``(T^H T)^-1 T^H`` for more sensors than axes and the
-  trial-injection identification are the standard influence-coefficient method (the
-  abstract of [4] calls the traditional law "weighted least squares optimal control").
-* Not checked: the exact equations, symbols and gain ranges of [1] and [2] (neither text
-  was available); eq. B.1 is the form the issue specifies, derived here, not copied.
+Influence-coefficient control, eq. B.1:
+:class:`~amb_controller.influence_coefficient.InfluenceCoefficientController` (the law, what it
+rests on, what could not be checked and its references are in that module).
 
 (b) Sampled-harmonic transient control (``controller = "harmonic"``)
 --------------------------------------------------------------------
@@ -89,19 +44,11 @@ checked.
 
 References
 ----------
-[2]: journal, volume and pages confirmed by its stored abstract; [4]: title, authors and DOI
-confirmed by its stored first page; [1] and [3]: as cited by the thesis (its bibliography is
-not in the text available here), volume and pages not verified.
+[3]: as cited by the thesis (its bibliography is not in the text available here), volume and
+pages not verified.
 
-.. [1] C. R. Burrows, M. N. Sahinkaya, "Vibration control of multi-mode rotor-bearing
-   systems", Proc. R. Soc. Lond. A 386 (1983) 77-94.
-.. [2] C. R. Knospe, R. W. Hope, S. J. Fedigan, R. D. Williams, "Experiments in the control
-   of unbalance response using magnetic bearings", Mechatronics 5(4) (1995) 385-400.
 .. [3] P. S. Keogh, M. O. T. Cole, C. R. Burrows, "Multi-state transient rotor vibration
    control using sampled harmonics", ASME J. Vib. Acoust. 124(2) (2002) 186-197.
-.. [4] S. W. Dyer, J. Ni, J. Shi, K.-K. Shin, "Robust optimal influence-coefficient
-   control of multiple-plane active rotor balancing systems", ASME J. Dyn. Syst. Meas.
-   Control 124 (2002), doi:10.1115/1.1435622 (abstract read).
 """
 
 from __future__ import annotations
@@ -112,27 +59,27 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from amb_controller.basis import BasisSet
-from amb_controller.errors import ControllerValueError, PeriodSequenceError
+from amb_controller.errors import ControllerValueError
+from amb_controller.fourier_basis import (
+    complex_gain,
+    fourier_control_basis,
+    fourier_measurement_basis,
+)
 from amb_controller.guard import DivergenceGuard, GuardConfig
+from amb_controller.influence_coefficient import InfluenceCoefficientController
 from amb_controller.inverse import dc_gain, pseudo_inverse_series
 from amb_controller.model_file import WaveletModel
 from amb_controller.supervisor import Command, Mode, WaveletControlSupervisor
 from amb_controller.synthesis import ForceLimiter
-from amb_controller.transient import ControlStep, TransientController
-from amb_tools.names import N_AXES, N_SENSORS
+from amb_controller.transient import TransientController
+from amb_tools.names import N_SENSORS
 
 __all__ = [
     "BASELINES",
     "BaselineSettings",
     "HarmonicPipeline",
-    "InfluenceCoefficientController",
-    "complex_from_real",
-    "fourier_control_basis",
-    "fourier_measurement_basis",
     "fourier_model",
     "perturb_model",
-    "real_from_complex",
 ]
 
 BASELINES = ("synchronous", "harmonic")
@@ -149,7 +96,8 @@ class BaselineSettings:
         Periods per update of the synchronous controller (eq. B.1), >= 1.
     rho : float
         Relative step weight ``R = rho ||T||_F^2 / n_u I`` of eq. B.1, >= 0 (shapes the
-        update direction; does not change its fixed point, module docstring).
+        update direction; does not change its fixed point,
+        :mod:`amb_controller.influence_coefficient`).
     trial_force : float
         Amplitude of the 1 x trial force per axis in N for
         :func:`~amb_controller.plant_models.influence_by_trials`.
@@ -178,108 +126,6 @@ class BaselineSettings:
                 f"trial_settle and trial_average must be >= 1 period, got "
                 f"{self.trial_settle}, {self.trial_average}"
             )
-
-
-# ---------------------------------------------------------------------------------------------
-# Fourier bases and the complex <-> real (cos, sin) layout
-# ---------------------------------------------------------------------------------------------
-
-
-def _harmonic(samples_per_rev: int) -> tuple[np.ndarray, np.ndarray]:
-    theta = 2 * np.pi * np.arange(samples_per_rev) / samples_per_rev
-    scale = math.sqrt(2.0 / samples_per_rev)
-    return scale * np.cos(theta), scale * np.sin(theta)
-
-
-def fourier_control_basis(samples_per_rev: int, n_axes: int = N_AXES) -> BasisSet:
-    """
-    Return the 1 x force waveforms ``sqrt(2/N) cos``, ``sqrt(2/N) sin`` per axis.
-
-    Parameters
-    ----------
-    samples_per_rev : int
-        Samples per period N.
-    n_axes : int
-        Bearing axes.
-
-    Returns
-    -------
-    BasisSet
-        ``2 n_axes`` coefficients, cos block then sin block (labels ``h1/cos/c{axis}``),
-        ``offset = 0``; N per N sqrt(samples).
-
-    """
-    cos, sin = _harmonic(samples_per_rev)
-    weights = np.zeros((2 * n_axes, n_axes, samples_per_rev))
-    labels = []
-    for b, (name, wave) in enumerate((("cos", cos), ("sin", sin))):
-        for axis in range(n_axes):
-            weights[b * n_axes + axis, axis] = wave
-            labels.append(f"h1/{name}/c{axis}")
-    return BasisSet(weights, 0, tuple(labels))
-
-
-def fourier_measurement_basis(samples_per_rev: int, sensors) -> BasisSet:
-    """
-    Return the 1 x analysis weights of the measured sensors (same layout as the control).
-
-    Parameters
-    ----------
-    samples_per_rev : int
-        Samples per period N.
-    sensors : sequence of int
-        Sensor channels 0..7 ([x1, y1, ..., x4, y4]) measured.
-
-    Returns
-    -------
-    BasisSet
-        ``2 len(sensors)`` coefficients over the 8 channels, cos block then sin block,
-        ``offset = 0`` (the window is the period itself).
-
-    """
-    cos, sin = _harmonic(samples_per_rev)
-    sensors = [int(s) for s in sensors]
-    weights = np.zeros((2 * len(sensors), N_SENSORS, samples_per_rev))
-    labels = []
-    for b, (name, wave) in enumerate((("cos", cos), ("sin", sin))):
-        for i, s in enumerate(sensors):
-            weights[b * len(sensors) + i, s] = wave
-            labels.append(f"h1/{name}/c{s}")
-    return BasisSet(weights, 0, tuple(labels))
-
-
-def complex_from_real(vector: np.ndarray) -> np.ndarray:
-    """Return ``Y = q_cos - i q_sin`` from the real layout ``[q_cos..., q_sin...]``."""
-    vector = np.asarray(vector, dtype=float)
-    n = vector.shape[0] // 2
-    return vector[:n] - 1j * vector[n:]
-
-
-def real_from_complex(phasor: np.ndarray) -> np.ndarray:
-    """Return the real layout ``[Re Y..., -Im Y...]`` of complex phasors (inverse of above)."""
-    phasor = np.asarray(phasor, dtype=complex)
-    return np.concatenate([phasor.real, -phasor.imag])
-
-
-def complex_gain(real_gain: np.ndarray) -> np.ndarray:
-    """
-    Return the complex ``T`` of a real ``(cos, sin)`` block gain (module docstring).
-
-    ``Tr = (M_cc + M_ss)/2``, ``Ti = (M_cs - M_sc)/2``: exact when the real gain has the
-    complex structure (a linear time-invariant plant at one frequency), the closest
-    complex map in the Frobenius norm otherwise.
-    """
-    m = np.asarray(real_gain, dtype=float)
-    ny, nu = m.shape[0] // 2, m.shape[1] // 2
-    cc, cs = m[:ny, :nu], m[:ny, nu:]
-    sc, ss = m[ny:, :nu], m[ny:, nu:]
-    return 0.5 * (cc + ss) + 0.5j * (cs - sc)
-
-
-def real_gain(complex_t: np.ndarray) -> np.ndarray:
-    """Return the real block gain ``[[Tr, Ti], [-Ti, Tr]]`` of a complex ``T``."""
-    t = np.asarray(complex_t, dtype=complex)
-    return np.block([[t.real, t.imag], [-t.imag, t.real]])
 
 
 # ---------------------------------------------------------------------------------------------
@@ -385,121 +231,6 @@ def perturb_model(
         inverse=inverse,
         source=f"{model.source} x{gain:g} {math.degrees(phase):+g}deg",
     )
-
-
-# ---------------------------------------------------------------------------------------------
-# controllers
-# ---------------------------------------------------------------------------------------------
-
-
-@dataclass
-class _SyncState:
-    u: np.ndarray
-    acc: np.ndarray
-    count: int
-    last_period: int | None
-
-    def copy(self) -> _SyncState:
-        return _SyncState(self.u.copy(), self.acc.copy(), self.count, self.last_period)
-
-
-class InfluenceCoefficientController:
-    """
-    Adaptive open-loop synchronous control, eq. B.1 (module docstring, refs [1], [2]).
-
-    Parameters
-    ----------
-    influence : numpy.ndarray
-        Complex steady-state influence coefficients ``T``, ``(n_sensors, n_axes)``, in
-        measured coefficient per control coefficient (m/N).
-    gain : float
-        Convergence gain ``a`` in (0, 2).
-    delay : int
-        Evaluation delay ``i`` >= 1 (commands are for period ``k + i``).
-    window : int
-        Periods averaged per update.
-    rho : float
-        Relative step weight ``rho`` of ``R`` (eq. B.1).
-
-    """
-
-    def __init__(
-        self, influence: np.ndarray, gain: float, delay: int, window: int = 1, rho: float = 0.0
-    ) -> None:
-        t = np.asarray(influence, dtype=complex)
-        if t.ndim != 2 or not np.all(np.isfinite(t)):
-            raise ControllerValueError(f"influence must be a finite 2-D matrix, got {t.shape}")
-        if not (math.isfinite(gain) and 0 < gain < 2):
-            raise ControllerValueError(f"gain a must lie in (0, 2), got {gain}")
-        if int(delay) != delay or delay < 1:
-            raise ControllerValueError(f"delay must be an integer >= 1 period, got {delay}")
-        if int(window) != window or window < 1:
-            raise ControllerValueError(f"window must be an integer >= 1, got {window}")
-        self.influence = t
-        self.gain = float(gain)
-        self.delay = int(delay)
-        self.window = int(window)
-        n_y, n_u = t.shape
-        th = t.conj().T
-        reg = rho * float(np.sum(np.abs(t) ** 2)) / n_u
-        #: ``a (T^H T + R)^-1 T^H`` (complex, n_u x n_y), precomputed once
-        self.update_matrix = self.gain * np.linalg.solve(th @ t + reg * np.eye(n_u), th)
-        self.n_inputs = 2 * n_y
-        self.n_outputs = 2 * n_u
-        self._state = self._initial()
-
-    def _initial(self) -> _SyncState:
-        n_u = self.n_outputs // 2
-        return _SyncState(np.zeros(n_u, complex), np.zeros(self.n_inputs // 2, complex), 0, None)
-
-    def reset(self) -> None:
-        """Zero the synchronous force and the window."""
-        self._state = self._initial()
-
-    def get_state(self) -> _SyncState:
-        """Return a copy of the state (force phasors, window accumulator)."""
-        return self._state.copy()
-
-    def set_state(self, state: _SyncState) -> None:
-        """Restore a state from :meth:`get_state`."""
-        self._state = state.copy()
-
-    def skip(self, period_index: int) -> None:
-        """Consume a period without updating (hold / anti-windup)."""
-        self._state.last_period = int(period_index)
-
-    def step(self, period_index: int, measured: np.ndarray) -> ControlStep:
-        """
-        Add period k's 1 x coefficients to the window; update at its end; command for k+i.
-
-        Parameters
-        ----------
-        period_index : int
-            Measured period k (consecutive).
-        measured : numpy.ndarray
-            Real layout ``[q_cos..., q_sin...]`` of the measured sensors (m sqrt(samples)).
-
-        Returns
-        -------
-        ControlStep
-            Real layout of the 1 x force coefficients for period ``k + delay``.
-
-        """
-        st = self._state
-        if st.last_period is not None and period_index != st.last_period + 1:
-            raise PeriodSequenceError(
-                f"period_index must be {st.last_period + 1}, got {period_index}; reset() first"
-            )
-        st.acc += complex_from_real(measured)
-        st.count += 1
-        if st.count >= self.window:
-            st.u = st.u - self.update_matrix @ (st.acc / st.count)
-            st.acc[:] = 0
-            st.count = 0
-        st.last_period = int(period_index)
-        return ControlStep(
-            int(period_index) + self.delay, int(period_index), real_from_complex(st.u)
-        )
 
 
 # ---------------------------------------------------------------------------------------------

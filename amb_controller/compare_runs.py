@@ -324,8 +324,8 @@ def command_timing(
     ``force_limit`` (N per axis, also the capacity) defaults to the rig's bearing capacity
     (``amb.force_limit`` of config/rig.yaml).
     """
-    from amb_controller.baselines import InfluenceCoefficientController
     from amb_controller.basis import control_basis
+    from amb_controller.influence_coefficient import InfluenceCoefficientController
     from amb_controller.response import PrescribedResponse
     from amb_controller.synthesis import ForceLimiter
     from amb_controller.transient import TransientController

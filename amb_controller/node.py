@@ -60,7 +60,9 @@ set at run time: the on-set callback validates the new set with ``ControllerConf
 validation as at start-up, including the bearing capacity) and refuses it with the reason; an
 accepted change is applied at the next period boundary (the controller is rebuilt from the model
 in use and restarts its history, as on a mode change). ``measurement_timeout``,
-``coefficient_timeout`` and ``status_period`` are node settings, also settable.
+``coefficient_timeout`` and ``status_period`` are node settings, also settable. The node
+settings (:class:`~amb_controller.node_params.NodeSettings`) and the mapping of the ROS
+parameters onto ``ControllerConfig`` are in :mod:`amb_controller.node_params`.
 
 Services: ``/amb/control/set_mode`` (``SetControllerMode``),
 ``/amb/control/start_identification`` (``StartIdentification``; the identified model is written
@@ -73,11 +75,9 @@ stops the node with exit status 2 and a message naming the parameter, the value 
 from __future__ import annotations
 
 import dataclasses
-import math
 import time
 from array import array
 from collections import deque
-from dataclasses import dataclass, fields
 from pathlib import Path
 
 import numpy as np
@@ -90,11 +90,21 @@ from amb_msgs.msg import (
 )
 from amb_msgs.srv import SetControllerMode, StartIdentification
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 
-from amb_controller.config import ControllerConfig, default_of, param, parameter_fields
+from amb_controller.config import ControllerConfig, default_of, parameter_fields
 from amb_controller.errors import ControllerValueError
+from amb_controller.node_params import (
+    PARAMETERS,
+    SETTINGS,
+    START_MODES,
+    TUNABLES,
+    NodeSettings,
+    config_from_parameters,
+    parameter_descriptor,
+    parameter_value,
+)
 from amb_controller.pipeline import ControllerPipeline
 from amb_controller.supervisor import Mode
 from amb_controller.synthesis import ForceLimiter
@@ -109,122 +119,14 @@ from amb_tools.conversions import (
     controller_status_msg,
     stamp_seconds,
 )
-from amb_tools.node_main import ConfigurationError, descriptor, run_node
+from amb_tools.node_main import ConfigurationError, run_node
 from amb_tools.paths import config_file
 from amb_tools.streams import COMMAND_QOS, FRAME_CODES, QUAD_CODES, stream_qos
 from amb_tools.validation import SampleSequencer, check_measurement
 from amb_wavelet.frontend import FRAMES, QUADRATURES, ChannelFrontEnd
 
-START_MODES = ("off", "active", "identify")
 #: Coefficient messages more than this many periods ahead of the measurements are refused.
 COEFFICIENT_HORIZON_PERIODS = 8
-
-
-@dataclass(frozen=True)
-class NodeSettings:
-    """The node's own parameters, beside the controller's (:class:`ControllerConfig`)."""
-
-    measurement_timeout: float = param(
-        2.0,
-        description="watchdog: wall s without a measurement or coefficient message before "
-        "holding zero and reporting",
-        runtime=True,
-        floats=(0.05, 600.0),
-    )
-    # 1 s: the restart tests (plant command_timeout 0.5 s) need the controller to answer a
-    # missing filterbank quickly. Counted from the later of the sample's measurement and the
-    # last coefficient message (module notes).
-    coefficient_timeout: float = param(
-        1.0,
-        description="wall s without a coefficient message (and since the sample's measurement) "
-        "before a sample is processed without its coefficients",
-        runtime=True,
-        floats=(0.01, 600.0),
-    )
-    status_period: float = param(
-        1.0,
-        description="period of the /diagnostics report, wall s",
-        runtime=True,
-        floats=(0.05, 60.0),
-    )
-    rig_file: str = param("", description="rig YAML ('' = package's)")
-    start_mode: str = param(
-        "off",
-        description="off | active | identify (on-line identification from the start, model "
-        "written to model_file_out)",
-        allowed=f"one of {START_MODES}",
-    )
-    model_file_out: str = param(
-        "", description="where identification writes the model ('' = none)", runtime=True
-    )
-
-
-#: The controller's ROS parameters: the fields of ControllerConfig (all but ``frames``).
-PARAMETERS = tuple(f.name for f in parameter_fields(ControllerConfig))
-#: Controller parameters that may change at run time (applied at a period boundary).
-TUNABLES = tuple(f.name for f in parameter_fields(ControllerConfig) if f.metadata["runtime"])
-#: Node settings with a range (s): name -> (lowest, highest).
-SETTINGS = {f.name: f.metadata["floats"] for f in fields(NodeSettings) if f.metadata["floats"]}
-#: How a ROS parameter carries the values it cannot hold (inf, an empty list, a dict).
-ROS_FORMS = {
-    "coefficient_bound": "as a ROS parameter 0 = off",
-    "displacement_bound": "as a ROS parameter 0 = off",
-    "series": "as a ROS parameter [0.0] = unused",
-    "fault_actions": "as a ROS parameter 'TYPE:ACTION' strings, e.g. '2:hold'",
-}
-
-
-def parameter_value(name: str, value):
-    """A field's value as its ROS parameter (:func:`config_from_parameters` maps it back)."""
-    if name in ("coefficient_bound", "displacement_bound") and math.isinf(value):
-        return 0.0
-    if name == "series" and not value:
-        return [0.0]
-    if name == "fault_actions":
-        return [f"{code}:{action}" for code, action in value.items()]
-    return list(value) if isinstance(value, tuple) else value
-
-
-def parameter_descriptor(f: dataclasses.Field) -> ParameterDescriptor:
-    """The ROS descriptor of a :func:`~amb_controller.config.param` field.
-
-    Its description (with the ROS form of inf, empty and mapping values, and the allowed
-    values), read-only unless settable at run time, the range rclpy enforces (if any) and the
-    allowed values also as ``additional_constraints`` (``ros2 param describe`` shows both).
-    """
-    meta = f.metadata
-    description = meta["description"]
-    if f.name in ROS_FORMS:
-        description += f" ({ROS_FORMS[f.name]})"
-    if meta["allowed"]:
-        description += f"; allowed: {meta['allowed']}"
-    out = descriptor(
-        description, read_only=not meta["runtime"], ints=meta["ints"], floats=meta["floats"]
-    )
-    if meta["allowed"]:
-        out.additional_constraints = meta["allowed"]
-    return out
-
-
-def config_from_parameters(values: dict) -> dict:
-    """Map the node's parameter values onto ``ControllerConfig`` fields."""
-    d = dict(values)
-    for bound in ("coefficient_bound", "displacement_bound"):
-        if d[bound] == 0.0:
-            d[bound] = math.inf
-    if list(d["series"]) == [0.0]:
-        d["series"] = ()
-    actions = {}
-    for item in d["fault_actions"]:
-        code, _, action = str(item).partition(":")
-        try:
-            actions[int(code)] = action
-        except ValueError as exc:
-            raise ConfigurationError(
-                f"parameter 'fault_actions' entry {item!r}: expected 'TYPE:ACTION', e.g. '2:hold'"
-            ) from exc
-    d["fault_actions"] = actions
-    return d
 
 
 class WaveletControllerNode(Node):

@@ -15,16 +15,15 @@ from dataclasses import replace
 
 import numpy as np
 
-from amb_controller.baselines import (
-    BaselineSettings,
+from amb_controller.baselines import BaselineSettings, fourier_model
+from amb_controller.closed_loop import fe_model, identify_model
+from amb_controller.errors import ControllerValueError
+from amb_controller.fourier_basis import (
     complex_from_real,
     fourier_control_basis,
     fourier_measurement_basis,
-    fourier_model,
     real_gain,
 )
-from amb_controller.closed_loop import fe_model, identify_model
-from amb_controller.errors import ControllerValueError
 from amb_controller.model_file import WaveletModel
 from amb_controller.wavelet_dynamics import wavelet_markov
 from amb_plant_sim.closed_loop import build_closed_loop

@@ -36,7 +36,8 @@ Measurements are validated (:func:`amb_tools.validation.check_measurement`: arra
 finite values, ``rotor_speed`` > 0, ``rotor_angle`` in [0, 2 pi), ``samples_per_rev``) and
 sequenced (:class:`amb_tools.validation.SampleSequencer`: repeats, stray indices and stamps
 going back or from the future are dropped; a confirmed gap or restart empties the 1 x window).
-Coefficient messages are validated by :func:`check_coefficients` (``samples_per_rev``, known
+Coefficient messages are validated by
+:func:`~amb_fault_monitor.coefficient_messages.check_coefficients` (``samples_per_rev``, known
 level, kind, frame and quadrature codes, 8 finite values per set, a support ending at the
 message's sample) and sequenced the same way: the finest level completes a coefficient every
 second sample (fig. 4.3), so ``sample_index // 2`` of consecutive messages is consecutive and
@@ -59,7 +60,8 @@ range, trip levels computable) and refuses it with a reason naming the parameter
 the range (the old values stay); the post-set callback applies it. At start-up an out-of-range
 or mistyped value, an unknown frame, a level the filterbank cannot publish, a missing or
 malformed rig file or event log stop the node with exit status 2 and the same kind of message
-(:class:`amb_tools.node_main.ConfigurationError`).
+(:class:`amb_tools.node_main.ConfigurationError`). The floating-point parameters (default,
+description, range, settable or not) are the table of :mod:`amb_fault_monitor.node_params`.
 """
 
 from __future__ import annotations
@@ -69,7 +71,6 @@ from dataclasses import replace
 
 import numpy as np
 import yaml
-from amb_msgs.msg import CoefficientSet as CoefficientSetMsg
 from amb_msgs.msg import FaultEvent as FaultEventMsg
 from amb_msgs.msg import Measurement, WaveletCoefficients
 from builtin_interfaces.msg import Time
@@ -81,86 +82,32 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.serialization import serialize_message
 
 from amb_fault_monitor.blackbox import BlackBox
+from amb_fault_monitor.coefficient_messages import (
+    EXTRA_OCTAVES,
+    FRAME,
+    check_coefficients,
+    record_from_msg,
+)
 from amb_fault_monitor.config import MonitorConfig
 from amb_fault_monitor.errors import FaultMonitorError, RecordError
 from amb_fault_monitor.event_log import EventLog
 from amb_fault_monitor.events import FaultEvent, FaultType
 from amb_fault_monitor.monitor import FaultMonitor
-from amb_fault_monitor.records import CoefficientSet, SampleCoefficients
+from amb_fault_monitor.node_params import FLOATS, RUNTIME, check_runtime_value
 from amb_fault_monitor.trips import SynchronousAmplitude, TripMonitor, clearance_levels
 from amb_plant_sim.errors import RigError
 from amb_tools import topics
 from amb_tools.conversions import (
     MessageError,
-    check_finite,
-    check_length,
     from_float_array,
     stamp,
     stamp_seconds,
 )
-from amb_tools.names import N_SENSORS
 from amb_tools.node_main import ConfigurationError, descriptor, run_node
 from amb_tools.streams import stream_qos
 from amb_tools.validation import SampleSequencer, check_measurement
 from amb_wavelet.levels import revolution_level
 
-KIND = {CoefficientSetMsg.KIND_DETAIL: "detail", CoefficientSetMsg.KIND_APPROXIMATION: "approx"}
-FRAME = {CoefficientSetMsg.FRAME_FIXED: "fixed", CoefficientSetMsg.FRAME_ROTATING: "rotating"}
-QUAD = {CoefficientSetMsg.QUADRATURE_EVEN: "even", CoefficientSetMsg.QUADRATURE_ODD: "odd"}
-#: Deepest level the filterbank can publish: ``log2(samples_per_rev) + 1`` (0.5 x, section 5.3);
-#: its approximation counts one level deeper in the monitor.
-EXTRA_OCTAVES = 1
-#: Floating-point parameters: name -> (default, description with unit, lowest, highest,
-#: settable at run time). The one table for the declaration and both validations.
-FLOATS: dict[str, tuple[float, str, float, float, bool]] = {
-    "calibration_revs": (16.0, "healthy calibration window, revolutions", 1.0, 1e4, False),
-    "k": (8.0, "robust standard deviations of the thresholds", 1.0, 100.0, False),
-    "threshold_floor": (2.0e-8, "smallest threshold, m", 0.0, 1e-3, False),
-    "decision_revs": (16.0, "longest wait from alarm to decision, revolutions", 0.5, 1e3, False),
-    "decision_max_revs": (
-        32.0,
-        "longest wait while the 1 x level still moves far from its reference, revolutions "
-        "(>= decision_revs)",
-        0.5,
-        1e3,
-        False,
-    ),
-    "quiet_revs": (2.0, "hold-off: quiet revolutions that end an episode", 0.25, 1e3, False),
-    "tail_rise_median": (
-        3.0,
-        "contact burst: finest-level ratio (or its change) over its median since the episode "
-        "began",
-        1.0,
-        100.0,
-        False,
-    ),
-    "control_step": (
-        2.0,
-        "control step: change of the applied wavelet force on an axis from one revolution to "
-        "the next, N",
-        1e-3,
-        1e5,
-        True,
-    ),
-    "trip_displacement": (
-        0.0, "radial trip level, m (0 = from the rig clearances)", 0.0, 0.1, True,
-    ),
-    "trip_displacement_fraction": (
-        2.0 / 3.0, "default radial trip level as a share of the nearest clearance", 0.01, 1.0, True,
-    ),
-    "trip_1x": (
-        0.0, "1 x orbit semi-major axis trip level, m (0 = from the rig)", 0.0, 0.1, True,
-    ),
-    "trip_1x_fraction": (
-        0.5, "default 1 x trip level as a share of the nearest clearance", 0.01, 1.0, True,
-    ),
-    "trip_hysteresis": (0.1, "trip clears below level * (1 - this)", 0.0, 0.99, True),
-    "status_period": (1.0, "period of the /diagnostics report, s (wall clock)", 0.05, 60.0, True),
-    "blackbox_pre_s": (2.0, "black box: seconds kept before an event", 0.0, 600.0, False),
-    "blackbox_post_s": (1.0, "black box: seconds recorded after an event", 0.0, 600.0, False),
-}  # fmt: skip
-#: Parameters the on-set callback accepts (all others are read-only).
-RUNTIME = tuple(name for name, spec in FLOATS.items() if spec[4])
 #: rad/s used for the stamp check of coefficients before any measurement gave the speed: the
 #: expected step is then huge, so only stamps going back are refused.
 UNKNOWN_OMEGA = 1e-9
@@ -172,79 +119,6 @@ UNKNOWN_OMEGA = 1e-9
 QUEUE_REVS = 256
 #: Sequencer counts of refused messages (the others, gaps and restarts, are confirmed changes).
 REFUSED = ("repeat", "stray", "stamp")
-
-
-def check_coefficients(msg: WaveletCoefficients, samples_per_rev: int) -> None:
-    """
-    Raise :class:`~amb_tools.conversions.MessageError` unless a coefficient message can be used.
-
-    Parameters
-    ----------
-    msg : amb_msgs.msg.WaveletCoefficients
-    samples_per_rev : int
-        The monitor's samples per revolution; levels 1 .. ``log2(samples_per_rev) + 1`` exist.
-
-    Raises
-    ------
-    MessageError
-        Naming the field, the expected and the actual value: ``samples_per_rev`` differs, no
-        set, an unknown level, kind, frame or quadrature code, a support that does not end at
-        ``sample_index`` or starts after it ends, a set without 8 values, a non-finite value.
-    """
-    if msg.samples_per_rev != samples_per_rev:
-        raise MessageError(
-            f"field 'samples_per_rev' = {msg.samples_per_rev}, expected {samples_per_rev}"
-        )
-    if not msg.sets:
-        raise MessageError("field 'sets' is empty: a coefficient message carries at least one")
-    deepest = revolution_level(samples_per_rev) + EXTRA_OCTAVES
-    n = msg.sample_index
-    for s in msg.sets:
-        if not 1 <= s.level <= deepest:
-            raise MessageError(f"field 'sets[].level' = {s.level}, expected 1..{deepest}")
-        for name, value, codes in (
-            ("kind", s.kind, KIND),
-            ("frame", s.frame, FRAME),
-            ("quadrature", s.quadrature, QUAD),
-        ):
-            if value not in codes:
-                raise MessageError(
-                    f"field 'sets[].{name}' = {value}, expected one of {list(codes)}"
-                )
-        if s.last_sample_index != n or s.first_sample_index > s.last_sample_index:
-            raise MessageError(
-                f"field 'sets[]' support [{s.first_sample_index}, {s.last_sample_index}], "
-                f"expected to end at sample_index {n}"
-            )
-        check_length("sets[].values", from_float_array(s.values), N_SENSORS)
-    check_finite("sets[].values", np.concatenate([from_float_array(s.values) for s in msg.sets]))
-
-
-def record_from_msg(msg: WaveletCoefficients, omega: float) -> SampleCoefficients:
-    """Convert a ``WaveletCoefficients`` message (checked by :func:`check_coefficients`)."""
-    sets = tuple(
-        CoefficientSet(
-            int(s.level),
-            "detail" if s.kind == CoefficientSetMsg.KIND_DETAIL else "approximation",
-            FRAME[s.frame],
-            QUAD[s.quadrature],
-            int(s.translation_index),
-            int(s.first_sample_index),
-            int(s.last_sample_index),
-            from_float_array(s.values),
-            bool(s.settled),
-        )
-        for s in msg.sets
-    )
-    return SampleCoefficients(int(msg.sample_index), float(omega), sets, str(msg.wavelet))
-
-
-def check_runtime_value(name: str, value: object) -> str | None:
-    """Return why a run-time value of parameter ``name`` is refused, or None if it is valid."""
-    _default, desc, lo, hi, _settable = FLOATS[name]
-    if not (isinstance(value, float) and math.isfinite(value) and lo <= value <= hi):
-        return f"parameter '{name}' = {value!r}: expected {lo:g}..{hi:g} ({desc})"
-    return None
 
 
 class FaultMonitorNode(Node):

@@ -5,6 +5,6 @@ Modules: ``rig`` (config/rig.yaml), ``elements`` and ``rotor`` (Timoshenko FE mo
 eq. 2.1-2.14), ``closed_loop``/``pid``/``amb`` (AMB law and PID, eq. 2.33-2.48), ``modal`` and
 ``analysis`` (eq. 2.15-2.21, figures 2.4-2.17, ISO 14839-3 sensitivity), ``rotating_frame``
 (eq. 2.22-2.30), ``events``/``scenario`` (faults of chapter 3 and section 5.2), ``contact``
-(eq. 5.5), ``discretize``/``simulator`` (time simulation), ``calibrate`` and ``modal_cli``
-(``amb-modal``).
+(eq. 5.5), ``discretize``/``simulator``/``event_inputs``/``step_by_step`` (time simulation),
+``calibrate`` and ``modal_cli`` (``amb-modal``).
 """

@@ -20,6 +20,10 @@ Hertzian contact at the short overhung ends. While a current saturates, the PID 
 frozen in the direction that deepens saturation (conditional-integration anti-windup; the
 thesis does not say what the rig's controller did). Events act from the first sample instant
 at or after their onset time.
+
+This module holds the simulator's set-up, its public API and the linear (lifted, chunked) path;
+what the events put into each sample is in :mod:`amb_plant_sim.event_inputs`, the step-by-step
+path in :mod:`amb_plant_sim.step_by_step`.
 """
 
 from __future__ import annotations
@@ -33,21 +37,15 @@ from numpy.typing import NDArray
 
 from amb_plant_sim import amb as amb_law
 from amb_plant_sim.closed_loop import build_plant
-from amb_plant_sim.contact import contact_forces
 from amb_plant_sim.discretize import SpeedDiscretisation, discretise
 from amb_plant_sim.errors import SimulationError
-from amb_plant_sim.events import (
-    Event,
-    base_acceleration,
-    event_from_dict,
-    misalignment_offset,
-    sensor_channel,
-)
+from amb_plant_sim.event_inputs import EventInputs
+from amb_plant_sim.events import Event, event_from_dict
 from amb_plant_sim.pid import pid_state_space
 from amb_plant_sim.rig import Rig
 from amb_plant_sim.rotor import build_rotor
 from amb_plant_sim.scenario import Scenario
-from amb_tools.names import AXIS_NAMES
+from amb_plant_sim.step_by_step import StepByStepIntegration
 
 
 @dataclass
@@ -89,7 +87,7 @@ class MeasurementBlock:
     truth: dict[str, NDArray] = field(default_factory=dict)
 
 
-class PlantSimulator:
+class PlantSimulator(EventInputs, StepByStepIntegration):
     """
     The rig in simulation (ROS-free core of the ``plant_sim`` node).
 
@@ -322,132 +320,6 @@ class PlantSimulator:
             self._cache.move_to_end(key)
         return d
 
-    def _contact_matrices(self, d: SpeedDiscretisation) -> tuple[NDArray, NDArray, NDArray]:
-        """
-        Return the response to contact forces held over one sub-step.
-
-        State (nx, 2k), journal positions (2k, 2k) and velocities (2k, 2k) per unit force at
-        the clearance bearings.
-        """
-        key = id(d)
-        hit = self._cmats.get(key)
-        if hit is None or hit[0] is not d:
-            Gc = d.substep.Gf[:, self._contact_cols]
-            hit = (d, Gc, self._contact_pos @ Gc, self._contact_vel @ Gc)
-            self._cmats = {key: hit} if len(self._cmats) > 64 else {**self._cmats, key: hit}
-        return hit[1], hit[2], hit[3]
-
-    def _node_of(self, ev: Event) -> int:
-        if "disk" in ev.params:
-            tags = {b.tag: b for b in self.rig.rigid_bodies}
-            if ev.get("disk") not in tags:
-                raise SimulationError(
-                    f"event {ev.kind}: unknown disk {ev.get('disk')!r}; expected one of "
-                    f"{sorted(tags)}"
-                )
-            return self.rotor.node_at(tags[ev.get("disk")].z)
-        if "bearing" in ev.params and ev.kind in ("step_force", "sync_force"):
-            return self._nodes_bearing[int(ev.get("bearing")) - 1]
-        return int(np.argmin(np.abs(self.rotor.z - float(ev.get("z")))))
-
-    def _sample_inputs(self, t: float, omega: float, x0: NDArray) -> dict:
-        """
-        Held inputs and fault states of the sample starting at ``t``.
-
-        Synchronous forces are returned for angle 0 (``W0``; the sample's ``W`` is
-        ``W0 e^{j theta}``). The result is cached while the set of active events and the speed
-        stay the same (misalignment offsets included) and no base motion is active.
-        """
-        flags = tuple(
-            misalignment_offset(ev, t) if ev.kind == "misalignment" else ev.active(t)
-            for ev in self._events
-        )
-        key = (flags, omega)
-        if self._inp_key == key and self._inp is not None:
-            return self._inp
-        inp = self._collect_inputs(t, omega, x0)
-        varying = any(
-            f is True and ev.kind == "base_motion"
-            for f, ev in zip(flags, self._events, strict=True)
-        )
-        self._inp_key = None if varying else key
-        self._inp = inp
-        return inp
-
-    def _collect_inputs(self, t: float, omega: float, x0: NDArray) -> dict:
-        nf = self._n_force
-        W = np.zeros(nf, dtype=complex)
-        f_e = np.zeros(nf)
-        a_b = np.zeros(2)
-        centre = np.zeros((len(self._clear_nodes), 2))
-        ch_mode = np.zeros(4, dtype=int)
-        offset = np.zeros(8)
-        extra_sigma = np.zeros(8)
-        stuck: dict[int, float] = {}
-        zero = np.zeros(8, dtype=bool)
-        active = np.zeros(len(self._events), dtype=bool)
-        for idx, ev in enumerate(self._events):
-            if ev.kind == "misalignment":
-                if t >= ev.time:
-                    ci = self._clear_tags.index(ev.get("bearing"))
-                    centre[ci] += misalignment_offset(ev, t)
-                    active[idx] = any(centre[ci] != 0.0)
-                continue
-            if not ev.active(t):
-                continue
-            active[idx] = True
-            if ev.kind in ("unbalance", "mass_loss", "sync_force"):
-                node = self._node_of(ev)
-                amp = ev.get("me") * omega**2 if ev.kind != "sync_force" else ev.get("amplitude")
-                c = amp * np.exp(1j * ev.get("angle"))
-                W[2 * node] += c
-                W[2 * node + 1] += -1j * c
-            elif ev.kind == "step_force":
-                node = self._node_of(ev)
-                f_e[2 * node] += ev.get("fx")
-                f_e[2 * node + 1] += ev.get("fy")
-            elif ev.kind == "base_motion":
-                a_b[0 if ev.get("direction") == "x" else 1] += base_acceleration(ev, t)
-            elif ev.kind == "sensor_fault":
-                ch = sensor_channel(ev.get("plane"), ev.get("axis"))
-                mode = ev.get("mode")
-                if mode == "offset":
-                    offset[ch] += ev.get("value")
-                elif mode == "noise":
-                    extra_sigma[ch] = math.hypot(extra_sigma[ch], ev.get("value"))
-                elif mode == "zero":
-                    zero[ch] = True
-                else:  # stuck at the value read at onset
-                    if idx not in self._stuck:
-                        self._stuck[idx] = float(self._C_s[ch] @ x0 + offset[ch])
-                    stuck[ch] = self._stuck[idx]
-            elif ev.kind == "amb_channel_loss":
-                ch_mode[AXIS_NAMES.index(ev.get("axis"))] = amb_law.CHANNEL_MODES[ev.get("coils")]
-        lay_static = np.concatenate([f_e, a_b])
-        sigma = np.hypot(self.scenario.measurement_noise, extra_sigma)
-        inner_override = any(c in self._inner_channels for c in stuck) or bool(
-            np.any(zero[self._inner_channels])
-        )
-        return {
-            "o_in": offset[self._inner_channels],
-            "noisy": bool(np.any(sigma > 0)),
-            "nonlinear": bool(
-                self.rig.amb.law != "linear" or np.any(ch_mode != 0) or inner_override
-            ),
-            "faulty": bool(np.any(offset != 0) or stuck or np.any(zero) or np.any(ch_mode)),
-            "W0": W,
-            "static": lay_static,
-            "f_e": f_e,
-            "a_b": a_b,
-            "centre": centre,
-            "ch_mode": ch_mode,
-            "offset": offset,
-            "sigma": sigma,
-            "stuck": stuck,
-            "zero": zero,
-            "active": active,
-        }
-
     def _one_sample(
         self, s: int, wforce: NDArray, rec: dict, noise: tuple[NDArray, NDArray] | None = None
     ) -> None:
@@ -523,39 +395,6 @@ class PlantSimulator:
         n_pub[:, self._inner_channels] = n_pid[:, :4]
         return n_pid, n_pub
 
-    def _chunk_limit(self, t: float) -> int | None:
-        """
-        How many samples from ``t`` can run as one linear chunk (events fixed), or ``None``.
-
-        ``None`` when a speed profile, an active base motion or a misalignment ramp makes the
-        inputs vary from sample to sample.
-        """
-        if self.scenario.profile_hz:
-            return None
-        boundary = math.inf
-        for ev in self._events:
-            if ev.kind == "base_motion" and ev.active(t):
-                return None
-            times = [ev.time]
-            if ev.duration is not None:
-                times.append(ev.time + ev.duration)
-            if ev.kind == "misalignment":
-                r, h, q = ev.get("ramp"), ev.get("hold"), ev.get("return_time")
-                seg = [(ev.time, ev.time + r)]
-                if q > 0:
-                    seg.append((ev.time + r + h, ev.time + r + h + q))
-                for a, b in seg:
-                    if a - 1e-12 <= t < b - 1e-12:
-                        return None
-                    times += [a, b]
-            for tb in times:
-                if tb - 1e-12 > t:
-                    boundary = min(boundary, tb)
-        if boundary == math.inf:
-            return 1 << 30
-        period = 1.0 / self.fs
-        return max(1, math.ceil((boundary - 1e-12 - t) / period - 1e-9))
-
     def _advance_some(self, s: int, remaining: int, wf: NDArray, rec: dict) -> int:
         """Advance one chunk (linear, fixed events) or one sample; returns samples done."""
         t = self._t
@@ -626,100 +465,3 @@ class PlantSimulator:
             return k_bad + 1
         self._chunk_hint = min(self._max_chunk, 2 * self._chunk_hint)
         return L
-
-    def _slow_sample(
-        self,
-        d: SpeedDiscretisation,
-        inp: dict,
-        i_w: NDArray,
-        o_in: NDArray,
-        n_pid: NDArray,
-        theta: float,
-    ) -> tuple[NDArray, NDArray]:
-        """Integrate one sample step by step (nonlinear forces, saturation, contact)."""
-        rig = self.rig
-        st, sub, pd = d.step, d.substep, d.pid
-        x, xk = self._x.copy(), self._xk.copy()
-        W = inp["W0"] * np.exp(1j * theta)
-        f_e0 = inp["static"][: self._n_force]
-        a_b = inp["static"][self._n_force :]
-        centre = inp["centre"]
-        stuck_in = {k: v for k, v in inp["stuck"].items() if k in self._inner_channels}
-        zero_in = inp["zero"][self._inner_channels]
-        cols = np.array([2 * self._nodes_bearing[a // 2] + a % 2 for a in range(4)])
-        contact_max = np.zeros(len(self._clear_nodes))
-        i_first = None
-        m = d.n_contact_sub
-        for j in range(d.n_sub):
-            y = self._C_in @ x + o_in + n_pid[4 * j : 4 * j + 4]
-            for k, v in stuck_in.items():
-                y[self._inner_channels.index(k)] = v
-            y[zero_in] = 0.0
-            i_raw = pd.C @ xk + pd.D @ y + i_w
-            i_ref = np.clip(i_raw, -self._i_max, self._i_max)
-            if i_first is None:
-                i_first = i_ref.copy()
-            xk_new = pd.A @ xk + pd.B @ y
-            # anti-windup (conditional integration): a saturated axis keeps its integrator
-            # when integrating would push it further into saturation (the current is
-            # -K_I x_I / K_i, so x_I growing with the sign of i_raw deepens saturation)
-            sat = np.abs(i_raw) > self._i_max
-            if np.any(sat):
-                grow = np.sign(xk_new[0::2] - xk[0::2]) == -np.sign(i_raw)
-                hold = sat & grow
-                xk_new[0::2] = np.where(hold, xk[0::2], xk_new[0::2])
-            xk = xk_new
-            i_act = self._C_i @ x if self._C_i is not None else i_ref
-            xb = self._C_b @ x
-            f_amb = amb_law.amb_force(rig.amb, i_act, xb, inp["ch_mode"])
-            f_corr = f_amb - amb_law.linear_force(rig.amb, i_act, xb)
-            f_e = f_e0.copy()
-            f_e[cols] += f_corr
-            rot = np.exp(1j * d.omega * j * st.h)
-            base = st.Gi @ i_ref + st.Gf @ f_e + st.Ga @ a_b
-            x_trial = st.Phi @ x + base + (st.Psi @ (W * rot)).real
-            pos0 = (self._contact_pos @ x).reshape(-1, 2) - centre
-            pos1 = (self._contact_pos @ x_trial).reshape(-1, 2) - centre
-            near = np.any(np.hypot(pos0[:, 0], pos0[:, 1]) >= self._clearance) or np.any(
-                np.hypot(pos1[:, 0], pos1[:, 1]) >= self._clearance
-            )
-            if not near:
-                x = x_trial
-                continue
-            base_s = sub.Gi @ i_ref + sub.Gf @ f_e + sub.Ga @ a_b
-            Gc, Gp, Gv = self._contact_matrices(d)
-            for q in range(m):
-                rot_s = np.exp(1j * d.omega * (j * st.h + q * sub.h))
-                x_free = sub.Phi @ x + base_s + (sub.Psi @ (W * rot_s)).real
-                p_free = (self._contact_pos @ x_free).reshape(-1, 2)
-                v_free = (self._contact_vel @ x_free).reshape(-1, 2)
-                cr = contact_forces(p_free, v_free, centre, self._clearance, d.omega, rig.contact)
-                if not np.any(cr.in_contact):
-                    x = x_free
-                    continue
-                # linearly implicit contact force at the end of the sub-step:
-                # f = F(p_free) + dF/dp (p - p_free) + dF/dv (v - v_free), p = p_free + Gp f
-                act = np.flatnonzero(cr.in_contact)
-                rows = (2 * act[:, None] + np.arange(2)[None, :]).ravel()
-                na = rows.size
-                kp = np.zeros((na, na))
-                kv = np.zeros((na, na))
-                for q_, a_ in enumerate(act):
-                    kp[2 * q_ : 2 * q_ + 2, 2 * q_ : 2 * q_ + 2] = cr.d_position[a_]
-                    kv[2 * q_ : 2 * q_ + 2, 2 * q_ : 2 * q_ + 2] = cr.d_velocity[a_]
-                sub_p = Gp[np.ix_(rows, rows)]
-                sub_v = Gv[np.ix_(rows, rows)]
-                fa = np.linalg.solve(np.eye(na) - kp @ sub_p - kv @ sub_v, cr.force.ravel()[rows])
-                fk = np.zeros_like(cr.force)
-                fk[act] = fa.reshape(-1, 2)
-                # the bearing cannot pull: drop a contact whose force points outwards
-                rel = p_free - centre
-                pull = np.sum(fk * rel, axis=1) > 0.0
-                fk[pull] = 0.0
-                x = x_free + Gc @ fk.ravel()
-                r_end = (self._contact_pos @ x).reshape(-1, 2) - centre
-                nrm = np.hypot(r_end[:, 0], r_end[:, 1])
-                f_n = -np.sum(fk * r_end, axis=1) / np.maximum(nrm, 1e-12)
-                contact_max = np.maximum(contact_max, f_n)
-        self._x, self._xk = x, xk
-        return i_first, contact_max

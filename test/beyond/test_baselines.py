@@ -1,6 +1,8 @@
 """
-Baselines of :mod:`amb_controller.baselines`: Fourier projection, influence coefficients,
-the adaptive synchronous update (eq. B.1) and both baselines in the simulated closed loop.
+Baselines of :mod:`amb_controller.baselines`: Fourier projection
+(:mod:`amb_controller.fourier_basis`), influence coefficients, the adaptive synchronous update
+(eq. B.1, :mod:`amb_controller.influence_coefficient`) and both baselines in the simulated
+closed loop.
 
 References: ``numpy.fft`` for the 1 x coefficient, the closed-form fixed point of eq. B.1 on
 a static plant, the FE-route harmonic model (independent of the simulator) for the trial
@@ -13,10 +15,10 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from amb_controller.baselines import (
-    BaselineSettings,
-    HarmonicPipeline,
-    InfluenceCoefficientController,
+from amb_controller.baselines import BaselineSettings, HarmonicPipeline
+from amb_controller.config import ConfigError, ControllerConfig
+from amb_controller.errors import ControllerValueError
+from amb_controller.fourier_basis import (
     complex_from_real,
     complex_gain,
     fourier_control_basis,
@@ -24,8 +26,7 @@ from amb_controller.baselines import (
     real_from_complex,
     real_gain,
 )
-from amb_controller.config import ConfigError, ControllerConfig
-from amb_controller.errors import ControllerValueError
+from amb_controller.influence_coefficient import InfluenceCoefficientController
 from amb_controller.inverse import dc_gain
 from amb_controller.pipeline import ControllerPipeline
 from amb_controller.plant_models import harmonic_model, influence_by_trials

@@ -44,7 +44,10 @@ ROS = {
     "amb_tools.bag_writer",
     "amb_tools.bag_types",
     "amb_tools.bag_read",
+    "amb_controller.node_params",  # the node's parameters <-> ControllerConfig
     "amb_fault_monitor.blackbox",  # the node's black-box bags
+    "amb_fault_monitor.coefficient_messages",  # the node's check and conversion of messages
+    "amb_fault_monitor.node_params",  # the node's parameter table
 }
 APPLICATION = {
     "amb_tools.run_cli",

@@ -76,7 +76,7 @@ def _declared(name: str) -> set[str] | None:
     the other nodes' sources."""
     if name != "wavelet_controller":
         return None
-    from amb_controller.node import PARAMETERS, NodeSettings
+    from amb_controller.node_params import PARAMETERS, NodeSettings
 
     return {*PARAMETERS, *(f.name for f in fields(NodeSettings))}
 
