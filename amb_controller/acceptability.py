@@ -269,8 +269,8 @@ class SweepSetup:
         (its lock-step loop), stopped at the first period after which the divergence guard
         has tripped or any clearance bearing is in contact: such a run is unstable
         (module docstring), and once the rotor rubs on an auxiliary bearing the contact can
-        persist after the wavelet force is removed, which the simulator integrates slowly
-        (about 1 s per revolution instead of 5 ms).
+        persist after the wavelet force is removed, which the simulator integrates step by step,
+        far slower than contact-free samples (docs/results.md#plant-bench).
         """
         cfg = replace(self.config, **overrides)
         result = run_until_runaway(self.rig, self.scenario, cfg, self.model)
