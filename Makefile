@@ -3,7 +3,9 @@ SHELL := /bin/bash
 ENV := source tools/env.sh
 PYTEST_ARGS ?=
 
-.PHONY: bootstrap demo test lint reproduce clean
+SECTIONS ?=
+
+.PHONY: bootstrap demo test lint reproduce results clean
 
 bootstrap:
 	@tools/bootstrap.sh
@@ -16,6 +18,11 @@ test: bootstrap
 
 reproduce: bootstrap
 	@$(ENV) && python -m amb_tools.reproduce --out out/reproduce
+
+# docs/results.md from the project's own commands; SECTIONS="modal prediction" for some only
+# (tools/results.py --list names them and their cost).
+results: bootstrap
+	@$(ENV) && python tools/results.py $(SECTIONS)
 
 lint: bootstrap
 	@$(ENV) && ruff check . && ruff format --check .

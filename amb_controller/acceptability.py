@@ -48,6 +48,7 @@ import numpy as np
 
 from amb_controller.response import PrescribedResponse
 from amb_controller.stability import exponential_stability_map, is_nominally_stable
+from amb_tools.topics import DELAY_PERIODS
 
 __all__ = [
     "ACCEPTABLE",
@@ -205,7 +206,8 @@ class SweepSetup:
     scenario : amb_plant_sim.scenario.Scenario
     model : amb_controller.model_file.WaveletModel
     config : amb_controller.config.ControllerConfig
-        Transient controller, Haar, 64 samples/rev, delay 2, 5th-order inverse, guard armed.
+        Transient controller, Haar, 64 samples/rev, the delay given to :meth:`first_critical`,
+        5th-order inverse, guard armed.
 
     """
 
@@ -216,7 +218,10 @@ class SweepSetup:
 
     @classmethod
     def first_critical(
-        cls, delay: int = 2, samples_per_rev: int = 64, scenario_path: str | Path | None = None
+        cls,
+        delay: int = DELAY_PERIODS,
+        samples_per_rev: int = 64,
+        scenario_path: str | Path | None = None,
     ) -> SweepSetup:
         """
         Return the setup of figure 8.4: mass loss at the first critical speed, delay ``delay``.
@@ -224,7 +229,7 @@ class SweepSetup:
         Parameters
         ----------
         delay : int
-            Evaluation delay i in periods (thesis: 2).
+            Evaluation delay i in periods (default: the thesis's, section 8.5.1).
         samples_per_rev : int
             Samples per revolution (power of two).
         scenario_path : str or Path, optional
@@ -264,8 +269,8 @@ class SweepSetup:
         (its lock-step loop), stopped at the first period after which the divergence guard
         has tripped or any clearance bearing is in contact: such a run is unstable
         (module docstring), and once the rotor rubs on an auxiliary bearing the contact can
-        persist after the wavelet force is removed, which the simulator integrates slowly
-        (about 1 s per revolution instead of 5 ms).
+        persist after the wavelet force is removed, which the simulator integrates step by step,
+        far slower than contact-free samples (docs/results.md#plant-bench).
         """
         cfg = replace(self.config, **overrides)
         result = run_until_runaway(self.rig, self.scenario, cfg, self.model)

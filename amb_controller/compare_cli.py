@@ -38,7 +38,8 @@ event's detection_sample_index is the early detection); ``wavelet_reconf_alarm``
 at the monitor's *alarm* (confirmed detection, the onset revolution);
 ``wavelet_reconf_alarm_ramp`` is ``wavelet_reconf_alarm`` with HOLD ramping the held command
 to zero over ``HOLD_RAMP_PERIODS`` = 4 periods (:mod:`amb_controller.supervisor`, "Hold-last
-or ramp-to-zero"). What past runs measured: ``docs/controller_notes.md``.
+or ramp-to-zero"). The current numbers: docs/results.md#compare (``make results
+SECTIONS=compare``); what past runs measured and concluded: ``docs/controller_notes.md``.
 
 The report's "Target" section is written from each run's numbers (:func:`verdict`).
 

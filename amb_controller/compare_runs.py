@@ -178,8 +178,8 @@ def run_multilevel(matrix: Matrix, name: str, key: str):
     config = replace(matrix.config(SPECS["wavelet_i1"], scenario), levels=ML_LEVELS)
     coupled = matrix.model(SPECS["wavelet_i1"], scenario, config)
     # plain least-squares inverse of fe_model for the coupled model (not the truncated SVD
-    # the pipeline uses at p >= 2 when it recomputes the inverse): exact closed-loop radius
-    # on the FE model at the first critical speed 1.0 plain vs 1.076 truncated (64 samples)
+    # the pipeline uses at p >= 2 when it recomputes the inverse): the truncated one made the
+    # coupled loop less stable (docs/controller_notes.md, "Truncated-SVD inverse at p >= 2")
     controller = None
     if name == "wavelet_124_perlevel":
         controller = MultiLevelController.from_models(

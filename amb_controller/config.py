@@ -19,6 +19,7 @@ import numpy as np
 from amb_controller.basis import QUADRATURES
 from amb_controller.errors import ControllerValueError
 from amb_tools.names import N_AXES, SENSOR_NAMES
+from amb_tools.topics import DELAY_PERIODS
 
 __all__ = [
     "BASELINE_CONTROLLERS",
@@ -154,7 +155,7 @@ class ControllerConfig:
         allowed="distinct sensor channels in 0..7",
     )
     delay_periods: int = param(
-        2,
+        DELAY_PERIODS,
         description="evaluation delay i, periods (eq. 8.10; thesis: 2 in chapter 8, 3 in "
         "section 7.4.2)",
         allowed="an integer in 1..16 periods",

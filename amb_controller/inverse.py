@@ -29,11 +29,11 @@ levels p >= 2 with both quadratures: the odd control waveform is the even one ad
 a quarter period (:func:`amb_controller.basis.control_basis`), so per axis the level-2
 waveforms span 3 dimensions, not 4, and at level 3 the odd waveforms repeat the even ones
 of translations ``q +- 2`` (4 of 8). ``G_{p,q,p,q} B_u`` then has exact null directions
-(measured on the FE model at 22 Hz: 4 of 16 at p = 2, 16 of 32 at p = 3, singular values
-1e-16 of the largest, null for every ``A^(k)`` and every sensor), and the plain
-least-squares inverse with the ``B(1) G(1) = I`` rows inverts rounding noise (``|B|``
-up to 1e10-1e13 where ``1 / s_r`` is 1e7). Directions dropped are those no control
-coefficient can move, so nothing observable is lost.
+(4 of 16 at p = 2, 16 of 32 at p = 3, for every ``A^(k)`` and every sensor: the waveforms
+themselves are dependent), and the plain least-squares inverse with the ``B(1) G(1) = I``
+rows inverts rounding noise (the FE model's figures: ``docs/controller_notes.md``,
+"Truncated-SVD inverse at p >= 2"). Directions dropped are those no control coefficient can
+move, so nothing observable is lost.
 
 Indexing: ``A^(0)`` is the response, within the same period, of the coefficients
 measured over a period to the control coefficients applied over that period. Eq. 6.34

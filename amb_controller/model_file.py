@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from amb_controller.errors import ControllerValueError
+from amb_tools.topics import DELAY_PERIODS
 
 FORMAT_VERSION = 1
 
@@ -69,7 +70,7 @@ class WaveletModel:
     quadratures: tuple[str, ...] = ("even", "odd")
     n_axes: int = 4
     n_sensor_channels: int = 8
-    delay: int = 2
+    delay: int = DELAY_PERIODS
     offset: np.ndarray | None = None
     residual_rms: np.ndarray | None = None
     date: str = field(

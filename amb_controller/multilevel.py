@@ -28,24 +28,14 @@ sinusoid leaks into the finer levels; the coupled controller
 one pseudo-inverse) accounts for these terms. The block-diagonal version trades them for
 (a) one small inverse per level, identifiable level by level with the controller of the
 other levels running, and (b) a per-level ``alpha_p``. Whether the neglected coupling
-matters is measured, not assumed (``amb-compare --multilevel``).
+matters is measured, not assumed: ``amb-compare --multilevel`` runs both versions
+(``wavelet_124_coupled``, ``wavelet_124_perlevel``) beside ``wavelet_i1`` (1 x only) on the
+two mass-loss scenarios; the current numbers are in docs/results.md#compare, the first
+run's with its reading in ``docs/controller_notes.md`` ("Multi-level").
 
-Measured (``amb-compare --multilevel``, FE-route models, 64 samples/rev, i = 1, w = v =
-0.75 for every level; inner sensors)
--------------------------------------------------------------------------------------------
-First critical speed (9.72 Hz), 430 g cm mass loss: 1 x only: peak 94.7 um, never below
-10 % (12.2 um of 3 x, 5 x ... left by the Haar square wave, 43 N peak force); coupled 1+2+4:
-114.1 um, 12 revolutions, residual 5.6 um, 238 N; per level: 123.0 um, 11 revolutions,
-residual 9.2 um, 81 N. Multi-level beats 1 x when the criterion is the whole displacement
-(settling to 10 %, harmonics), not the first peak; per level does it with a third of the
-coupled controller's peak force but leaves more harmonics (the neglected ``G_pr``). The
-1 x Fourier baseline (``harmonic_i1``) leaves no harmonics at all (0.87 um).
-Second critical speed (16.73 Hz): both multi-level versions diverge (12.5 mm): 2 x is
-33.5 Hz, beside the third critical speed (32.1 Hz), where ``G_22(1)`` has a singular value
-0.0115 of its largest (0.14 at the first critical); the exact closed-loop spectral radius of
-the per-level controller on the coupled FE model is 1.74 (1.0006 at the first critical).
-Check ``stability.closed_loop`` on the model before engaging a level whose harmonic is near
-a critical speed.
+A level whose harmonic lies near a critical speed of the rig (docs/results.md#modal; e.g. 2 x
+of the second critical speed beside the third) has a nearly singular ``G_pp(1)``, and its
+loop may diverge: check ``stability.closed_loop`` on the model before engaging such a level.
 
 The state is explicit (one :class:`~amb_controller.transient.TransientState` per level) so
 that the supervisor's anti-windup hold and the pipeline's reset act on all levels at once.
@@ -295,12 +285,11 @@ def block_diagonal_model(model: WaveletModel, inverse_order: int, regularisation
         Singular-value cutoff of a truncated-SVD inverse for levels p >= 2
         (:func:`~amb_controller.inverse.pseudo_inverse_series`; level 1 always keeps the
         plain least-squares inverse). At p >= 2 the odd Haar waveforms are the even ones
-        shifted a quarter revolution and linearly dependent on them: on the FE model at 9.7
-        and 16.7 Hz (64 samples/rev) ``G_22(1)`` has rank 12 of 16 and ``G_33(1)`` rank 16
-        of 32. Default 0 (plain inverse), by measurement: exact closed-loop spectral radius
-        of the per-level controller on the coupled FE model at the first critical speed,
-        i = 1, w = v = 0.75, 1.0006 plain vs 1.0102 with ``rank_rtol = 1e-8`` (64
-        samples/rev); the closed-loop run leaves 8.4 vs 13.5 um at 32 samples/rev.
+        shifted a quarter revolution and linearly dependent on them, so ``G_22(1)`` has rank
+        12 of 16 and ``G_33(1)`` rank 16 of 32 (:mod:`amb_controller.inverse`). Default 0
+        (plain inverse): on the coupled FE model the truncated-SVD inverse made the
+        per-level loop less stable, not more (``docs/controller_notes.md``, "Truncated-SVD
+        inverse at p >= 2").
 
     Returns
     -------

@@ -545,11 +545,12 @@ def _rank_rtol(config: ControllerConfig) -> float:
 
     At thesis level p >= 2 the odd control waveforms (the even ones shifted by a quarter
     revolution) are linearly dependent on the even ones, so ``G(1)`` of those levels has exact
-    null directions that no input can move (singular values ~1e-16 of the largest). The
-    predictor's ``B(1) G(1) = I`` weight then inverts rounding noise (terms up to 1e13), so its
-    inverse is the truncated-SVD one. The transient controller keeps the plain inverse: on the
-    coupled 1x+2x+4x FE loop the truncated one raised the exact closed-loop spectral radius from
-    1.0 to 1.055-1.076 (test/beyond, issue 9 report). At p = 1 alone nothing changes (0 = off).
+    null directions that no input can move (singular values at rounding level). The
+    predictor's ``B(1) G(1) = I`` weight then inverts rounding noise, so its inverse is the
+    truncated-SVD one. The transient controller keeps the plain inverse: on the coupled
+    1x+2x+4x FE loop the truncated one made the exact closed loop less stable
+    (``docs/controller_notes.md``, "Truncated-SVD inverse at p >= 2"). At p = 1 alone nothing
+    changes (0 = off).
     """
     return 1e-8 if max(config.levels) > 1 else 0.0
 

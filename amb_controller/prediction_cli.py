@@ -290,19 +290,15 @@ def level_operator(
     ``(.)^*`` of eq. 6.35 / 7.6 is a pseudo-inverse, which a square 4-sensor model would not
     need. Only the PID loop takes the inner sensors (section 2.6).
 
-    Measured at 22 Hz, 200 N step (haar / db2 / db4; worst x sensor, s after the step;
-    measured response 0.545 s, set by the near-node sensor x3 with 8 um final 1 x):
-    all 8 sensors, prediction settles at 0.364 / 0.455 / 0.545 s, final 1 x amplitude
-    ratios 0.92-1.0 at x1, x2, x4, but biased at x3 (2.31 / 0.87 / 0.79): a synchronous
-    force is not a combination of the level's control waveforms alone, and the least-squares
-    inverse leaves its residual outside the range of ``G(1)``. Inner sensors (square model,
-    exact steady state at x2, x3: ratios 0.95-1.02; x1, x4 through ``G_all(1)``:
-    0.63-0.99): 0.591 / 0.591 / 0.636 s, one or two periods after the measurement. At
-    p >= 2 the inner model is rank deficient (the odd control waveforms of
-    :func:`~amb_controller.basis.control_basis` repeat combinations of the even ones): the
-    inverse is the truncated-SVD one (``rank_rtol``), without which the level-2 prediction
-    peaked at 22-36 x the measured level-2 coefficients (haar, 22 Hz, inner sensors) and
-    dominated the rebuilt signal.
+    With all 8 sensors a synchronous force is not a combination of the level's control
+    waveforms alone, and the least-squares inverse leaves its residual outside the range of
+    ``G(1)``; the inner-sensor model is square, exact at x2, x3. Settling times and final
+    amplitude ratios of both (``amb-prediction``, ``--inverse-sensors inner``):
+    docs/results.md#prediction; the first measurements: ``docs/controller_notes.md``
+    ("Steady-state prediction"). At p >= 2 the inner model is rank deficient (the odd control
+    waveforms of :func:`~amb_controller.basis.control_basis` repeat combinations of the even
+    ones): the inverse is the truncated-SVD one (``rank_rtol``), without which the level-2
+    prediction dominated the rebuilt signal.
 
     Parameters
     ----------

@@ -40,10 +40,11 @@ itself a step disturbance (eq. 8.3) that excites the rotor again. Ramp-to-zero g
 both; hold-last keeps cancelling a steady unbalance that the controller had already
 removed (useful when the contact did not come from the controller's own force). Both
 are reasonable, so both exist; the default here stays hold-last (``0``) for the existing
-node and supervisor contract. Measured on the figure-5.27 case-2 scenario (``amb-compare``,
-controller engaged at the mass-loss alarm, HOLD at the contact event, 4 s): hold-last 793
-um and 28 contact onsets, ramp-to-zero over 4 periods 781 um and 18 onsets, PID only 773 um
-and 20 onsets: on contact, ramp-to-zero is the contact-safe setting. Leaving a ramped
+node and supervisor contract. On the figure-5.27 case-2 scenario (controller engaged at the
+mass-loss alarm, HOLD at the contact event) ramp-to-zero makes fewer contacts than
+hold-last: ``amb-compare`` rows ``wavelet_reconf_alarm`` and ``wavelet_reconf_alarm_ramp``
+of ``contact_case2``, docs/results.md#compare (the first run: ``docs/controller_notes.md``).
+On contact, ramp-to-zero is the contact-safe setting. Leaving a ramped
 HOLD for ACTIVE resets the controller, because the force actually applied is no longer
 the one its integral state (``beta``, eq. 8.10) remembers.
 
@@ -53,17 +54,15 @@ The transient controller integrates (``beta`` has its pole at z = 1, eq. 8.10): 
 it adds to the force it believes is acting. If its commands stop reaching the plant (a lost
 or late command, the plant's command watchdog after a stall, a controller restarted while
 the plant runs on its PID) the measured coefficients keep the disturbance's full size and the
-integrators wind up; when a command gets through again the force is far too large. Measured
-with the mass loss at the first critical speed (test ``test_restart.py``'s scenario, in
-process): 10 periods of commands dropped while the controller ran threw the rotor to 0.80 mm
-at the end planes and 0.33 mm at the inner ones, 44 periods to 0.94 / 0.78 mm, against 0.40 /
-0.14 mm on PID alone. So a missing command is treated like a saturated one: the step that
-computed it did not happen. The controller's state is restored to what it was before that
-step (the step is skipped, as the saturation hold does) and the steps after it, which the
-delay ``i > 1`` has already made, are made again from it (their commands are already sent
-and stand; only the state is corrected). The integrators then hold the force that last
-acted, and a new controller whose commands never arrived stays at its initial state, so its
-first applied command is the prescribed response to the disturbance as it is.
+integrators wind up; when a command gets through again the force is far too large (measured
+in process with the mass loss at the first critical speed: ``docs/controller_notes.md``,
+"Commands the plant did not apply"). So a missing command is treated like a saturated one: the
+step that computed it did not happen. The controller's state is restored to what it was
+before that step (the step is skipped, as the saturation hold does) and the steps after it,
+which the delay ``i > 1`` has already made, are made again from it (their commands are
+already sent and stand; only the state is corrected). The integrators then hold the force
+that last acted, and a new controller whose commands never arrived stays at its initial
+state, so its first applied command is the prescribed response to the disturbance as it is.
 """
 
 from __future__ import annotations

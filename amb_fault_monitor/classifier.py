@@ -17,17 +17,17 @@ inconsistent or constant signal of one transducer. The rules, in order:
    their largest value (m) is at least ``base_dominance`` times the larger of the lasting
    1 x phasor change and the largest fixed-frame change above 1 x (slow motion dominates;
    an impulse that happens to move the planes together, as in a rigid-rotor model, puts as
-   much into the levels above 1 x: measured low/high 0.9-1.3 on the synthetic two-mode
-   contact, 3.4-6.8 on the simulated base motion, 1.4-3.6 on the simulated contacts).
+   much into the levels above 1 x; the ratios measured on the suite:
+   ``docs/fault_monitor_notes.md``, "Classifier: base motion").
    Base motion enters eq. 3.6 as the inertial load ``-M y''`` of a housing translation
    ``y``, distributed with the rotor's mass, and is "typically low frequency" (Table 3.2):
    the motion relative to the housing moves all four planes together, in phase, below
    running speed. A sudden unbalance change is synchronous and excites the bending modes
-   (planes in and out of phase: coherence 0.03-0.37 on the simulated suite against 0.94
-   for base motion); a contact is local to one bearing. Decision: section 5.4 separates base motion
-   by its band ("nothing above 1 x"), but with Haar the one-revolution change of the slope of
-   a 2-3 Hz motion of ~30 um crosses every level above 1 x at 10-40 thresholds, so the band
-   test cannot hold; the plane coherence of the slow part is the discriminating feature.
+   (planes in and out of phase: a low coherence, measured in the same notes); a contact is
+   local to one bearing. Decision: section 5.4 separates base motion by its band ("nothing
+   above 1 x"), but with Haar (one vanishing moment) the one-revolution change of the slope
+   of a slow motion crosses the levels above 1 x too, so the band test cannot hold; the plane
+   coherence of the slow part is the discriminating feature.
    With ``a_{p,k}`` the fixed-frame change of plane ``p`` along one axis at the ``k``-th
    coefficient below 1 x of the episode, ``low_coherence = sum_k (sum_p a_{p,k})**2 /
    (P sum_k sum_p a_{p,k}**2)`` over both axes (``P`` the planes in use), 1 when the planes

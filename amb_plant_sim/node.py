@@ -115,7 +115,7 @@ class PlantSimNode(Node):
         d("mode", "lockstep", descriptor("lockstep | realtime"))
         d(
             "delay_periods",
-            2,
+            topics.DELAY_PERIODS,
             descriptor("i: commands for period k answer measured period k - i", ints=(1, 16)),
         )
         d(

@@ -1,12 +1,12 @@
 """The one place where numpy arrays become ``amb_msgs`` messages and back.
 
 Generated messages hold ``float64[N]`` fields as numpy arrays and ``float64[]`` fields as
-``array.array('d')``. Filling a ``float64[]`` from ``array.array('d', x.tobytes())`` costs about
-a microsecond, element-wise assignment from numpy about 57 µs per 1000 values, so every
-conversion goes through :func:`to_float_array`. Readers use :func:`from_float_array`
-(``np.frombuffer``, no copy). Checks here raise :class:`MessageError` (a ``ValueError``) with
-the field, the expected and the actual value, so a node can count and report a bad message
-instead of propagating it.
+``array.array('d')``. Filling a ``float64[]`` from ``array.array('d', x.tobytes())`` is one
+copy; assigning a numpy array converts it element by element, far slower
+(docs/results.md#msg-arrays), so every conversion goes through :func:`to_float_array`.
+Readers use :func:`from_float_array` (``np.frombuffer``, no copy). Checks here raise
+:class:`MessageError` (a ``ValueError``) with the field, the expected and the actual value, so
+a node can count and report a bad message instead of propagating it.
 """
 
 from __future__ import annotations

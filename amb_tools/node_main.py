@@ -85,10 +85,10 @@ def descriptor(
 def make_executor(choice: str | None = None):
     """The executor every node spins (``AMB_EXECUTOR``: ``events``, the default, or ``single``).
 
-    rclpy's ``EventsExecutor`` (experimental in Jazzy) halves the per-message cost: measured with
-    ``bench/pipeline.py`` in one session on the loaded 2-core machine, the 67 Hz x 32 lock-step
-    loop ran at 0.67 x real time against 0.33 x with the ``SingleThreadedExecutor``, and the
-    realtime command latency at 11 Hz fell from p50 56 ms / p99 157 ms to 16 / 25 ms. Nodes spin
+    rclpy's ``EventsExecutor`` (experimental in Jazzy) costs less Python per message than the
+    ``SingleThreadedExecutor``: the lock-step loop runs faster and the realtime command latency
+    is lower (``bench/pipeline.py`` with ``AMB_EXECUTOR=events`` and ``single``:
+    docs/results.md#executor; the first measurement: ``docs/history.md``). Nodes spin
     it with a timeout only (``spin_once(timeout_sec=...)``): without one it was seen to run no
     callbacks. ``AMB_EXECUTOR=single`` returns to the standard executor; ``choice`` overrides
     the environment for one node (the recorder keeps ``single``, see its ``main``).

@@ -35,9 +35,9 @@ drain_period : float
 Messages are not handed over one callback at a time: the subscriptions belong to a callback
 group the executor never runs (:class:`DrainedGroup`) and a timer takes everything queued on
 each of them every ``drain_period`` (and once more before the bag is closed). The executor
-therefore wakes at the timer's rate, not at the message rate: with the
-``SingleThreadedExecutor`` one wake costs more than a hundred microseconds of Python, which
-at the 67 Hz x 32 sample rate was about 280 us of CPU per sample (``bench/pipeline_profile.py``).
+therefore wakes at the timer's rate, not at the message rate: a wake of the
+``SingleThreadedExecutor`` costs far more Python than taking one queued message (what a wake
+per message cost the recorder: ``docs/history.md``, "Recorder: one wake per message").
 The receive stamp (``stamp_source: receive``) is the middleware's reception time of each
 message, so that it does not depend on when the queue was drained.
 """

@@ -22,7 +22,8 @@ Scheduling: the recorder, off the control loop, runs with a higher nice value
 then lags, and the end of the run waits for it to drain),
 so that when the CPU is short the plant, filterbank and controller, whose chain sets the
 lock-step pace and the command latency, are served first; the others catch up from their
-queues (reliable, thousands of messages deep). Measured with ``bench/pipeline.py``.
+queues (reliable, thousands of messages deep). ``bench/pipeline.py`` measures that pace and
+latency.
 
 Examples
 --------
@@ -52,8 +53,8 @@ from amb_tools.system import NODE_MODULES, NODES, ros_arguments, run_parameters
 
 INSTALL_LIB = Path(__file__).resolve().parent.parent / "install" / "amb_wavelet_control" / "lib"
 #: Nice value added to the nodes that are not on the control loop's chain.
-# fault_monitor is not niced by default: at +5 it lagged the demo's transient run by ~12
-# revolutions and was stopped with its mass-loss decision still in its queue (no event).
+# fault_monitor is not niced by default: niced, it lags the lock-step chain and the end of the
+# run waits for it to drain (what it did before runs drained: docs/history.md, "amb-run").
 NICENESS = {"recorder": 10}
 #: /diagnostics keys (sample indices processed) of the nodes drained before they are stopped
 #: (module notes). The filterbank publishes coefficients for odd samples only (its finest level
@@ -63,9 +64,9 @@ DRAINED = {
     "wavelet_controller": ("last_sample",),
     "fault_monitor": ("last_sample", "last_coefficient_sample"),
 }
-#: Default ``--drain-timeout``, wall s. Measured: the demo run (mass_loss_first_critical, 64
-#: samples/rev) with ``--nice fault_monitor=19`` and three CPU-bound processes on the 2-core
-#: machine left the monitor 30 revolutions behind at the plant's end; it drained in 35 s.
+#: Default ``--drain-timeout``, wall s: well above the time a fault monitor niced to 19 on a
+#: loaded machine takes to catch up (docs/results.md#drain; the first measurement:
+#: docs/history.md, "amb-run"), so that only a stuck node reaches it.
 DRAIN_TIMEOUT = 300.0
 
 

@@ -1,8 +1,10 @@
 """
-The system's topic and service names and the message type each stream carries.
+Topic and service names, each stream's message type, and the exchange's default delay.
 
 One home for the names of ARCHITECTURE.md's topic table: every node, the replay bridge, the
-recorder, the in-process loop's bag, ``amb-run`` and the bag reader take them from here.
+recorder, the in-process loop's bag, ``amb-run`` and the bag reader take them from here. So
+does :data:`DELAY_PERIODS`, the default delay both ends of ``/amb/control/command`` must agree
+on (the plant refuses a command made for another delay).
 """
 
 from __future__ import annotations
@@ -11,6 +13,7 @@ __all__ = [
     "CLOCK",
     "COEFFICIENTS",
     "COMMAND",
+    "DELAY_PERIODS",
     "DIAGNOSTICS",
     "FAULT_EVENTS",
     "INJECT_FAULT",
@@ -42,6 +45,12 @@ CLOCK = "/clock"
 INJECT_FAULT = "/amb/plant/inject_fault"
 SET_MODE = "/amb/control/set_mode"
 START_IDENTIFICATION = "/amb/control/start_identification"
+
+#: Default control delay i in periods (thesis section 8.5.1: "the controller evaluation time
+#: required there to be a 2 cycle delay in control action"): the command computed from measured
+#: period k is applied in period k + i. Default of ``ControllerConfig.delay_periods`` and of the
+#: plant's ``delay_periods`` parameter; ``config/amb_params.yaml`` sets both nodes under ``/**``.
+DELAY_PERIODS: int = 2
 
 #: The streams a run's bag holds, with their rosbag2 message types.
 STREAM_TYPES = {

@@ -12,7 +12,7 @@ export PYTHONPATH="$_amb_root${PYTHONPATH:+:$PYTHONPATH}"
 export ROS_AUTOMATIC_DISCOVERY_RANGE="${ROS_AUTOMATIC_DISCOVERY_RANGE:-LOCALHOST}"
 export RMW_IMPLEMENTATION="${RMW_IMPLEMENTATION:-rmw_fastrtps_cpp}"
 # The matrices here are small (the plant's are ~130 states): OpenBLAS threads only contend with
-# the other nodes on a 2-core machine (measured 3-5x faster with one thread).
+# the other nodes on a 2-core machine (docs/results.md#plant-bench: one thread against nproc).
 export OPENBLAS_NUM_THREADS="${OPENBLAS_NUM_THREADS:-1}"
 export PATH="$_amb_root/install/amb_wavelet_control/lib/amb_wavelet_control:$PATH"
 unset _amb_root
