@@ -113,9 +113,7 @@ from amb_wavelet.levels import revolution_level
 UNKNOWN_OMEGA = 1e-9
 #: Revolutions of messages the subscriptions queue: the monitor is not in the lock-step loop, so
 #: on a loaded machine it may fall seconds behind the plant; a lost message would be a gap, and a
-#: gap costs a new calibration. Measured: with the streams' 1024-message queue, a monitor starved
-#: on the 2-core test machine (load average 15-19) lost 158 measurements and reset 4 times in
-#: 100 s of a realtime run at 2 x (622 samples/s).
+#: gap costs a new calibration (docs/history.md, "Fault monitor queue").
 QUEUE_REVS = 256
 #: Sequencer counts of refused messages (the others, gaps and restarts, are confirmed changes).
 REFUSED = ("repeat", "stray", "stamp")
