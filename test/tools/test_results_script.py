@@ -20,6 +20,8 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
+# The script's modules import each other by name, as when it runs (its directory on sys.path).
+sys.path.insert(0, str(ROOT / "tools"))
 
 
 def _load():
@@ -31,6 +33,9 @@ def _load():
 
 
 R = _load()
+C = importlib.import_module("results_commands")
+P = importlib.import_module("results_parsers")
+S = importlib.import_module("results_sections")
 
 MODAL = """\
 rig: /work/wt_facts/config/rig.yaml  model: pid_closed_loop  elements: 14
@@ -183,7 +188,7 @@ COMPARISON = json.dumps(
 
 
 def test_modal_parser_reads_the_critical_speeds_and_modes() -> None:
-    r = R.parse_modal(MODAL)
+    r = P.parse_modal(MODAL)
     assert r["critical_speeds_hz"] == [9.719, 16.735, 32.065, 77.68]
     assert r["speed_hz"] == 0.0
     assert [m["frequency_hz"] for m in r["modes"]][:2] == [9.653, 16.674]
@@ -193,13 +198,13 @@ def test_modal_parser_reads_the_critical_speeds_and_modes() -> None:
 
 
 def test_timeit_parser_converts_to_seconds() -> None:
-    assert R.parse_timeit("200000 loops, best of 5: 1.06 usec per loop\n") == pytest.approx(1.06e-6)
-    assert R.parse_timeit("2000 loops, best of 5: 80.5 usec per loop\n") == pytest.approx(80.5e-6)
-    assert R.parse_timeit("1 loop, best of 5: 1.2 sec per loop\n") == pytest.approx(1.2)
+    assert P.parse_timeit("200000 loops, best of 5: 1.06 usec per loop\n") == pytest.approx(1.06e-6)
+    assert P.parse_timeit("2000 loops, best of 5: 80.5 usec per loop\n") == pytest.approx(80.5e-6)
+    assert P.parse_timeit("1 loop, best of 5: 1.2 sec per loop\n") == pytest.approx(1.2)
 
 
 def test_plant_bench_parser_reads_the_four_cases_and_the_threads() -> None:
-    r = R.parse_plant_bench(PLANT_BENCH)
+    r = P.parse_plant_bench(PLANT_BENCH)
     assert r["threads"] == "1"
     assert r["rows"][(11, 64, "contact")] == {
         "x_real_time": 2.5, "build_s": 0.001, "stepwise_pct": 3.1, "contact_samples": 412
@@ -208,14 +213,14 @@ def test_plant_bench_parser_reads_the_four_cases_and_the_threads() -> None:
 
 
 def test_pipeline_bench_parser_reads_each_row_including_nan() -> None:
-    rows = R.parse_pipeline_bench(PIPELINE_BENCH)
+    rows = P.parse_pipeline_bench(PIPELINE_BENCH)
     assert [r["case"] for r in rows] == ["67 Hz x 32", "11 Hz x 64"]
     assert rows[0]["rtf"] == 0.67 and rows[0]["p99_of_period"] == pytest.approx(0.054)
     assert math.isnan(rows[1]["p50_ms"]) and rows[1]["missing"] == -1
 
 
 def test_run_parser_reads_the_drain_and_the_plant_line() -> None:
-    r = R.parse_run(RUN_STDOUT, PLANT_LOG)
+    r = P.parse_run(RUN_STDOUT, PLANT_LOG)
     assert r["last_sample"] == 4975
     assert r["at_plant_end"] == {
         "fault_monitor last_sample": 3055,
@@ -226,77 +231,77 @@ def test_run_parser_reads_the_drain_and_the_plant_line() -> None:
 
 
 def test_demo_parser_keeps_the_key_metrics_table() -> None:
-    r = R.parse_demo(DEMO_STDOUT)
+    r = P.parse_demo(DEMO_STDOUT)
     assert r["wall_s"] == 74
     assert r["table"][0].startswith("| metric | PID only |") and len(r["table"]) == 4
     assert r["fault_time"].startswith("Fault time per bag")
 
 
 def test_json_parsers_accept_the_commands_documents() -> None:
-    parts = R.parse_fault_eval(FAULT_EVAL)
+    parts = P.parse_fault_eval(FAULT_EVAL)
     assert list(parts) == ["haar", "db2", "db4"]
     assert parts["db2"]["delays"]["MASS_LOSS"]["onset_error_abs_supports_max"] == 0.75
-    single = R.parse_fault_eval(json.dumps({**_summary(1.0), "cases": [{"wavelet": "haar"}]}))
+    single = P.parse_fault_eval(json.dumps({**_summary(1.0), "cases": [{"wavelet": "haar"}]}))
     assert list(single) == ["haar"]
-    assert R.parse_prediction(PREDICTION)["db4"]["predicted_settling_s"] is None
-    assert R.parse_compare(COMPARISON)["table"]["mass_loss_1st"]["wavelet_i1"]["peak"] == 94.7e-6
+    assert P.parse_prediction(PREDICTION)["db4"]["predicted_settling_s"] is None
+    assert P.parse_compare(COMPARISON)["table"]["mass_loss_1st"]["wavelet_i1"]["peak"] == 94.7e-6
 
 
 @pytest.mark.parametrize(
     "parser",
-    [R.parse_modal, R.parse_timeit, R.parse_plant_bench, R.parse_pipeline_bench, R.parse_demo,
-     R.parse_fault_eval, R.parse_prediction, R.parse_compare],
+    [P.parse_modal, P.parse_timeit, P.parse_plant_bench, P.parse_pipeline_bench, P.parse_demo,
+     P.parse_fault_eval, P.parse_prediction, P.parse_compare],
 )  # fmt: skip
 def test_parsers_refuse_unrecognised_output(parser) -> None:
-    with pytest.raises(R.ResultsError, match="cannot parse the output: expected"):
+    with pytest.raises(P.ResultsError, match="cannot parse the output: expected"):
         parser("Traceback (most recent call last):\n  ...\nValueError: boom\n")
 
 
 def test_parsers_refuse_documents_without_their_keys() -> None:
-    with pytest.raises(R.ResultsError, match="correct"):
-        R.parse_fault_eval(json.dumps({"wavelets": {"haar": {"total": 1}}}))
-    with pytest.raises(R.ResultsError, match="peak"):
-        R.parse_compare(json.dumps({"table": {"k": {"r": {}}}, "speeds_hz": {}, "timing": {}}))
-    with pytest.raises(R.ResultsError, match="plant's 'complete at"):
-        R.parse_run(RUN_STDOUT, "")
+    with pytest.raises(P.ResultsError, match="correct"):
+        P.parse_fault_eval(json.dumps({"wavelets": {"haar": {"total": 1}}}))
+    with pytest.raises(P.ResultsError, match="peak"):
+        P.parse_compare(json.dumps({"table": {"k": {"r": {}}}, "speeds_hz": {}, "timing": {}}))
+    with pytest.raises(P.ResultsError, match="plant's 'complete at"):
+        P.parse_run(RUN_STDOUT, "")
 
 
 def test_sections_render_tables_from_the_samples(tmp_path: Path) -> None:
     def out(text: str) -> object:
-        return R.Output(R.Command(["x"]), text, "", 0, 0.1)
+        return C.Output(C.Command(["x"]), text, "", 0, 0.1)
 
-    lines = R.BY_NAME["modal"].report([out(MODAL)], tmp_path)
+    lines = S.BY_NAME["modal"].report([out(MODAL)], tmp_path)
     assert "| 9.719 | 16.735 | 32.065 | 77.680 |" in lines
-    lines = R.BY_NAME["fault-eval"].report([out(FAULT_EVAL)], tmp_path)
+    lines = S.BY_NAME["fault-eval"].report([out(FAULT_EVAL)], tmp_path)
     assert "| haar | 41/41 | 0 | 410.0 | 0.00 |" in lines
     run = tmp_path / "run"
     (run / "logs").mkdir(parents=True)
     (run / "logs" / "plant_sim.log").write_text(PLANT_LOG)
     (run / "comparison.json").write_text(COMPARISON)
-    text = "\n".join(R.BY_NAME["drain"].report([out(RUN_STDOUT)], tmp_path))
+    text = "\n".join(S.BY_NAME["drain"].report([out(RUN_STDOUT)], tmp_path))
     assert (
         "drained in 35.2 s" in text and "| fault_monitor last_sample | 3055 | 1920 | 30.0 |" in text
     )
-    text = "\n".join(R.BY_NAME["compare"].report([out("")], tmp_path))
+    text = "\n".join(S.BY_NAME["compare"].report([out("")], tmp_path))
     assert "| wavelet_i1 | 94.7 | - | 12 |" in text
 
 
 def test_a_failing_command_is_reported_with_its_status_and_output(tmp_path: Path) -> None:
-    cmd = R.Command([sys.executable, "-c", "print('partial'); raise SystemExit(3)"])
-    with pytest.raises(R.ResultsError, match=r"(?s)exited with status 3 .*partial"):
-        R.run_command("demo", cmd, tmp_path)
-    with pytest.raises(R.ResultsError, match="not on PATH"):
-        R.run_command("demo", R.Command(["amb-no-such-command"]), tmp_path)
+    cmd = C.Command([sys.executable, "-c", "print('partial'); raise SystemExit(3)"])
+    with pytest.raises(P.ResultsError, match=r"(?s)exited with status 3 .*partial"):
+        C.run_command("demo", cmd, tmp_path)
+    with pytest.raises(P.ResultsError, match="not on PATH"):
+        C.run_command("demo", C.Command(["amb-no-such-command"]), tmp_path)
 
 
 def test_document_keeps_the_sections_it_does_not_regenerate() -> None:
     args = R.build_parser().parse_args([])
-    blocks = {s.name: R.placeholder(s, args) for s in R.SECTIONS}
+    blocks = {s.name: R.placeholder(s, args) for s in S.SECTIONS}
     blocks["modal"] = '<!-- meta {"date": "2026-01-01T00:00:00+00:00", "commit": "abc", ' \
         '"load_before": 1.0} -->\nkept\n'  # fmt: skip
     text = R.render_document(blocks)
     again = R.read_blocks(text)
-    assert set(again) == set(R.BY_NAME)
+    assert set(again) == set(S.BY_NAME)
     assert again["modal"].strip().endswith("kept")
     assert "| [modal](#modal) |" in text and "not generated yet" in text
 
@@ -304,7 +309,7 @@ def test_document_keeps_the_sections_it_does_not_regenerate() -> None:
 def test_every_cited_anchor_exists_in_docs_results_md() -> None:
     document = (ROOT / "docs" / "results.md").read_text()
     anchors = set(re.findall(r'<a id="([^"]+)"></a>', document))
-    assert anchors == set(R.BY_NAME), "docs/results.md is not the script's: run `make results`"
+    assert anchors == set(S.BY_NAME), "docs/results.md is not the script's: run `make results`"
     cited = R.citations()
     assert cited, "no docs/results.md#<section> citation found in the code"
     missing = {name: files for name, files in cited.items() if name not in anchors}

@@ -1,0 +1,145 @@
+"""
+The timing benchmarks of ``docs/results.md``: their commands and their Markdown.
+
+The sections ``msg-arrays`` (``python -m timeit`` on filling a ``float64[]`` message field),
+``plant-bench`` (``bench/plant_sim.py`` at one OpenBLAS thread and at ``nproc``) and
+``executor`` (``bench/pipeline.py`` with each rclpy executor). ``results_sections.SECTIONS``
+lists them with the others.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+
+from results_commands import Command, Output
+from results_markdown import _num, table
+from results_parsers import parse_pipeline_bench, parse_plant_bench, parse_timeit
+
+_MSG_SETUP = (
+    "import numpy as np; from array import array; from amb_msgs.msg import ControlCommand; "
+    "m = ControlCommand(); x = np.random.default_rng(0).standard_normal(1000)"
+)
+_MSG_CASES = (
+    (
+        "array('d', x.tobytes()) (amb_tools.conversions.to_float_array)",
+        'm.force = array("d", x.tobytes())',
+    ),
+    ("the numpy array itself (element by element)", "m.force = x"),
+)
+
+
+def _msg_commands(work: Path, args) -> list[Command]:
+    return [
+        Command([sys.executable, "-m", "timeit", "-s", _MSG_SETUP, stmt]) for _, stmt in _MSG_CASES
+    ]
+
+
+def _msg_report(outs: list[Output], work: Path) -> list[str]:
+    times = [parse_timeit(o.stdout) for o in outs]
+    lines = [
+        "Filling the `float64[]` field `ControlCommand.force` with 1000 values (best of "
+        "`timeit`'s repeats):",
+        "",
+    ]
+    lines += table(
+        ["assigned value", "time per 1000 values (µs)", "ratio to the first"],
+        [
+            [label, f"{t * 1e6:.2f}", f"{t / times[0]:.0f}"]
+            for (label, _), t in zip(_MSG_CASES, times, strict=True)
+        ],
+    )
+    return lines
+
+
+def _plant_commands(work: Path, args) -> list[Command]:
+    argv = [sys.executable, "bench/plant_sim.py", "--seconds", "2", "--repeats", "3"]
+    return [
+        Command(argv, env={"OPENBLAS_NUM_THREADS": "1"}, echo_stdout=True),
+        Command(argv, env={"OPENBLAS_NUM_THREADS": str(os.cpu_count() or 1)}, echo_stdout=True),
+    ]
+
+
+def _plant_report(outs: list[Output], work: Path) -> list[str]:
+    one, many = (parse_plant_bench(o.stdout) for o in outs)
+    rows = []
+    for key, a in one["rows"].items():
+        hz, spr, case = key
+        b = many["rows"][key]
+        rows.append(
+            [
+                f"{hz} Hz, {spr} samples/rev, {case}",
+                f"{a['x_real_time']:.1f}",
+                f"{1e3 / (a['x_real_time'] * hz):.2f}",
+                f"{a['stepwise_pct']:.1f}",
+                f"{b['x_real_time']:.1f}",
+                f"{a['x_real_time'] / b['x_real_time']:.2f}",
+            ]
+        )
+    lines = [
+        "Plant core, simulated seconds per wall second (median of 3 runs of 2 s simulated; "
+        "`stepwise`: share of samples integrated step by step, as contacts are):",
+        "",
+    ]
+    lines += table(
+        [
+            "case",
+            f"x real time, {one['threads']} thread",
+            "wall ms per revolution",
+            "stepwise %",
+            f"x real time, {many['threads']} threads",
+            f"ratio {one['threads']} / {many['threads']} threads",
+        ],
+        rows,
+    )
+    return lines
+
+
+BENCH_CASES = "67:32,11:64"
+
+
+def _executor_commands(work: Path, args) -> list[Command]:
+    argv = [sys.executable, "bench/pipeline.py", "--duration", "4", "--cases", BENCH_CASES]
+    return [Command(argv, env={"AMB_EXECUTOR": e}, echo_stdout=True) for e in ("events", "single")]
+
+
+def _executor_report(outs: list[Output], work: Path) -> list[str]:
+    rows = []
+    for executor, out in zip(("events", "single"), outs, strict=True):
+        for r in parse_pipeline_bench(out.stdout):
+            rows.append(
+                [
+                    f"{r['case']} {r['run']}",
+                    executor,
+                    f"{r['rtf']:.2f}",
+                    _num(r["p50_ms"], ".2f"),
+                    _num(r["p99_ms"], ".2f"),
+                    _num(r["p99_of_period"], ".1%"),
+                    r["missing"],
+                    r["late"],
+                    f"{r['load']:.1f}",
+                ]
+            )
+    lines = [
+        "The four nodes and the recorder over DDS (`bench/pipeline.py`, 4 s simulated per run), "
+        "with rclpy's `EventsExecutor` (`AMB_EXECUTOR=events`, the default) and the "
+        "`SingleThreadedExecutor` (`single`): lock-step real-time factor, and in realtime mode "
+        "the command latency (last sample of a period to the command based on it). `load`: "
+        "1-minute load average at the end of each run.",
+        "",
+    ]
+    return lines + table(
+        [
+            "case / run",
+            "executor",
+            "lock-step RTF",
+            "rt p50 (ms)",
+            "rt p99 (ms)",
+            "p99 / period",
+            "missing",
+            "late",
+            "load",
+        ],
+        rows,
+    )
