@@ -201,7 +201,7 @@ class SweepSetup:
 
     Attributes
     ----------
-    rig : amb_plant_sim.rig.Rig
+    rig : amb_common.rig.Rig
     scenario : amb_plant_sim.scenario.Scenario
     model : amb_controller.model_file.WaveletModel
     config : amb_controller.config.ControllerConfig
@@ -235,11 +235,11 @@ class SweepSetup:
         SweepSetup
 
         """
+        from amb_common.paths import config_file
+        from amb_common.rig import load_rig
         from amb_controller.closed_loop import fe_model
         from amb_controller.config import ControllerConfig
-        from amb_plant_sim.rig import load_rig
         from amb_plant_sim.scenario import load_scenario
-        from amb_tools.paths import config_file
 
         rig = load_rig()
         path = scenario_path or config_file("scenarios/mass_loss_first_critical.yaml")
@@ -281,7 +281,7 @@ def run_until_runaway(rig, scenario, config, model):
 
     Parameters
     ----------
-    rig : amb_plant_sim.rig.Rig
+    rig : amb_common.rig.Rig
     scenario : amb_plant_sim.scenario.Scenario
         Resolved scenario (constant speed).
     config : amb_controller.config.ControllerConfig

@@ -29,10 +29,10 @@ from dataclasses import replace
 
 import numpy as np
 
+from amb_common.paths import config_file
 from amb_controller.closed_loop import fe_model, run_closed_loop
 from amb_controller.config import ControllerConfig
 from amb_controller.metrics import compute_metrics, inner_summary
-from amb_tools.paths import config_file
 
 LIMIT = 0.5e-3  # m, the thesis's acceptability bound (sections 7.4.2, 8.5.1)
 
@@ -124,7 +124,7 @@ def investigate(rig, gain_error: float = 1.0) -> dict:
 
     Parameters
     ----------
-    rig : amb_plant_sim.rig.Rig
+    rig : amb_common.rig.Rig
     gain_error : float
         The controller's model Markov parameters are multiplied by this (1 = exact FE
         model; < 1 makes the controller over-compensate by ``1 / gain_error``).
@@ -188,7 +188,7 @@ def investigate(rig, gain_error: float = 1.0) -> dict:
 
 def main(argv=None) -> int:
     """Print the acceptance numbers as JSON."""
-    from amb_plant_sim.rig import load_rig
+    from amb_common.rig import load_rig
 
     ap = argparse.ArgumentParser(prog="python -m amb_controller.acceptance")
     ap.add_argument("--quick", action="store_true", help="fewer bisection steps")

@@ -112,6 +112,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from amb_common.names import N_AXES, N_SENSORS
 from amb_controller.basis import BasisSet
 from amb_controller.errors import ControllerValueError, PeriodSequenceError
 from amb_controller.guard import DivergenceGuard, GuardConfig
@@ -120,7 +121,6 @@ from amb_controller.model_file import WaveletModel
 from amb_controller.supervisor import Command, Mode, WaveletControlSupervisor
 from amb_controller.synthesis import ForceLimiter
 from amb_controller.transient import ControlStep, TransientController
-from amb_tools.names import N_AXES, N_SENSORS
 
 __all__ = [
     "BASELINES",

@@ -45,6 +45,8 @@ from typing import ClassVar
 
 import numpy as np
 
+from amb_common import topics
+from amb_common.names import SENSOR_NAMES
 from amb_controller.basis import control_basis
 from amb_controller.config import BASELINE_CONTROLLERS, ControllerConfig
 from amb_controller.inverse import pseudo_inverse_series
@@ -52,8 +54,6 @@ from amb_controller.model_file import WaveletModel
 from amb_controller.pipeline import ControllerPipeline, selected_measurement_basis
 from amb_controller.supervisor import Command, Mode
 from amb_controller.wavelet_dynamics import wavelet_markov
-from amb_tools import topics
-from amb_tools.names import SENSOR_NAMES
 from amb_wavelet.analysis import AnalysisFilterbank
 from amb_wavelet.frontend import FRAMES, QUADRATURES, ChannelFrontEnd
 
@@ -128,7 +128,7 @@ def fe_model(rig, omega: float, config: ControllerConfig, n_terms: int = 60) -> 
 
     Parameters
     ----------
-    rig : amb_plant_sim.rig.Rig
+    rig : amb_common.rig.Rig
         Rig description.
     omega : float
         Running speed in rad/s (the period is ``2 pi / omega``).
@@ -183,7 +183,7 @@ def identify_model(
 
     Parameters
     ----------
-    rig : amb_plant_sim.rig.Rig
+    rig : amb_common.rig.Rig
     scenario : amb_plant_sim.scenario.Scenario
         Resolved scenario; its speed, noise and ``unbalance`` events are kept, every other
         event is dropped.
@@ -390,7 +390,7 @@ def run_closed_loop(
 
     Parameters
     ----------
-    rig : amb_plant_sim.rig.Rig
+    rig : amb_common.rig.Rig
     scenario : amb_plant_sim.scenario.Scenario
         Resolved scenario (constant speed).
     config : ControllerConfig
@@ -554,7 +554,7 @@ class BagRecorder:
         self._write(topics.STATUS, controller_status_msg(pipeline.status(), header))
 
     def fault_event(self, event: dict, stamp) -> None:
-        """Write a ``FaultEvent`` (fields of :class:`amb_fault_monitor.events.FaultEvent`)."""
+        """Write a ``FaultEvent`` (fields of :class:`amb_common.faults.FaultEvent`)."""
         from amb_msgs.msg import FaultEvent
         from diagnostic_msgs.msg import KeyValue
 

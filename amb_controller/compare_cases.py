@@ -53,7 +53,7 @@ class Matrix:
     """Rig, scenarios and models shared by the runs (models computed once per speed)."""
 
     def __init__(self, scenario_dir: Path, samples_per_rev: int | None, force_limit, quick):
-        from amb_plant_sim.rig import load_rig
+        from amb_common.rig import load_rig
         from amb_plant_sim.scenario import load_scenario
 
         self.rig = load_rig()

@@ -88,7 +88,7 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     """Entry point of ``amb-compare``; exit 0, or 2 on invalid arguments."""
     args = build_parser().parse_args(argv)
-    from amb_tools.paths import config_file
+    from amb_common.paths import config_file
 
     scenario_dir = args.scenario_dir or config_file("scenarios")
 

@@ -324,12 +324,12 @@ def command_timing(
     ``force_limit`` (N per axis, also the capacity) defaults to the rig's bearing capacity
     (``amb.force_limit`` of config/rig.yaml).
     """
+    from amb_common.rig import load_rig
     from amb_controller.baselines import InfluenceCoefficientController
     from amb_controller.basis import control_basis
     from amb_controller.response import PrescribedResponse
     from amb_controller.synthesis import ForceLimiter
     from amb_controller.transient import TransientController
-    from amb_plant_sim.rig import load_rig
 
     if force_limit is None:
         force_limit = load_rig().amb.force_limit

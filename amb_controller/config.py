@@ -16,9 +16,9 @@ from dataclasses import MISSING, Field, asdict, dataclass, field, fields
 
 import numpy as np
 
+from amb_common.names import N_AXES, SENSOR_NAMES
 from amb_controller.basis import QUADRATURES
 from amb_controller.errors import ControllerValueError
-from amb_tools.names import N_AXES, SENSOR_NAMES
 
 __all__ = [
     "BASELINE_CONTROLLERS",

@@ -29,7 +29,7 @@ import math
 
 import numpy as np
 
-from amb_tools.names import SENSOR_NAMES
+from amb_common.names import SENSOR_NAMES
 
 INNER = (2, 3, 4, 5)
 STEADY_REVS = 10

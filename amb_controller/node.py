@@ -93,14 +93,15 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.node import Node
 
+from amb_common import topics
+from amb_common.errors import RigError
+from amb_common.paths import config_file
+from amb_common.rig import load_rig
 from amb_controller.config import ControllerConfig, default_of, param, parameter_fields
 from amb_controller.errors import ControllerValueError
 from amb_controller.pipeline import ControllerPipeline
 from amb_controller.supervisor import Mode
 from amb_controller.synthesis import ForceLimiter
-from amb_plant_sim.errors import RigError
-from amb_plant_sim.rig import load_rig
-from amb_tools import topics
 from amb_tools.cdr import CoefficientsView, MeasurementView, read_coefficients, read_measurement
 from amb_tools.conversions import (
     MessageError,
@@ -110,7 +111,6 @@ from amb_tools.conversions import (
     stamp_seconds,
 )
 from amb_tools.node_main import ConfigurationError, descriptor, run_node
-from amb_tools.paths import config_file
 from amb_tools.streams import COMMAND_QOS, FRAME_CODES, QUAD_CODES, stream_qos
 from amb_tools.validation import SampleSequencer, check_measurement
 from amb_wavelet.frontend import FRAMES, QUADRATURES, ChannelFrontEnd

@@ -15,6 +15,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from amb_common.names import N_AXES
 from amb_controller.baselines import (
     BaselineSettings,
     complex_from_real,
@@ -29,7 +30,6 @@ from amb_controller.model_file import WaveletModel
 from amb_controller.wavelet_dynamics import wavelet_markov
 from amb_plant_sim.closed_loop import build_closed_loop
 from amb_plant_sim.simulator import PlantSimulator
-from amb_tools.names import N_AXES
 
 __all__ = ["harmonic_model", "influence_by_trials", "level_models"]
 
@@ -40,7 +40,7 @@ def harmonic_model(rig, omega: float, config, n_terms: int = 60) -> WaveletModel
 
     Parameters
     ----------
-    rig : amb_plant_sim.rig.Rig
+    rig : amb_common.rig.Rig
         Rig description.
     omega : float
         Running speed in rad/s.
@@ -82,7 +82,7 @@ def influence_by_trials(
 
     Parameters
     ----------
-    rig : amb_plant_sim.rig.Rig
+    rig : amb_common.rig.Rig
     scenario : amb_plant_sim.scenario.Scenario
         Resolved scenario.
     config : ControllerConfig
@@ -138,7 +138,7 @@ def level_models(rig, omega: float, config, route: str = "fe", scenario=None,
 
     Parameters
     ----------
-    rig : amb_plant_sim.rig.Rig
+    rig : amb_common.rig.Rig
     omega : float
         Running speed in rad/s.
     config : ControllerConfig

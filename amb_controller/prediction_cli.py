@@ -119,7 +119,7 @@ def coefficient_stream(
         (start-up of long wavelets), and the labels (``p1/q1/even/c0``...).
 
     """
-    from amb_plant_sim.rig import load_rig
+    from amb_common.rig import load_rig
     from amb_wavelet.analysis import AnalysisFilterbank
     from amb_wavelet.frontend import FRAMES, QUADRATURES, ChannelFrontEnd
 
@@ -306,7 +306,7 @@ def level_operator(
 
     Parameters
     ----------
-    rig : amb_plant_sim.rig.Rig
+    rig : amb_common.rig.Rig
     omega : float
         rad/s.
     config : ControllerConfig
@@ -378,7 +378,7 @@ def predict_run(
 
     Parameters
     ----------
-    rig : amb_plant_sim.rig.Rig
+    rig : amb_common.rig.Rig
         For the FE-route model.
     result : amb_controller.closed_loop.RunResult
         The measured run (constant speed ``speed_hz``).
@@ -536,10 +536,10 @@ def run_prediction(
         Results per wavelet and the step time (s).
 
     """
+    from amb_common.paths import config_file
+    from amb_common.rig import load_rig
     from amb_controller.closed_loop import run_closed_loop
-    from amb_plant_sim.rig import load_rig
     from amb_plant_sim.scenario import load_scenario
-    from amb_tools.paths import config_file
 
     rig = load_rig()
     scenario = load_scenario(

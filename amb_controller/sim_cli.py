@@ -137,6 +137,7 @@ def run(args) -> dict:
     """Run ``amb-sim`` with parsed arguments; return the metrics written."""
     from dataclasses import replace
 
+    from amb_common.rig import load_rig
     from amb_controller.closed_loop import (
         BagRecorder,
         fe_model,
@@ -145,7 +146,6 @@ def run(args) -> dict:
     )
     from amb_controller.metrics import compute_metrics
     from amb_controller.model_file import WaveletModel
-    from amb_plant_sim.rig import load_rig
     from amb_plant_sim.scenario import load_scenario, resolve_samples_per_rev
 
     t0 = time.perf_counter()

@@ -108,7 +108,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not files:
         print(f"no *.yaml scenario files in {folder}", file=sys.stderr)
         return 2
-    from amb_plant_sim.rig import load_rig
+    from amb_common.rig import load_rig
 
     rig = load_rig(args.rig) if args.rig else load_rig()
     wavelets = [w.strip() for w in args.wavelet.split(",")] if args.wavelet else [None]

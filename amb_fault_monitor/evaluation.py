@@ -21,7 +21,7 @@ A fault scenario is an ``amb_plant_sim`` scenario file (speed, duration, noise, 
     monitor: {wavelet: db2}                 # optional MonitorConfig / filterbank overrides
 
 ``expect: []`` (or no ``expect``) declares a healthy run: every event is a false alarm. The
-``fault`` names are those of :class:`~amb_fault_monitor.events.FaultType`. ``from: contact``
+``fault`` names are those of :class:`~amb_common.faults.FaultType`. ``from: contact``
 takes the true onset from the simulator's truth (first sample after a contact force), so
 contact cases need no guessed time; the run must then contain a contact or the case is
 reported as ``NO_TRUTH``. To add a case, copy a file, change the events and the
@@ -54,9 +54,9 @@ from typing import Any
 import numpy as np
 import yaml
 
+from amb_common.faults import FaultEvent, FaultType
 from amb_fault_monitor.config import MonitorConfig
 from amb_fault_monitor.errors import FaultMonitorError
-from amb_fault_monitor.events import FaultEvent, FaultType
 from amb_fault_monitor.monitor import FaultMonitor
 from amb_fault_monitor.records import FilterbankAdapter
 from amb_wavelet.filters import get_filters
@@ -187,7 +187,7 @@ def simulate_case(
     ----------
     path : str or Path
         Fault scenario file (module docstring).
-    rig : amb_plant_sim.rig.Rig
+    rig : amb_common.rig.Rig
     samples_per_rev : int, optional
         Overrides the file (default 32).
     seed : int

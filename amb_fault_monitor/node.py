@@ -80,16 +80,17 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.serialization import serialize_message
 
+from amb_common import topics
+from amb_common.errors import RigError
+from amb_common.faults import FaultEvent, FaultType
+from amb_common.names import N_SENSORS
 from amb_fault_monitor.blackbox import BlackBox
 from amb_fault_monitor.config import MonitorConfig
 from amb_fault_monitor.errors import FaultMonitorError, RecordError
 from amb_fault_monitor.event_log import EventLog
-from amb_fault_monitor.events import FaultEvent, FaultType
 from amb_fault_monitor.monitor import FaultMonitor
 from amb_fault_monitor.records import CoefficientSet, SampleCoefficients
 from amb_fault_monitor.trips import SynchronousAmplitude, TripMonitor, clearance_levels
-from amb_plant_sim.errors import RigError
-from amb_tools import topics
 from amb_tools.conversions import (
     MessageError,
     check_finite,
@@ -98,7 +99,6 @@ from amb_tools.conversions import (
     stamp,
     stamp_seconds,
 )
-from amb_tools.names import N_SENSORS
 from amb_tools.node_main import ConfigurationError, descriptor, run_node
 from amb_tools.streams import stream_qos
 from amb_tools.validation import SampleSequencer, check_measurement
@@ -376,7 +376,7 @@ class FaultMonitorNode(Node):
 
     def _rig_levels(self) -> None:
         """Default trip levels from the clearances of the rig file (``rig`` parameter)."""
-        from amb_plant_sim.rig import load_rig
+        from amb_common.rig import load_rig
 
         path = self.get_parameter("rig").value
         try:

@@ -33,9 +33,9 @@ from typing import Any
 import numpy as np
 import yaml
 
+from amb_common.rig import Rig
 from amb_plant_sim.errors import ScenarioError
 from amb_plant_sim.events import Event, event_from_dict
-from amb_plant_sim.rig import Rig
 
 ROLES = ("first_critical", "second_critical", "third_critical", "fourth_critical")
 

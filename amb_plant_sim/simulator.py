@@ -31,6 +31,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
+from amb_common.names import AXIS_NAMES
+from amb_common.rig import Rig
 from amb_plant_sim import amb as amb_law
 from amb_plant_sim.closed_loop import build_plant
 from amb_plant_sim.contact import contact_forces
@@ -44,10 +46,8 @@ from amb_plant_sim.events import (
     sensor_channel,
 )
 from amb_plant_sim.pid import pid_state_space
-from amb_plant_sim.rig import Rig
 from amb_plant_sim.rotor import build_rotor
 from amb_plant_sim.scenario import Scenario
-from amb_tools.names import AXIS_NAMES
 
 
 @dataclass

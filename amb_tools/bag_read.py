@@ -22,14 +22,14 @@ from pathlib import Path
 
 import numpy as np
 
-from amb_tools.bag_types import typestore
-from amb_tools.topics import (
+from amb_common.topics import (
     COEFFICIENTS,
     COMMAND,
     FAULT_EVENTS,
     MEASUREMENT,
     STATUS,
 )
+from amb_tools.bag_types import typestore
 
 #: Topics a complete report uses (``/diagnostics`` is counted, not drawn).
 EXPECTED_TOPICS = (MEASUREMENT, COEFFICIENTS, COMMAND, STATUS, FAULT_EVENTS)
@@ -190,7 +190,7 @@ class BagData:
         From the last ``ControllerStatus``: ``controller``, ``mode``, ``delay_periods``,
         ``commands_sent``, ``commands_late``; empty if no status.
     fault_events : list of dict
-        One per ``FaultEvent`` (fields as :meth:`amb_fault_monitor.events.FaultEvent.to_dict`).
+        One per ``FaultEvent`` (fields as :meth:`amb_common.faults.FaultEvent.to_dict`).
     notes : list of str
         What could not be read and why.
     """

@@ -16,7 +16,7 @@ from array import array
 import numpy as np
 from builtin_interfaces.msg import Time
 
-from amb_tools.names import N_AXES, N_SENSORS, SENSOR_NAMES
+from amb_common.names import N_AXES, N_SENSORS, SENSOR_NAMES
 
 
 class MessageError(ValueError):

@@ -34,9 +34,9 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
-from amb_tools import topics
+from amb_common import topics
+from amb_common.names import AXIS_NAMES, SENSOR_NAMES
 from amb_tools.bag_read import BagData
-from amb_tools.names import AXIS_NAMES, SENSOR_NAMES
 
 DPI = 110
 UM = 1e6

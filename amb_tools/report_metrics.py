@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from amb_tools import topics
+from amb_common import topics
 from amb_tools.bag_read import BagData
 
 #: amb-sim keys that a bag cannot reproduce, and why.
@@ -83,8 +83,8 @@ def scenario_fault(path: str | Path) -> tuple[float | None, float, str]:
         Onset of the first fault event in s (``None`` if the scenario has none), running speed
         in Hz (speed role resolved on ``config/rig.yaml``), scenario name.
     """
+    from amb_common.rig import load_rig
     from amb_controller.closed_loop import FAULT_KINDS
-    from amb_plant_sim.rig import load_rig
     from amb_plant_sim.scenario import load_scenario
 
     scenario = load_scenario(path, load_rig())

@@ -24,7 +24,7 @@ from pathlib import Path
 
 import yaml
 
-from amb_tools.paths import config_file
+from amb_common.paths import config_file
 
 INNER = ("x2", "y2", "x3", "y3")
 OPS = {"<=": operator.le, ">=": operator.ge}

@@ -22,8 +22,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from amb_common import topics
 from amb_plant_sim.scenario import load_scenario
-from amb_tools import topics
 
 __all__ = ["NODES", "NODE_MODULES", "param_text", "ros_arguments", "run_parameters"]
 
@@ -56,7 +56,7 @@ def run_parameters(
     Parameters
     ----------
     scenario : pathlib.Path
-        The scenario file (:func:`amb_tools.paths.scenario_file`).
+        The scenario file (:func:`amb_common.paths.scenario_file`).
     nodes : tuple of str
         The nodes started (a subset of :data:`NODES`; ``plant_sim`` among them).
     controller, start_mode, model_file, model_file_out : str

@@ -36,7 +36,7 @@ from rcl_interfaces.msg import (
 )
 from rclpy.node import Node
 
-from amb_tools import topics
+from amb_common import topics
 from amb_tools.cdr import MeasurementView, read_measurement
 from amb_tools.conversions import MessageError, coefficients_bytes, stamp_seconds
 from amb_tools.node_main import ConfigurationError, descriptor, run_node

@@ -28,7 +28,7 @@ from pathlib import Path
 
 import yaml
 
-from amb_tools import topics
+from amb_common import topics
 
 
 def rss_kib(pid: int) -> int:

@@ -19,7 +19,7 @@ from launch.substitutions import LaunchConfiguration, PathJoinSubstitution
 from launch_ros.actions import Node
 from launch_ros.substitutions import FindPackageShare
 
-from amb_tools.paths import scenario_file
+from amb_common.paths import scenario_file
 from amb_tools.system import NODES, run_parameters
 from launch import LaunchDescription
 

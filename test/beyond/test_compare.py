@@ -222,9 +222,9 @@ def test_residual_after_1x_is_the_third_harmonic_left_on_a_1x_orbit():
 def test_model_radius_predicts_the_third_critical_divergence_and_8_sensor_stability():
     # reference: the simulator, in which every inner-sensor eq.-8.10 controller diverges at
     # the third critical speed (amb-compare: 35.9 mm) and the 8-sensor one does not
+    from amb_common.paths import config_file
     from amb_controller.compare_cases import Matrix
     from amb_controller.compare_runs import model_radius
-    from amb_tools.paths import config_file
 
     matrix = Matrix(config_file("scenarios"), 32, None, True)
     assert model_radius(matrix, "wavelet_i1", "sync_150N_3rd") > 1.0

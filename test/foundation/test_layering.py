@@ -88,15 +88,15 @@ def test_allowed_imports_pass(tmp_path: Path) -> None:
     _write(
         tmp_path,
         {
-            "amb_plant_sim/rig.py": "",
-            "amb_wavelet/synthesis.py": "from amb_plant_sim.rig import load_rig\n",
+            "amb_common/rig.py": "",
+            "amb_wavelet/synthesis.py": "from amb_common.rig import load_rig\n",
             "amb_controller/transient.py": "from amb_wavelet.synthesis import x\n",
             "amb_controller/node.py": "import rclpy\nfrom amb_controller import transient\n",
             "amb_tools/run_cli.py": "import amb_controller.node\n",
         },
     )
     assert violations(module_imports(tmp_path)) == []
-    assert [layer_of(m) for m in ("amb_plant_sim.rig", "amb_wavelet.synthesis")] == [
+    assert [layer_of(m) for m in ("amb_common.rig", "amb_wavelet.synthesis")] == [
         "vocabulary",
         "core",
     ]

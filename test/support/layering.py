@@ -21,17 +21,24 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
-PACKAGES = ("amb_tools", "amb_wavelet", "amb_plant_sim", "amb_controller", "amb_fault_monitor")
+PACKAGES = (
+    "amb_common",
+    "amb_tools",
+    "amb_wavelet",
+    "amb_plant_sim",
+    "amb_controller",
+    "amb_fault_monitor",
+)
 LAYERS = ("vocabulary", "core", "ros", "application")
 #: The part whose core the other cores may use.
 SHARED_CORE = "amb_wavelet"
 
 VOCABULARY = {
-    "amb_tools.paths",
-    "amb_tools.topics",
-    "amb_tools.names",
-    "amb_plant_sim.rig",
-    "amb_fault_monitor.events",
+    "amb_common.paths",
+    "amb_common.topics",
+    "amb_common.names",
+    "amb_common.rig",
+    "amb_common.faults",
 }
 ROS = {
     "amb_tools.conversions",

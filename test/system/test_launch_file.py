@@ -17,8 +17,8 @@ from pathlib import Path
 
 import pytest
 
+from amb_common.paths import scenario_file
 from amb_plant_sim.errors import ScenarioError
-from amb_tools.paths import scenario_file
 from amb_tools.system import NODES, run_parameters
 
 ROOT = Path(__file__).resolve().parents[2]
