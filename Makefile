@@ -15,7 +15,7 @@ test: bootstrap
 	@$(ENV) && ROS_PYTHON_CHECK_FIELDS=1 python -m pytest $(PYTEST_ARGS)
 
 reproduce: bootstrap
-	@$(ENV) && python -m amb_tools.reproduce --out out/reproduce
+	@$(ENV) && python -m amb_apps.reproduce --out out/reproduce
 
 lint: bootstrap
 	@$(ENV) && ruff check . && ruff format --check .

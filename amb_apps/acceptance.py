@@ -1,14 +1,14 @@
 """
 Thesis acceptance runs (sections 7.4.2 and 8.5.3) on the FE plant; prints JSON.
 
-``python -m amb_controller.acceptance [--quick]``: mass loss at the first two critical
+``python -m amb_apps.acceptance [--quick]``: mass loss at the first two critical
 speeds (PID only vs transient w = v = 0.75, 0.65, 0.9, linear 0.2; delay 2) and the
 chapter-7 comparison at 15 Hz (proportional k = 0.21 vs moderated k = 0.34, delay 3) with
 the largest acceptable gain of each (peak |x| <= 0.5 mm at every sensor after the fault,
 bisection). Models: the chapter-6 FE route. ``--investigate`` compares the 1 x coefficient
 per period of each prescribed response with the nominal loop of eq. 8.11 (below). The (w, v)
-map and the linear-rate limit are in :mod:`amb_controller.acceptability`, the 22 Hz
-prediction in :mod:`amb_controller.prediction_cli`.
+map and the linear-rate limit are in :mod:`amb_apps.acceptability`, the 22 Hz
+prediction in :mod:`amb_apps.prediction_cli`.
 
 Nominal response with delay (eq. 8.11)
 --------------------------------------
@@ -29,8 +29,8 @@ from dataclasses import replace
 
 import numpy as np
 
+from amb_apps.closed_loop import fe_model, run_closed_loop
 from amb_common.paths import config_file
-from amb_controller.closed_loop import fe_model, run_closed_loop
 from amb_controller.config import ControllerConfig
 from amb_controller.metrics import compute_metrics, inner_summary
 
@@ -190,7 +190,7 @@ def main(argv=None) -> int:
     """Print the acceptance numbers as JSON."""
     from amb_common.rig import load_rig
 
-    ap = argparse.ArgumentParser(prog="python -m amb_controller.acceptance")
+    ap = argparse.ArgumentParser(prog="python -m amb_apps.acceptance")
     ap.add_argument("--quick", action="store_true", help="fewer bisection steps")
     ap.add_argument(
         "--investigate",

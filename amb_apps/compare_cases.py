@@ -1,6 +1,6 @@
 """The matrix of ``amb-compare``: scenarios, controller rows, and the rig and models they share.
 
-:data:`SCENARIOS` and :data:`SPECS` name the cases (:mod:`amb_controller.compare_cli` says what
+:data:`SCENARIOS` and :data:`SPECS` name the cases (:mod:`amb_apps.compare_cli` says what
 each is); :class:`Matrix` loads the rig and the scenarios once, builds each row's
 ``ControllerConfig`` (same force limit for every row, the rig's bearing capacity unless given)
 and computes each row's model once per speed.
@@ -86,8 +86,8 @@ class Matrix:
 
     def model(self, spec: Spec, scenario, config, speed_hz: float | None = None):
         """Return (and cache) the model of ``spec`` identified at ``speed_hz``."""
-        from amb_controller.closed_loop import fe_model
-        from amb_controller.plant_models import harmonic_model, influence_by_trials
+        from amb_apps.closed_loop import fe_model
+        from amb_apps.plant_models import harmonic_model, influence_by_trials
 
         if spec.model == "none":
             return None
@@ -114,7 +114,7 @@ class Matrix:
 
     def run(self, spec: Spec, key: str, model=None, speed_hz=None, **kw):
         """Run ``spec`` on scenario ``key``; return the RunResult."""
-        from amb_controller.closed_loop import run_closed_loop
+        from amb_apps.closed_loop import run_closed_loop
 
         scenario = self.scenarios[key]
         config = self.config(spec, scenario)

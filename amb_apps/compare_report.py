@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from amb_controller.compare_cases import (
+from amb_apps.compare_cases import (
     BASELINE_ROWS,
     CONTROLLERS,
     HOLD_RAMP_PERIODS,

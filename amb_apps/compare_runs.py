@@ -1,6 +1,6 @@
 """Running the ``amb-compare`` matrix and the metrics of each run.
 
-:func:`comparison` runs every row of :mod:`amb_controller.compare_cases` on every scenario,
+:func:`comparison` runs every row of :mod:`amb_apps.compare_cases` on every scenario,
 :func:`robustness` the rows with perturbed models, :func:`command_timing` times one command.
 
 Metrics (per run; inner sensors x2, y2, x3, y3 unless said)
@@ -32,7 +32,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from amb_controller.compare_cases import (
+from amb_apps.compare_cases import (
     CONTROLLERS,
     HOLD_RAMP_PERIODS,
     MASS_LOSS,
@@ -46,7 +46,7 @@ from amb_controller.metrics import INNER, steady_sync_amplitude
 
 def run_metrics(result, speed_hz: float, pid_steady: float | None = None) -> dict:
     """
-    Return the comparison metrics of one :class:`~amb_controller.closed_loop.RunResult`.
+    Return the comparison metrics of one :class:`~amb_apps.closed_loop.RunResult`.
 
     Parameters
     ----------
@@ -169,8 +169,8 @@ def harmonic_content(result, revs: int = 10) -> dict:
 
 def run_multilevel(matrix: Matrix, name: str, key: str):
     """Run ``wavelet_124_coupled`` or ``wavelet_124_perlevel`` on scenario ``key``."""
+    from amb_apps.closed_loop import run_closed_loop
     from amb_controller.basis import control_basis
-    from amb_controller.closed_loop import run_closed_loop
     from amb_controller.multilevel import LevelResponse, MultiLevelController, block_diagonal_model
     from amb_controller.pipeline import selected_measurement_basis
 
@@ -211,7 +211,7 @@ def comparison(
     matrix: Matrix, controllers=CONTROLLERS, progress=None, multilevel: bool = False
 ) -> dict:
     """Run every controller on every scenario; return ``{scenario: {controller: metrics}}``."""
-    from amb_controller.closed_loop import run_closed_loop
+    from amb_apps.closed_loop import run_closed_loop
 
     table: dict = {}
     traces: dict = {}

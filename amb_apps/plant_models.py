@@ -15,6 +15,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from amb_apps.closed_loop import fe_model, identify_model
 from amb_common.names import N_AXES
 from amb_controller.baselines import (
     BaselineSettings,
@@ -24,7 +25,6 @@ from amb_controller.baselines import (
     fourier_model,
     real_gain,
 )
-from amb_controller.closed_loop import fe_model, identify_model
 from amb_controller.errors import ControllerValueError
 from amb_controller.model_file import WaveletModel
 from amb_controller.wavelet_dynamics import wavelet_markov
@@ -144,9 +144,9 @@ def level_models(rig, omega: float, config, route: str = "fe", scenario=None,
     config : ControllerConfig
         Levels, wavelet, samples per period, sensors, inverse order.
     route : str
-        ``fe`` (chapter-6 route, :func:`amb_controller.closed_loop.fe_model` with
+        ``fe`` (chapter-6 route, :func:`amb_apps.closed_loop.fe_model` with
         ``levels = (p,)``) or ``identify`` (section 6.4 step identification on the
-        simulated rig with only level p stepped, :func:`~amb_controller.closed_loop.
+        simulated rig with only level p stepped, :func:`~amb_apps.closed_loop.
         identify_model`; needs ``scenario``).
     scenario : amb_plant_sim.scenario.Scenario, optional
         For ``identify``: speed, unbalance and noise of the identification run.

@@ -9,7 +9,7 @@ assembled as the ``wavelet_controller`` node does (:class:`ControllerPipeline`, 
 sensors, levels p = 1, 2, 3 = 1 x, 2 x, 4 x, both quadratures), and each level is passed
 through its own steady-state predictor ``W = S Q`` with ``S = Gamma (G B_u)^*`` (eq. 7.2,
 7.6; :func:`level_operator`), from the FE-route model of that level
-(:func:`~amb_controller.closed_loop.fe_model`, 5th-order inverse as in section 7.4.2, with
+(:func:`~amb_apps.closed_loop.fe_model`, 5th-order inverse as in section 7.4.2, with
 the ``B(1) G(1) = I`` weight of :mod:`amb_controller.inverse`, truncated-SVD inverse of the
 rank-deficient level models, ``RANK_RTOL``). The inverted model is that of all 8 sensors by
 default, as in section 6.4 (:func:`level_operator`).
@@ -37,7 +37,7 @@ after the step from which ``|X_k - X_final| <= 0.05 |X_final|`` for every later 
 amplitudes are compared separately, ``amplitude_ratio``). Times are measured from the
 step, at the end of the period (when the value exists).
 
-Command: ``python -m amb_controller.prediction_cli --out DIR [--json] [--inverse-sensors
+Command: ``python -m amb_apps.prediction_cli --out DIR [--json] [--inverse-sensors
 inner|all]`` writes
 ``prediction.json`` and, per wavelet, ``prediction_<wavelet>_signal.png`` (figure 7.2 style)
 and ``prediction_<wavelet>_coefficients.png`` (figures 7.3-7.5 style).
@@ -323,7 +323,7 @@ def level_operator(
         the output (all-sensor) labels.
 
     """
-    from amb_controller.closed_loop import fe_model
+    from amb_apps.closed_loop import fe_model
     from amb_controller.inverse import dc_gain, series_product
 
     if inverse_sensors not in INVERSE_SENSORS:
@@ -380,7 +380,7 @@ def predict_run(
     ----------
     rig : amb_common.rig.Rig
         For the FE-route model.
-    result : amb_controller.closed_loop.RunResult
+    result : amb_apps.closed_loop.RunResult
         The measured run (constant speed ``speed_hz``).
     speed_hz : float
         Running speed, Hz.
@@ -536,9 +536,9 @@ def run_prediction(
         Results per wavelet and the step time (s).
 
     """
+    from amb_apps.closed_loop import run_closed_loop
     from amb_common.paths import config_file
     from amb_common.rig import load_rig
-    from amb_controller.closed_loop import run_closed_loop
     from amb_plant_sim.scenario import load_scenario
 
     rig = load_rig()
@@ -560,7 +560,7 @@ def run_prediction(
 def main(argv=None) -> int:
     """Predict, print the settling times, write PNGs and ``prediction.json``."""
     ap = argparse.ArgumentParser(
-        prog="python -m amb_controller.prediction_cli",
+        prog="python -m amb_apps.prediction_cli",
         description="Steady-state prediction (thesis 7.4.1) on the 22 Hz step synchronous force.",
     )
     ap.add_argument("--out", type=Path, required=True, help="output folder (created)")

@@ -1,6 +1,6 @@
 """``metrics.json`` of a bag with the functions ``amb-sim`` uses (:mod:`amb_controller.metrics`).
 
-The bag's arrays are put in the shape of a :class:`amb_controller.closed_loop.RunResult` and
+The bag's arrays are put in the shape of a :class:`amb_apps.closed_loop.RunResult` and
 passed to :func:`amb_controller.metrics.compute_metrics`, so that the report of an ``amb-sim``
 bag gives the same numbers as ``amb-sim``'s own ``metrics.json``. What a bag cannot hold is
 said in the JSON (``not_in_bag``):
@@ -56,7 +56,7 @@ class FaultTime:
 
 @dataclass
 class _BagResult:
-    """The :class:`~amb_controller.closed_loop.RunResult` fields compute_metrics reads."""
+    """The :class:`~amb_apps.closed_loop.RunResult` fields compute_metrics reads."""
 
     time: np.ndarray
     displacement: np.ndarray
@@ -83,8 +83,8 @@ def scenario_fault(path: str | Path) -> tuple[float | None, float, str]:
         Onset of the first fault event in s (``None`` if the scenario has none), running speed
         in Hz (speed role resolved on ``config/rig.yaml``), scenario name.
     """
+    from amb_apps.closed_loop import FAULT_KINDS
     from amb_common.rig import load_rig
-    from amb_controller.closed_loop import FAULT_KINDS
     from amb_plant_sim.scenario import load_scenario
 
     scenario = load_scenario(path, load_rig())

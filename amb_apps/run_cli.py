@@ -45,10 +45,10 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from amb_apps.system import NODE_MODULES, NODES, ros_arguments, run_parameters
 from amb_common import topics
 from amb_common.paths import config_file, scenario_file
 from amb_plant_sim.errors import ScenarioError
-from amb_tools.system import NODE_MODULES, NODES, ros_arguments, run_parameters
 
 INSTALL_LIB = Path(__file__).resolve().parent.parent / "install" / "amb_wavelet_control" / "lib"
 #: Nice value added to the nodes that are not on the control loop's chain.

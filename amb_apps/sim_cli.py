@@ -7,7 +7,7 @@ r"""
             --controller transient --w 0.75 --v 0.75 --delay 2 --out runs/ml1
 
 composes the simulated rig, the filterbank front end and the controller pipeline in the
-lock-step order of the ROS nodes (:mod:`amb_controller.closed_loop`) and writes
+lock-step order of the ROS nodes (:mod:`amb_apps.closed_loop`) and writes
 
 * ``DIR/bag``: rosbag2 (MCAP) with ``/amb/measurement``, ``/amb/wavelet/coefficients``,
   ``/amb/control/command``, ``/amb/control/status`` and ``/amb/fault/events`` (with
@@ -137,13 +137,13 @@ def run(args) -> dict:
     """Run ``amb-sim`` with parsed arguments; return the metrics written."""
     from dataclasses import replace
 
-    from amb_common.rig import load_rig
-    from amb_controller.closed_loop import (
+    from amb_apps.closed_loop import (
         BagRecorder,
         fe_model,
         identify_model,
         run_closed_loop,
     )
+    from amb_common.rig import load_rig
     from amb_controller.metrics import compute_metrics
     from amb_controller.model_file import WaveletModel
     from amb_plant_sim.scenario import load_scenario, resolve_samples_per_rev
@@ -162,8 +162,8 @@ def run(args) -> dict:
     source = "none"
     baseline = None
     if config.controller in ("synchronous", "harmonic"):
+        from amb_apps.plant_models import harmonic_model, influence_by_trials
         from amb_controller.baselines import BaselineSettings
-        from amb_controller.plant_models import harmonic_model, influence_by_trials
 
         baseline = BaselineSettings(window=args.window)
         if args.model == "fe":

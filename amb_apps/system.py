@@ -1,7 +1,7 @@
 """
 The node set of one run and the parameters a run sets on each node.
 
-``amb-run`` (:mod:`amb_tools.run_cli`) and the launch file (``launch/amb_system.launch.py``)
+``amb-run`` (:mod:`amb_apps.run_cli`) and the launch file (``launch/amb_system.launch.py``)
 start the same five nodes with the same params file and build their per-run overrides here, so
 that the two ways of starting the system cannot drift apart (a test of
 :func:`run_parameters` covers both). What a run sets on top of the params file:

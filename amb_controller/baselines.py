@@ -33,7 +33,7 @@ per window of ``window`` periods from the window mean ``Y_j``::
     U_{j+1} = U_j - a (T^H T + R)^-1 T^H Y_j                                    (B.1)
 
 with ``T`` the steady-state influence coefficients (complex, sensors x axes) identified by trial
-injections (:func:`~amb_controller.plant_models.influence_by_trials`: each axis in turn driven
+injections (:func:`~amb_apps.plant_models.influence_by_trials`: each axis in turn driven
 with a known 1 x force, the change of the steady 1 x response measured), ``a`` the convergence
 gain (``ControllerConfig.gain``) and ``R = rho ||T||_F^2 / n_u I``. On a plant ``Y = T_p U + D``
 the update error obeys ``E_{j+1} = (I - a (T^H T + R)^-1 T^H T_p) E_j``: it converges iff that
@@ -74,7 +74,7 @@ prescribed closed-loop decay ``alpha(z)`` of a step disturbance::
 which is the thesis's eq. 8.10 (with eq. 8.1, ``U = -L Q``) with the Haar coefficients
 replaced by the 1 x Fourier ones. It is realised with
 :class:`~amb_controller.transient.TransientController` on the Markov parameters of ``G_h``
-(:func:`~amb_controller.plant_models.harmonic_model`, exact sampled projection of the FE
+(:func:`~amb_apps.plant_models.harmonic_model`, exact sampled projection of the FE
 model's PID closed loop, :func:`~amb_controller.wavelet_dynamics.wavelet_markov`).
 
 What eq. B.2 rests on, and what could not be checked: the thesis's own account of [3]
@@ -152,7 +152,7 @@ class BaselineSettings:
         update direction; does not change its fixed point, module docstring).
     trial_force : float
         Amplitude of the 1 x trial force per axis in N for
-        :func:`~amb_controller.plant_models.influence_by_trials`.
+        :func:`~amb_apps.plant_models.influence_by_trials`.
     trial_settle : int
         Periods waited after each trial change before averaging.
     trial_average : int
@@ -525,7 +525,7 @@ class HarmonicPipeline:
     capacity : float
         Bearing capacity in N.
     model : WaveletModel
-        From :mod:`amb_controller.plant_models`: ``harmonic_model`` (harmonic), or
+        From :mod:`amb_apps.plant_models`: ``harmonic_model`` (harmonic), or
         ``influence_by_trials`` / ``harmonic_model`` (synchronous: its steady-state gain is
         used).
     settings : BaselineSettings, optional

@@ -94,7 +94,7 @@ def settling_periods(phasor: np.ndarray, fault_period: int, band: float = SETTLE
 
 def compute_metrics(result, speed_hz: float) -> dict:
     """
-    Return the metrics of a :class:`~amb_controller.closed_loop.RunResult` (module doc).
+    Return the metrics of a :class:`~amb_apps.closed_loop.RunResult` (module doc).
 
     Parameters
     ----------

@@ -198,7 +198,7 @@ def resolve_samples_per_rev(requested: int | None, scenario: Scenario) -> int:
 
     One rule for the plant node (its ``samples_per_rev`` parameter, 0 = not set), ``amb-sim``
     (``--samples-per-rev``), ``amb-run`` and the launch file (which pass the scenario's value to
-    every node, :func:`amb_tools.system.run_parameters`).
+    every node, :func:`amb_apps.system.run_parameters`).
 
     Parameters
     ----------

@@ -8,7 +8,7 @@ read the same. Missing or empty topics are tolerated: their arrays are empty and
 listed in :attr:`BagData.missing`.
 
 The per-period 1 x wavelet phasor is rebuilt from ``/amb/wavelet/coefficients`` exactly as the
-in-process loop builds it (:class:`amb_controller.closed_loop._Loop`): for control period
+in-process loop builds it (:class:`amb_apps.closed_loop._Loop`): for control period
 ``k`` (samples ``k N .. k N + N - 1``), the last fixed-frame detail coefficient of the 1 x
 level ``j1 = log2(samples_per_rev)`` completed in that period,
 ``P_k = x_{1,1,even} + i x_{1,1,odd}`` (thesis section 4.3; the level indexing of chapters 7-8

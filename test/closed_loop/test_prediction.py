@@ -11,11 +11,8 @@ import numpy as np
 import pytest
 import pywt
 
-from amb_common.paths import config_file
-from amb_common.rig import load_rig
-from amb_controller.closed_loop import run_closed_loop
-from amb_controller.config import ControllerConfig
-from amb_controller.prediction_cli import (
+from amb_apps.closed_loop import run_closed_loop
+from amb_apps.prediction_cli import (
     DEFAULT_INVERSE_SENSORS,
     INVERSE_SENSORS,
     WAVELETS,
@@ -24,6 +21,9 @@ from amb_controller.prediction_cli import (
     settling_period,
     wrapped_weights,
 )
+from amb_common.paths import config_file
+from amb_common.rig import load_rig
+from amb_controller.config import ControllerConfig
 from amb_plant_sim.scenario import load_scenario
 
 SPR = 64

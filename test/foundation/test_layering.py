@@ -92,7 +92,7 @@ def test_allowed_imports_pass(tmp_path: Path) -> None:
             "amb_wavelet/synthesis.py": "from amb_common.rig import load_rig\n",
             "amb_controller/transient.py": "from amb_wavelet.synthesis import x\n",
             "amb_controller/node.py": "import rclpy\nfrom amb_controller import transient\n",
-            "amb_tools/run_cli.py": "import amb_controller.node\n",
+            "amb_apps/run_cli.py": "import amb_controller.node\n",
         },
     )
     assert violations(module_imports(tmp_path)) == []
@@ -100,7 +100,7 @@ def test_allowed_imports_pass(tmp_path: Path) -> None:
         "vocabulary",
         "core",
     ]
-    assert [layer_of(m) for m in ("amb_controller.node", "amb_tools.run_cli")] == [
+    assert [layer_of(m) for m in ("amb_controller.node", "amb_apps.run_cli")] == [
         "ros",
         "application",
     ]

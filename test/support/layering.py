@@ -28,6 +28,7 @@ PACKAGES = (
     "amb_plant_sim",
     "amb_controller",
     "amb_fault_monitor",
+    "amb_apps",
 )
 LAYERS = ("vocabulary", "core", "ros", "application")
 #: The part whose core the other cores may use.
@@ -54,21 +55,21 @@ ROS = {
     "amb_fault_monitor.blackbox",  # the node's black-box bags
 }
 APPLICATION = {
-    "amb_tools.run_cli",
-    "amb_tools.report_cli",
-    "amb_tools.report_figures",
-    "amb_tools.report_metrics",
-    "amb_tools.reproduce",
-    "amb_controller.closed_loop",
-    "amb_controller.plant_models",
-    "amb_tools.system",
-    "amb_controller.acceptability",
-    "amb_controller.acceptance",
-    "amb_controller.compare_cases",  # amb-compare: the matrix (loads the rig, runs the loop)
-    "amb_controller.compare_runs",  # amb-compare: running it
-    "amb_controller.compare_report",  # amb-compare: its report
-    "amb_fault_monitor.evaluation",
-    "amb_fault_monitor.eval_figures",
+    "amb_apps.run_cli",
+    "amb_apps.report_cli",
+    "amb_apps.report_figures",
+    "amb_apps.report_metrics",
+    "amb_apps.reproduce",
+    "amb_apps.closed_loop",
+    "amb_apps.plant_models",
+    "amb_apps.system",
+    "amb_apps.acceptability",
+    "amb_apps.acceptance",
+    "amb_apps.compare_cases",  # amb-compare: the matrix (loads the rig, runs the loop)
+    "amb_apps.compare_runs",  # amb-compare: running it
+    "amb_apps.compare_report",  # amb-compare: its report
+    "amb_apps.evaluation",
+    "amb_apps.eval_figures",
     "amb_plant_sim.plots",
 }
 
