@@ -530,7 +530,7 @@ class BagRecorder:
 
     def coefficients(self, measurement, sample_index: int, omega: float, records) -> None:
         """Write the ``WaveletCoefficients`` of one sample."""
-        from amb_tools.conversions import coefficients_msg
+        from amb_wavelet.messages import coefficients_msg
 
         cfg = self.config
         msg = coefficients_msg(

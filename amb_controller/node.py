@@ -105,7 +105,6 @@ from amb_controller.synthesis import ForceLimiter
 from amb_tools.cdr import CoefficientsView, MeasurementView, read_coefficients, read_measurement
 from amb_tools.conversions import (
     MessageError,
-    coefficient_records,
     command_msg,
     controller_status_msg,
     stamp_seconds,
@@ -114,6 +113,7 @@ from amb_tools.node_main import ConfigurationError, descriptor, run_node
 from amb_tools.streams import COMMAND_QOS, FRAME_CODES, QUAD_CODES, stream_qos
 from amb_tools.validation import SampleSequencer, check_measurement
 from amb_wavelet.frontend import FRAMES, QUADRATURES, ChannelFrontEnd
+from amb_wavelet.messages import coefficient_records
 
 START_MODES = ("off", "active", "identify")
 #: Coefficient messages more than this many periods ahead of the measurements are refused.

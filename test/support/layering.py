@@ -53,6 +53,7 @@ ROS = {
     "amb_tools.bag_types",
     "amb_tools.bag_read",
     "amb_fault_monitor.blackbox",  # the node's black-box bags
+    "amb_wavelet.messages",  # the coefficient messages (filterbank records <-> amb_msgs)
 }
 APPLICATION = {
     "amb_apps.run_cli",
