@@ -46,8 +46,14 @@ from pathlib import Path
 
 import numpy as np
 
+from amb_apps.closed_loop import fe_model, run_closed_loop
+from amb_common.paths import config_file
+from amb_common.rig import load_rig
+from amb_controller.config import ControllerConfig
+from amb_controller.metrics import INNER, steady_sync_amplitude
 from amb_controller.response import PrescribedResponse
 from amb_controller.stability import exponential_stability_map, is_nominally_stable
+from amb_plant_sim.scenario import load_scenario
 
 __all__ = [
     "ACCEPTABLE",
@@ -168,8 +174,6 @@ def classify_run(result, speed_hz: float, limit: float = LIMIT) -> RunClass:
     RunClass
 
     """
-    from amb_controller.metrics import INNER, steady_sync_amplitude
-
     x = np.asarray(result.displacement)
     after = result.time >= result.fault_time - 1e-12
     if not after.any():  # stopped before the fault
@@ -235,12 +239,6 @@ class SweepSetup:
         SweepSetup
 
         """
-        from amb_apps.closed_loop import fe_model
-        from amb_common.paths import config_file
-        from amb_common.rig import load_rig
-        from amb_controller.config import ControllerConfig
-        from amb_plant_sim.scenario import load_scenario
-
         rig = load_rig()
         path = scenario_path or config_file("scenarios/mass_loss_first_critical.yaml")
         scenario = load_scenario(path, rig)
@@ -293,8 +291,6 @@ def run_until_runaway(rig, scenario, config, model):
         Over the periods run.
 
     """
-    from amb_apps.closed_loop import run_closed_loop
-
     return run_closed_loop(rig, scenario, config, model, 0, stop=_runaway)
 
 

@@ -31,8 +31,13 @@ import numpy as np
 
 from amb_apps.closed_loop import fe_model, run_closed_loop
 from amb_common.paths import config_file
+from amb_common.rig import load_rig
 from amb_controller.config import ControllerConfig
+from amb_controller.inverse import pseudo_inverse_series
 from amb_controller.metrics import compute_metrics, inner_summary
+from amb_controller.pipeline import prescribed_response
+from amb_controller.stability import characteristic_polynomial, nominal_poles
+from amb_plant_sim.scenario import load_scenario
 
 LIMIT = 0.5e-3  # m, the thesis's acceptability bound (sections 7.4.2, 8.5.1)
 
@@ -47,8 +52,6 @@ def _run(rig, scenario, cfg, model):
 
 def mass_loss(rig, name: str) -> dict:
     """PID only and the transient controller variants of section 8.5.3."""
-    from amb_plant_sim.scenario import load_scenario
-
     scenario = load_scenario(config_file(f"scenarios/{name}.yaml"), rig)
     cfg = ControllerConfig(samples_per_rev=64, delay_periods=2)
     model = fe_model(rig, 2 * math.pi * scenario.speed_hz, cfg)
@@ -68,8 +71,6 @@ def mass_loss(rig, name: str) -> dict:
 
 def chapter7(rig, quick: bool) -> dict:
     """Proportional vs moderated at 15 Hz, 196 g cm, delay 3; largest acceptable gains."""
-    from amb_plant_sim.scenario import load_scenario
-
     scenario = load_scenario(config_file("scenarios/mass_loss_196gcm_15Hz.yaml"), rig)
     cfg = ControllerConfig(samples_per_rev=64, delay_periods=3, inverse_order=5)
     model = fe_model(rig, 2 * math.pi * scenario.speed_hz, cfg)
@@ -107,8 +108,6 @@ def nominal_transfer(alpha, delay: int, n: int) -> np.ndarray:
     """
     from scipy import signal
 
-    from amb_controller.stability import characteristic_polynomial
-
     # alpha (z-1) z^i / den_cl, both multiplied by z^-(i+1) den(z^-1): numerator
     # a(z^-1) (1 - z^-1) with a = alpha.num (ascending, a_0 = 0) shifted back one period.
     num = np.convolve(alpha.num[1:], [1.0, -1.0])
@@ -137,11 +136,6 @@ def investigate(rig, gain_error: float = 1.0) -> dict:
         through zero = "flutter"), sign changes, and both series (x2, first 20 periods).
 
     """
-    from amb_controller.inverse import pseudo_inverse_series
-    from amb_controller.pipeline import prescribed_response
-    from amb_controller.stability import nominal_poles
-    from amb_plant_sim.scenario import load_scenario
-
     scenario = load_scenario(config_file("scenarios/mass_loss_first_critical.yaml"), rig)
     cfg = ControllerConfig(samples_per_rev=64, delay_periods=2)
     model = fe_model(rig, 2 * math.pi * scenario.speed_hz, cfg)
@@ -188,8 +182,6 @@ def investigate(rig, gain_error: float = 1.0) -> dict:
 
 def main(argv=None) -> int:
     """Print the acceptance numbers as JSON."""
-    from amb_common.rig import load_rig
-
     ap = argparse.ArgumentParser(prog="python -m amb_apps.acceptance")
     ap.add_argument("--quick", action="store_true", help="fewer bisection steps")
     ap.add_argument(

@@ -61,6 +61,7 @@ from pathlib import Path
 from amb_apps.compare_cases import Matrix
 from amb_apps.compare_report import figures, markdown
 from amb_apps.compare_runs import command_timing, comparison, robustness
+from amb_common.paths import config_file
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -88,7 +89,6 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     """Entry point of ``amb-compare``; exit 0, or 2 on invalid arguments."""
     args = build_parser().parse_args(argv)
-    from amb_common.paths import config_file
 
     scenario_dir = args.scenario_dir or config_file("scenarios")
 

@@ -17,6 +17,7 @@ from amb_apps.compare_cases import (
     HOLD_RAMP_PERIODS,
     MARGINAL_RADIUS,
 )
+from amb_controller.stability import exponential_stability_map
 
 
 def _fmt(value, scale=1.0, digits=1):
@@ -227,8 +228,6 @@ def figures(result: dict, out: Path) -> list[Path]:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-
-    from amb_controller.stability import exponential_stability_map
 
     paths = []
     table = result["table"]

@@ -34,6 +34,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from amb_apps.evaluation import run_case, simulate_case, summarise
+from amb_common.rig import load_rig
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -108,7 +109,6 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not files:
         print(f"no *.yaml scenario files in {folder}", file=sys.stderr)
         return 2
-    from amb_common.rig import load_rig
 
     rig = load_rig(args.rig) if args.rig else load_rig()
     wavelets = [w.strip() for w in args.wavelet.split(",")] if args.wavelet else [None]
@@ -119,6 +119,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         except OSError as exc:
             print(f"--figures {fig_dir}: {exc}", file=sys.stderr)
             return 2
+        # heavy, optional: matplotlib, only with --figures
         from amb_apps import eval_figures
     written: list[Path] = []
     results: dict[str | None, list] = {w: [] for w in wavelets}

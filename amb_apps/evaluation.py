@@ -47,6 +47,7 @@ the scenario, not the method, is then at fault (place faults later).
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
@@ -59,6 +60,8 @@ from amb_fault_monitor.config import MonitorConfig
 from amb_fault_monitor.errors import FaultMonitorError
 from amb_fault_monitor.monitor import FaultMonitor
 from amb_fault_monitor.records import FilterbankAdapter
+from amb_plant_sim.scenario import scenario_from_dict
+from amb_plant_sim.simulator import PlantSimulator
 from amb_wavelet.filters import get_filters
 from amb_wavelet.levels import support_length
 
@@ -197,11 +200,6 @@ def simulate_case(
     -------
     SimulatedCase
     """
-    import time
-
-    from amb_plant_sim.scenario import scenario_from_dict
-    from amb_plant_sim.simulator import PlantSimulator
-
     scen_d, expect, mon_d = load_case(path)
     scenario = scenario_from_dict(scen_d, rig)
     spr = int(samples_per_rev or scenario.samples_per_rev or 32)
@@ -250,8 +248,6 @@ def run_case(
         carries ``first_contact_peak_n``, the largest force of the first simulated contact
         burst (a graze of a few tens of N may lie below the noise floor).
     """
-    import time
-
     spr = case.samples_per_rev
     mon_d = case.monitor
     wav = wavelet or mon_d.get("wavelet", "haar")

@@ -54,10 +54,16 @@ from pathlib import Path
 
 import numpy as np
 
+from amb_apps.closed_loop import fe_model, run_closed_loop
+from amb_common.paths import config_file
+from amb_common.rig import load_rig
 from amb_controller.basis import measurement_basis
 from amb_controller.config import ControllerConfig
-from amb_controller.inverse import pseudo_inverse_series
+from amb_controller.inverse import dc_gain, pseudo_inverse_series, series_product
 from amb_controller.pipeline import ControllerPipeline
+from amb_plant_sim.scenario import load_scenario
+from amb_wavelet.analysis import AnalysisFilterbank
+from amb_wavelet.frontend import FRAMES, QUADRATURES, ChannelFrontEnd
 
 __all__ = [
     "LEVELS",
@@ -119,10 +125,6 @@ def coefficient_stream(
         (start-up of long wavelets), and the labels (``p1/q1/even/c0``...).
 
     """
-    from amb_common.rig import load_rig
-    from amb_wavelet.analysis import AnalysisFilterbank
-    from amb_wavelet.frontend import FRAMES, QUADRATURES, ChannelFrontEnd
-
     x = np.asarray(displacement, dtype=float)
     if x.ndim != 2 or x.shape[1] != 8:
         raise PredictionValueError(f"displacement must have shape (n, 8), got {x.shape}")
@@ -323,9 +325,6 @@ def level_operator(
         the output (all-sensor) labels.
 
     """
-    from amb_apps.closed_loop import fe_model
-    from amb_controller.inverse import dc_gain, series_product
-
     if inverse_sensors not in INVERSE_SENSORS:
         raise PredictionValueError(
             f"inverse_sensors must be one of {sorted(INVERSE_SENSORS)}, got {inverse_sensors!r}"
@@ -536,11 +535,6 @@ def run_prediction(
         Results per wavelet and the step time (s).
 
     """
-    from amb_apps.closed_loop import run_closed_loop
-    from amb_common.paths import config_file
-    from amb_common.rig import load_rig
-    from amb_plant_sim.scenario import load_scenario
-
     rig = load_rig()
     scenario = load_scenario(
         scenario_path or config_file("scenarios/sync_force_200N_22Hz.yaml"), rig

@@ -30,7 +30,12 @@ from pathlib import Path
 
 import numpy as np
 
+from amb_apps.closed_loop import FAULT_KINDS
 from amb_common import topics
+from amb_common.names import SENSOR_NAMES
+from amb_common.rig import load_rig
+from amb_controller.metrics import INNER, compute_metrics
+from amb_plant_sim.scenario import load_scenario
 from amb_tools.bag_read import BagData
 
 #: amb-sim keys that a bag cannot reproduce, and why.
@@ -83,10 +88,6 @@ def scenario_fault(path: str | Path) -> tuple[float | None, float, str]:
         Onset of the first fault event in s (``None`` if the scenario has none), running speed
         in Hz (speed role resolved on ``config/rig.yaml``), scenario name.
     """
-    from amb_apps.closed_loop import FAULT_KINDS
-    from amb_common.rig import load_rig
-    from amb_plant_sim.scenario import load_scenario
-
     scenario = load_scenario(path, load_rig())
     faults = [e.time for e in scenario.events if e.kind in FAULT_KINDS]
     return (float(min(faults)) if faults else None), float(scenario.speed_hz), scenario.name
@@ -147,8 +148,6 @@ def bag_metrics(
         ``null`` for what a missing topic prevents, plus ``bag``, ``bag_counts``,
         ``controller``, ``fault_time_source``, ``missing_topics``, ``not_in_bag``.
     """
-    from amb_controller.metrics import SENSOR_NAMES, compute_metrics
-
     spr = data.samples_per_rev or 0
     speed = speed_hz if speed_hz is not None else data.speed_hz()
     meas = data.measurements
@@ -265,7 +264,6 @@ def inner_summary(metrics: dict) -> dict:
         after the fault at those sensors, m), ``settling`` (largest settling, revolutions),
         ``peak_wavelet_force`` (largest over both bearings, N), ``peak_total_force`` (N).
     """
-    from amb_controller.metrics import INNER, SENSOR_NAMES
 
     def worst(key):
         s = metrics.get("sensors")

@@ -36,6 +36,7 @@ Examples
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import math
 import os
 import signal
@@ -44,6 +45,10 @@ import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray
+from rclpy.executors import SingleThreadedExecutor
 
 from amb_apps.system import NODE_MODULES, NODES, ros_arguments, run_parameters
 from amb_common import topics
@@ -181,15 +186,11 @@ class _Progress:
     """Reads the nodes' /diagnostics in a node of this process (simulated time, counts)."""
 
     def __init__(self) -> None:
-        import rclpy
-        from diagnostic_msgs.msg import DiagnosticArray
-
         self.context = rclpy.Context()
         rclpy.init(context=self.context)
         self.node = rclpy.create_node("amb_run_progress", context=self.context)
         self.statuses: dict[str, dict[str, str]] = {}  # status name -> its last key values
         self.node.create_subscription(DiagnosticArray, topics.DIAGNOSTICS, self._on_diag, 100)
-        from rclpy.executors import SingleThreadedExecutor
 
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
@@ -469,7 +470,6 @@ def _expected_subscribers(names: list[str]) -> dict[str, int]:
 def _available(name: str) -> bool:
     if (INSTALL_LIB / "amb_wavelet_control" / name).exists():
         return True
-    import importlib.util
 
     module = executable(name)[-1]
     return module.startswith("amb_") and importlib.util.find_spec(module) is not None

@@ -118,6 +118,8 @@ from amb_controller.errors import ControllerValueError, PeriodSequenceError
 from amb_controller.guard import DivergenceGuard, GuardConfig
 from amb_controller.inverse import dc_gain, pseudo_inverse_series
 from amb_controller.model_file import WaveletModel
+from amb_controller.pipeline import prescribed_response
+from amb_controller.status import status_fields
 from amb_controller.supervisor import Command, Mode, WaveletControlSupervisor
 from amb_controller.synthesis import ForceLimiter
 from amb_controller.transient import ControlStep, TransientController
@@ -533,8 +535,6 @@ class HarmonicPipeline:
     """
 
     def __init__(self, config, capacity: float, model: WaveletModel, settings=None) -> None:
-        from amb_controller.pipeline import prescribed_response
-
         if config.controller not in BASELINES:
             raise ControllerValueError(
                 f"HarmonicPipeline runs {BASELINES}, got controller {config.controller!r}"
@@ -672,6 +672,4 @@ class HarmonicPipeline:
 
     def status(self) -> dict:
         """Return the ``ControllerStatus`` fields (as :meth:`ControllerPipeline.status`)."""
-        from amb_controller.status import status_fields
-
         return status_fields(self, 1.0, "")

@@ -15,6 +15,7 @@ import math
 from dataclasses import MISSING, Field, asdict, dataclass, field, fields
 
 import numpy as np
+import pywt
 
 from amb_common.names import N_AXES, SENSOR_NAMES
 from amb_controller.basis import QUADRATURES
@@ -347,8 +348,6 @@ class ControllerConfig:
 
     # ------------------------------------------------------------------ validation
     def _validate(self) -> None:
-        import pywt
-
         if not isinstance(self.wavelet, str) or self.wavelet not in pywt.wavelist(kind="discrete"):
             raise _fail("wavelet", self.wavelet)
         if not pywt.Wavelet(self.wavelet).orthogonal:

@@ -84,6 +84,7 @@ from amb_common import topics
 from amb_common.errors import RigError
 from amb_common.faults import FaultEvent, FaultType
 from amb_common.names import N_SENSORS
+from amb_common.rig import load_rig
 from amb_fault_monitor.blackbox import BlackBox
 from amb_fault_monitor.config import MonitorConfig
 from amb_fault_monitor.errors import FaultMonitorError, RecordError
@@ -376,8 +377,6 @@ class FaultMonitorNode(Node):
 
     def _rig_levels(self) -> None:
         """Default trip levels from the clearances of the rig file (``rig`` parameter)."""
-        from amb_common.rig import load_rig
-
         path = self.get_parameter("rig").value
         try:
             rig = load_rig(path or None)

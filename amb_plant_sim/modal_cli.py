@@ -67,6 +67,7 @@ def build_report(rig, free_free: bool, speeds: list[float], elements: int | None
 
 def make_plots(rig, plot_dir: Path, free_free: bool, speeds: list[float], elements) -> list[str]:
     """Write the chapter-2 figures into ``plot_dir``; returns the file names."""
+    # heavy, optional: matplotlib, only with --plot-dir
     from amb_plant_sim import plots
 
     plot_dir.mkdir(parents=True, exist_ok=True)

@@ -116,6 +116,8 @@ class Scenario:
         roles = [self.speed.role] + [s.role for _, s in self.profile]
         crit = critical_hz
         if crit is None and any(r is not None for r in roles):
+            # heavy, optional: the FE model and scipy.linalg (~0.2 s), only for speeds given by
+            # role; amb-run and the launch file load scenarios without them
             from amb_plant_sim.modal import critical_speeds
 
             crit = critical_speeds(rig, count=len(ROLES))

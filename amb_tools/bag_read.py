@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from rosbags.rosbag2 import Reader
 
 from amb_common.topics import (
     COEFFICIENTS,
@@ -272,8 +273,6 @@ def read_bag(path: str | Path) -> BagData:
     BagReadError
         If ``path`` is not a readable rosbag2 folder.
     """
-    from rosbags.rosbag2 import Reader
-
     path = Path(path)
     if path.is_file():
         path = path.parent
