@@ -453,6 +453,7 @@ def plot_acceptability(result: dict, path: str | Path) -> Path:
     pathlib.Path
 
     """
+    # heavy, optional: matplotlib, only for the figure
     import matplotlib
 
     matplotlib.use("Agg")

@@ -106,6 +106,7 @@ def nominal_transfer(alpha, delay: int, n: int) -> np.ndarray:
         ``t_0 .. t_{n-1}`` (dimensionless).
 
     """
+    # heavy, optional: scipy.signal, only for --investigate
     from scipy import signal
 
     # alpha (z-1) z^i / den_cl, both multiplied by z^-(i+1) den(z^-1): numerator

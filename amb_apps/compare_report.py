@@ -224,6 +224,7 @@ def markdown(result: dict, timing: dict, speeds: dict, force_limit: float | None
 
 def figures(result: dict, out: Path) -> list[Path]:
     """Write the bar charts, the x2 traces per scenario and figure 8.3 for i = 1..4."""
+    # heavy, optional: matplotlib, only for the figures
     import matplotlib
 
     matplotlib.use("Agg")

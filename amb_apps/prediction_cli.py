@@ -469,6 +469,7 @@ def plot_prediction(pr: PredictionResult, out: Path, step_time: float) -> list[P
     list of Path
 
     """
+    # heavy, optional: matplotlib, only for the figures
     import matplotlib
 
     matplotlib.use("Agg")
