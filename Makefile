@@ -17,7 +17,7 @@ test: bootstrap
 	@$(ENV) && ROS_PYTHON_CHECK_FIELDS=1 python -m pytest $(PYTEST_ARGS)
 
 reproduce: bootstrap
-	@$(ENV) && python -m amb_tools.reproduce --out out/reproduce
+	@$(ENV) && python -m amb_apps.reproduce --out out/reproduce
 
 # docs/results.md from the project's own commands; SECTIONS="modal prediction" for some only
 # (tools/results.py --list names them and their cost).

@@ -16,14 +16,14 @@ NODES = {
     "wavelet_filterbank": "amb_wavelet.node:main",
 }
 TOOLS = {
-    "amb-acceptability": "amb_controller.acceptability:main",
-    "amb-compare": "amb_controller.compare_cli:main",
-    "amb-fault-eval": "amb_fault_monitor.eval_cli:main",
+    "amb-acceptability": "amb_apps.acceptability:main",
+    "amb-compare": "amb_apps.compare_cli:main",
+    "amb-fault-eval": "amb_apps.eval_cli:main",
     "amb-modal": "amb_plant_sim.modal_cli:main",
-    "amb-prediction": "amb_controller.prediction_cli:main",
-    "amb-report": "amb_tools.report_cli:main",
-    "amb-run": "amb_tools.run_cli:main",
-    "amb-sim": "amb_controller.sim_cli:main",
+    "amb-prediction": "amb_apps.prediction_cli:main",
+    "amb-report": "amb_apps.report_cli:main",
+    "amb-run": "amb_apps.run_cli:main",
+    "amb-sim": "amb_apps.sim_cli:main",
     "amb-wavelet-info": "amb_wavelet.info_cli:main",
 }
 

@@ -22,8 +22,7 @@ pipeline          records in, one command per period out (the node's core)
 status            ControllerStatus fields of a pipeline
 model_file        identified model .npz
 
-Applications above the core (they run the plant model): ``closed_loop`` (the in-process loop),
-``plant_models`` (baselines' and per-level models from the simulated rig), the ``*_cli``
-commands (``amb-compare`` with ``compare_cases``, ``compare_runs``, ``compare_report``),
-``acceptability``, ``acceptance``.
+The applications that run the plant model with the controller (the in-process loop
+``closed_loop``, ``plant_models``, ``amb-sim``, ``amb-compare``, ``amb-prediction``,
+``acceptability``, ``acceptance``) are in :mod:`amb_apps`.
 """

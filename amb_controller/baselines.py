@@ -29,7 +29,7 @@ prescribed closed-loop decay ``alpha(z)`` of a step disturbance::
 which is the thesis's eq. 8.10 (with eq. 8.1, ``U = -L Q``) with the Haar coefficients
 replaced by the 1 x Fourier ones. It is realised with
 :class:`~amb_controller.transient.TransientController` on the Markov parameters of ``G_h``
-(:func:`~amb_controller.plant_models.harmonic_model`, exact sampled projection of the FE
+(:func:`~amb_apps.plant_models.harmonic_model`, exact sampled projection of the FE
 model's PID closed loop, :func:`~amb_controller.wavelet_dynamics.wavelet_markov`).
 
 What eq. B.2 rests on, and what could not be checked: the thesis's own account of [3]
@@ -59,6 +59,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from amb_common.names import N_SENSORS
 from amb_controller.errors import ControllerValueError
 from amb_controller.fourier_basis import (
     complex_gain,
@@ -69,10 +70,11 @@ from amb_controller.guard import DivergenceGuard, GuardConfig
 from amb_controller.influence_coefficient import InfluenceCoefficientController
 from amb_controller.inverse import dc_gain, pseudo_inverse_series
 from amb_controller.model_file import WaveletModel
+from amb_controller.pipeline import prescribed_response
+from amb_controller.status import status_fields
 from amb_controller.supervisor import Command, Mode, WaveletControlSupervisor
 from amb_controller.synthesis import ForceLimiter
 from amb_controller.transient import TransientController
-from amb_tools.names import N_SENSORS
 
 __all__ = [
     "BASELINES",
@@ -100,7 +102,7 @@ class BaselineSettings:
         :mod:`amb_controller.influence_coefficient`).
     trial_force : float
         Amplitude of the 1 x trial force per axis in N for
-        :func:`~amb_controller.plant_models.influence_by_trials`.
+        :func:`~amb_apps.plant_models.influence_by_trials`.
     trial_settle : int
         Periods waited after each trial change before averaging.
     trial_average : int
@@ -256,7 +258,7 @@ class HarmonicPipeline:
     capacity : float
         Bearing capacity in N.
     model : WaveletModel
-        From :mod:`amb_controller.plant_models`: ``harmonic_model`` (harmonic), or
+        From :mod:`amb_apps.plant_models`: ``harmonic_model`` (harmonic), or
         ``influence_by_trials`` / ``harmonic_model`` (synchronous: its steady-state gain is
         used).
     settings : BaselineSettings, optional
@@ -264,8 +266,6 @@ class HarmonicPipeline:
     """
 
     def __init__(self, config, capacity: float, model: WaveletModel, settings=None) -> None:
-        from amb_controller.pipeline import prescribed_response
-
         if config.controller not in BASELINES:
             raise ControllerValueError(
                 f"HarmonicPipeline runs {BASELINES}, got controller {config.controller!r}"
@@ -403,6 +403,4 @@ class HarmonicPipeline:
 
     def status(self) -> dict:
         """Return the ``ControllerStatus`` fields (as :meth:`ControllerPipeline.status`)."""
-        from amb_controller.status import status_fields
-
         return status_fields(self, 1.0, "")

@@ -15,11 +15,12 @@ import math
 from dataclasses import MISSING, Field, asdict, dataclass, field, fields
 
 import numpy as np
+import pywt
 
+from amb_common.names import N_AXES, SENSOR_NAMES
+from amb_common.topics import DELAY_PERIODS
 from amb_controller.basis import QUADRATURES
 from amb_controller.errors import ControllerValueError
-from amb_tools.names import N_AXES, SENSOR_NAMES
-from amb_tools.topics import DELAY_PERIODS
 
 __all__ = [
     "BASELINE_CONTROLLERS",
@@ -348,8 +349,6 @@ class ControllerConfig:
 
     # ------------------------------------------------------------------ validation
     def _validate(self) -> None:
-        import pywt
-
         if not isinstance(self.wavelet, str) or self.wavelet not in pywt.wavelist(kind="discrete"):
             raise _fail("wavelet", self.wavelet)
         if not pywt.Wavelet(self.wavelet).orthogonal:

@@ -31,8 +31,8 @@ import math
 
 import numpy as np
 
+from amb_common.names import N_AXES, N_SENSORS
 from amb_controller.basis import BasisSet
-from amb_tools.names import N_AXES, N_SENSORS
 
 __all__ = [
     "complex_from_real",

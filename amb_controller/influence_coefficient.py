@@ -12,7 +12,7 @@ per window of ``window`` periods from the window mean ``Y_j``::
     U_{j+1} = U_j - a (T^H T + R)^-1 T^H Y_j                                    (B.1)
 
 with ``T`` the steady-state influence coefficients (complex, sensors x axes) identified by trial
-injections (:func:`~amb_controller.plant_models.influence_by_trials`: each axis in turn driven
+injections (:func:`~amb_apps.plant_models.influence_by_trials`: each axis in turn driven
 with a known 1 x force, the change of the steady 1 x response measured), ``a`` the convergence
 gain (``ControllerConfig.gain``) and ``R = rho ||T||_F^2 / n_u I``. On a plant ``Y = T_p U + D``
 the update error obeys ``E_{j+1} = (I - a (T^H T + R)^-1 T^H T_p) E_j``: it converges iff that

@@ -29,7 +29,7 @@ import math
 
 import numpy as np
 
-from amb_tools.names import SENSOR_NAMES
+from amb_common.names import SENSOR_NAMES
 
 INNER = (2, 3, 4, 5)
 STEADY_REVS = 10
@@ -94,7 +94,7 @@ def settling_periods(phasor: np.ndarray, fault_period: int, band: float = SETTLE
 
 def compute_metrics(result, speed_hz: float) -> dict:
     """
-    Return the metrics of a :class:`~amb_controller.closed_loop.RunResult` (module doc).
+    Return the metrics of a :class:`~amb_apps.closed_loop.RunResult` (module doc).
 
     Parameters
     ----------

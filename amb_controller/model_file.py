@@ -19,8 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
+from amb_common.topics import DELAY_PERIODS
 from amb_controller.errors import ControllerValueError
-from amb_tools.topics import DELAY_PERIODS
 
 FORMAT_VERSION = 1
 

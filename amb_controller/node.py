@@ -93,6 +93,10 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 
+from amb_common import topics
+from amb_common.errors import RigError
+from amb_common.paths import config_file
+from amb_common.rig import load_rig
 from amb_controller.config import ControllerConfig, default_of, parameter_fields
 from amb_controller.errors import ControllerValueError
 from amb_controller.node_params import (
@@ -108,22 +112,18 @@ from amb_controller.node_params import (
 from amb_controller.pipeline import ControllerPipeline
 from amb_controller.supervisor import Mode
 from amb_controller.synthesis import ForceLimiter
-from amb_plant_sim.errors import RigError
-from amb_plant_sim.rig import load_rig
-from amb_tools import topics
 from amb_tools.cdr import CoefficientsView, MeasurementView, read_coefficients, read_measurement
 from amb_tools.conversions import (
     MessageError,
-    coefficient_records,
     command_msg,
     controller_status_msg,
     stamp_seconds,
 )
 from amb_tools.node_main import ConfigurationError, run_node
-from amb_tools.paths import config_file
 from amb_tools.streams import COMMAND_QOS, FRAME_CODES, QUAD_CODES, stream_qos
 from amb_tools.validation import SampleSequencer, check_measurement
 from amb_wavelet.frontend import FRAMES, QUADRATURES, ChannelFrontEnd
+from amb_wavelet.messages import coefficient_records
 
 #: Coefficient messages more than this many periods ahead of the measurements are refused.
 COEFFICIENT_HORIZON_PERIODS = 8

@@ -43,6 +43,7 @@ from __future__ import annotations
 
 import math
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -70,6 +71,7 @@ from amb_controller.steady_state import (
 from amb_controller.supervisor import Command, Mode, WaveletControlSupervisor
 from amb_controller.synthesis import ForceLimiter
 from amb_controller.transient import TransientController
+from amb_wavelet.frontend import ChannelFrontEnd
 
 __all__ = [
     "ControllerPipeline",
@@ -138,8 +140,6 @@ class ControllerPipeline:
         self.control = control_basis(config.wavelet, n, config.levels, N_AXES, config.quadratures)
         self.measured = selected_measurement_basis(config)
         if channel_labels is None:
-            from amb_wavelet.frontend import ChannelFrontEnd
-
             channel_labels = ChannelFrontEnd(config.samples_per_rev).labels
         labels = list(channel_labels)
         self._columns = {}
@@ -556,6 +556,4 @@ def _rank_rtol(config: ControllerConfig) -> float:
 
 
 def _replace_inverse(model: WaveletModel, inverse: np.ndarray) -> WaveletModel:
-    from dataclasses import replace
-
     return replace(model, inverse=inverse)

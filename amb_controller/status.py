@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from amb_tools.names import N_AXES
+from amb_common.names import N_AXES
 
 __all__ = ["status_fields"]
 

@@ -111,6 +111,7 @@ class BlackBox:
         return self._write() if self._capture is not None else None
 
     def _write(self) -> Path:
+        # heavy, optional: the rosbags writer, only when a capture is written (after a fault)
         from amb_tools.bag_writer import BagWriter
 
         cap = self._capture

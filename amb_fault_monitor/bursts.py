@@ -40,8 +40,8 @@ from collections import deque
 
 import numpy as np
 
+from amb_common.faults import FaultEvent, FaultType
 from amb_fault_monitor.classifier import bearing_of_plane
-from amb_fault_monitor.events import FaultEvent, FaultType
 
 __all__ = ["ContactBursts"]
 

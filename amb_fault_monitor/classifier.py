@@ -51,7 +51,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from amb_fault_monitor.events import FaultType
+from amb_common.faults import FaultType
 
 __all__ = [
     "PLANE_BEARING",
@@ -138,7 +138,7 @@ class EpisodeEvidence:
 
 @dataclass
 class Decision:
-    """Result of :func:`classify` (fields as in :class:`~amb_fault_monitor.events.FaultEvent`)."""
+    """Result of :func:`classify` (fields as in :class:`~amb_common.faults.FaultEvent`)."""
 
     fault_type: FaultType
     plane: int = 0

@@ -13,9 +13,9 @@ import numpy as np
 from amb_msgs.msg import CoefficientSet as CoefficientSetMsg
 from amb_msgs.msg import WaveletCoefficients
 
+from amb_common.names import N_SENSORS
 from amb_fault_monitor.records import CoefficientSet, SampleCoefficients
 from amb_tools.conversions import MessageError, check_finite, check_length, from_float_array
-from amb_tools.names import N_SENSORS
 from amb_wavelet.levels import revolution_level
 
 KIND = {CoefficientSetMsg.KIND_DETAIL: "detail", CoefficientSetMsg.KIND_APPROXIMATION: "approx"}

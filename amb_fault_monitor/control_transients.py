@@ -35,7 +35,7 @@ from collections import deque
 
 import numpy as np
 
-from amb_fault_monitor.events import FaultEvent
+from amb_common.faults import FaultEvent
 from amb_fault_monitor.onset import Crossing, estimate_onset
 
 __all__ = ["ControlSteps"]

@@ -13,8 +13,8 @@ import math
 
 import numpy as np
 
-from amb_fault_monitor.events import FaultEvent, FaultType
-from amb_tools.names import N_SENSORS
+from amb_common.faults import FaultEvent, FaultType
+from amb_common.names import N_SENSORS
 
 __all__ = ["DeadChannels"]
 

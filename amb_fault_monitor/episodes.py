@@ -17,11 +17,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from amb_common.faults import FaultEvent
+from amb_common.names import N_SENSORS
 from amb_fault_monitor.bursts import ContactBursts
 from amb_fault_monitor.classifier import EpisodeEvidence
-from amb_fault_monitor.events import FaultEvent
 from amb_fault_monitor.onset import Crossing
-from amb_tools.names import N_SENSORS
 
 __all__ = ["Episode"]
 

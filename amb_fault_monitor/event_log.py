@@ -12,8 +12,8 @@ import json
 from collections import Counter
 from pathlib import Path
 
+from amb_common.faults import FaultEvent, FaultType
 from amb_fault_monitor.errors import FaultMonitorError
-from amb_fault_monitor.events import FaultEvent, FaultType
 
 __all__ = ["EventLog"]
 

@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from amb_tools.names import N_SENSORS
+from amb_common.names import N_SENSORS
 
 __all__ = ["ChangeFeatures", "frame_mask", "normalise"]
 

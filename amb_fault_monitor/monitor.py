@@ -46,6 +46,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from amb_common.faults import FaultEvent, FaultType
+from amb_common.names import N_SENSORS
 from amb_fault_monitor.calibration import Calibration, CalibrationWindow
 from amb_fault_monitor.classifier import classify
 from amb_fault_monitor.config import MonitorConfig
@@ -53,12 +55,10 @@ from amb_fault_monitor.control_transients import ControlSteps
 from amb_fault_monitor.dead_channels import DeadChannels
 from amb_fault_monitor.episodes import Episode
 from amb_fault_monitor.errors import RecordError
-from amb_fault_monitor.events import FaultEvent, FaultType
 from amb_fault_monitor.features import ChangeFeatures, normalise
 from amb_fault_monitor.onset import AtomCentres, estimate_onset, onset_sample
 from amb_fault_monitor.phasor import SynchronousLevel
 from amb_fault_monitor.records import SampleCoefficients
-from amb_tools.names import N_SENSORS
 from amb_wavelet.analysis import DETAIL
 from amb_wavelet.levels import revolution_level
 

@@ -81,6 +81,10 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.serialization import serialize_message
 
+from amb_common import topics
+from amb_common.errors import RigError
+from amb_common.faults import FaultEvent, FaultType
+from amb_common.rig import load_rig
 from amb_fault_monitor.blackbox import BlackBox
 from amb_fault_monitor.coefficient_messages import (
     EXTRA_OCTAVES,
@@ -91,12 +95,9 @@ from amb_fault_monitor.coefficient_messages import (
 from amb_fault_monitor.config import MonitorConfig
 from amb_fault_monitor.errors import FaultMonitorError, RecordError
 from amb_fault_monitor.event_log import EventLog
-from amb_fault_monitor.events import FaultEvent, FaultType
 from amb_fault_monitor.monitor import FaultMonitor
 from amb_fault_monitor.node_params import FLOATS, RUNTIME, check_runtime_value
 from amb_fault_monitor.trips import SynchronousAmplitude, TripMonitor, clearance_levels
-from amb_plant_sim.errors import RigError
-from amb_tools import topics
 from amb_tools.conversions import (
     MessageError,
     from_float_array,
@@ -248,8 +249,6 @@ class FaultMonitorNode(Node):
 
     def _rig_levels(self) -> None:
         """Default trip levels from the clearances of the rig file (``rig`` parameter)."""
-        from amb_plant_sim.rig import load_rig
-
         path = self.get_parameter("rig").value
         try:
             rig = load_rig(path or None)

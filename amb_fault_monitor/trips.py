@@ -35,7 +35,7 @@ def clearance_levels(rig: Any, fraction: float) -> np.ndarray:
 
     Parameters
     ----------
-    rig : amb_plant_sim.rig.Rig
+    rig : amb_common.rig.Rig
         Uses ``sensor_planes[].z`` and ``clearance_bearings[].z, radial_clearance`` (m).
     fraction : float
         Share of the radial clearance, in (0, 1].

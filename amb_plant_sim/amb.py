@@ -21,7 +21,7 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from amb_plant_sim.rig import AmbData
+from amb_common.rig import AmbData
 
 MU0 = 4e-7 * math.pi
 NORMAL, LOST, COIL_POSITIVE, COIL_NEGATIVE = 0, 1, 2, 3

@@ -23,6 +23,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numpy.typing import NDArray
 
+from amb_common.names import AXIS_NAMES
+from amb_common.rig import Rig
 from amb_plant_sim.closed_loop import ClosedLoop, build_closed_loop
 from amb_plant_sim.modal import (
     Mode,
@@ -30,9 +32,7 @@ from amb_plant_sim.modal import (
     distinct_modes,
     free_free_modes,
 )
-from amb_plant_sim.rig import Rig
 from amb_plant_sim.rotor import build_rotor
-from amb_tools.names import AXIS_NAMES
 
 ISO_ZONE_LIMITS = ((3.0, "A"), (4.0, "B"), (5.0, "C"))
 #: An eigenvalue with |Im| below this fraction of |lambda| is real (see frequencies_vs_gain).

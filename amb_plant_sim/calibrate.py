@@ -31,9 +31,9 @@ from pathlib import Path
 import numpy as np
 import scipy.optimize
 
+from amb_common.rig import DEFAULT_RIG_PATH, Rig, load_rig
 from amb_plant_sim.closed_loop import build_closed_loop
 from amb_plant_sim.modal import distinct_modes, is_stable, modes_from_matrix
-from amb_plant_sim.rig import DEFAULT_RIG_PATH, Rig, load_rig
 
 TARGETS_HZ = (11.0, 18.0, 29.0, 67.0)
 # Stated masses (section 2.2.4) as the lower bounds of the mass search.

@@ -20,8 +20,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from amb_common.rig import PidGains, Rig
 from amb_plant_sim.pid import StateSpace, pid_state_space
-from amb_plant_sim.rig import PidGains, Rig
 from amb_plant_sim.rotor import RotorModel, build_rotor
 
 

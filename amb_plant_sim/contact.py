@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from amb_plant_sim.rig import ContactData
+from amb_common.rig import ContactData
 
 
 @dataclass(frozen=True)

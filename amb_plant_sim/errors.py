@@ -2,12 +2,9 @@
 Exceptions of the plant core.
 
 All subclass :class:`ValueError` so that callers can catch configuration problems with the
-standard type; messages state the expected and the actual value and how to recover.
+standard type; messages state the expected and the actual value and how to recover. The rig's
+:class:`~amb_common.errors.RigError` lives with the rig loader in ``amb_common``.
 """
-
-
-class RigError(ValueError):
-    """An invalid or inconsistent rig description (``config/rig.yaml``)."""
 
 
 class ScenarioError(ValueError):

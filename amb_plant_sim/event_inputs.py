@@ -15,10 +15,10 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
+from amb_common.names import AXIS_NAMES
 from amb_plant_sim import amb as amb_law
 from amb_plant_sim.errors import SimulationError
 from amb_plant_sim.events import Event, base_acceleration, misalignment_offset, sensor_channel
-from amb_tools.names import AXIS_NAMES
 
 
 class EventInputs:

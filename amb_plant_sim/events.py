@@ -36,8 +36,8 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
+from amb_common.names import AXIS_NAMES
 from amb_plant_sim.errors import ScenarioError
-from amb_tools.names import AXIS_NAMES
 
 KINDS = {
     "unbalance": {"me"},

@@ -17,8 +17,8 @@ import numpy as np
 import scipy.linalg
 from numpy.typing import NDArray
 
+from amb_common.rig import Rig
 from amb_plant_sim.closed_loop import build_closed_loop, build_plant
-from amb_plant_sim.rig import Rig
 from amb_plant_sim.rotor import RotorModel, build_rotor
 
 #: Eigenvalues this close (relative) are one double eigenvalue. At zero speed the rig's x/y

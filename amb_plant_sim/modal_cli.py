@@ -23,12 +23,12 @@ from pathlib import Path
 
 import numpy as np
 
+from amb_common.errors import RigError
+from amb_common.names import AXIS_NAMES
+from amb_common.rig import DEFAULT_RIG_PATH, load_rig
 from amb_plant_sim import analysis
-from amb_plant_sim.errors import RigError
 from amb_plant_sim.modal import closed_loop_modes, critical_speeds, distinct_modes, free_free_modes
-from amb_plant_sim.rig import DEFAULT_RIG_PATH, load_rig
 from amb_plant_sim.rotor import build_rotor
-from amb_tools.names import AXIS_NAMES
 
 
 def _speeds(text: str) -> list[float]:
@@ -67,6 +67,7 @@ def build_report(rig, free_free: bool, speeds: list[float], elements: int | None
 
 def make_plots(rig, plot_dir: Path, free_free: bool, speeds: list[float], elements) -> list[str]:
     """Write the chapter-2 figures into ``plot_dir``; returns the file names."""
+    # heavy, optional: matplotlib, only with --plot-dir
     from amb_plant_sim import plots
 
     plot_dir.mkdir(parents=True, exist_ok=True)

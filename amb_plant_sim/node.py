@@ -75,15 +75,16 @@ from rclpy.duration import Duration
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 
-from amb_plant_sim.errors import RigError, ScenarioError, SimulationError
-from amb_plant_sim.rig import load_rig
+from amb_common import topics
+from amb_common.errors import RigError
+from amb_common.names import N_AXES
+from amb_common.paths import config_file, scenario_file
+from amb_common.rig import load_rig
+from amb_plant_sim.errors import ScenarioError, SimulationError
 from amb_plant_sim.scenario import load_scenario, resolve_samples_per_rev
 from amb_plant_sim.simulator import MeasurementBlock, PlantSimulator
-from amb_tools import topics
 from amb_tools.conversions import MessageError, measurement_bytes, stamp, stamp_seconds
-from amb_tools.names import N_AXES
 from amb_tools.node_main import ConfigurationError, descriptor, run_node
-from amb_tools.paths import config_file, scenario_file
 from amb_tools.streams import COMMAND_QOS, stream_qos
 from amb_tools.validation import check_command
 

@@ -18,7 +18,7 @@ import numpy as np
 import scipy.linalg
 from numpy.typing import NDArray
 
-from amb_plant_sim.rig import PidGains
+from amb_common.rig import PidGains
 
 
 @dataclass(frozen=True)

@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from amb_plant_sim.errors import RigError
+from amb_common.errors import RigError
 
 
 def delta_matrix(n_dof: int) -> NDArray[np.float64]:

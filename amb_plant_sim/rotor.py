@@ -16,9 +16,9 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from amb_common.errors import RigError
+from amb_common.rig import Rig, RigidDisk, ShaftData
 from amb_plant_sim.elements import rigid_disk, shaft_element
-from amb_plant_sim.errors import RigError
-from amb_plant_sim.rig import Rig, RigidDisk, ShaftData
 
 DOF_NAMES = ("x", "y", "alpha", "beta")
 

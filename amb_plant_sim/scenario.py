@@ -33,9 +33,9 @@ from typing import Any
 import numpy as np
 import yaml
 
+from amb_common.rig import Rig
 from amb_plant_sim.errors import ScenarioError
 from amb_plant_sim.events import Event, event_from_dict
-from amb_plant_sim.rig import Rig
 
 ROLES = ("first_critical", "second_critical", "third_critical", "fourth_critical")
 
@@ -116,6 +116,8 @@ class Scenario:
         roles = [self.speed.role] + [s.role for _, s in self.profile]
         crit = critical_hz
         if crit is None and any(r is not None for r in roles):
+            # heavy, optional: the FE model and scipy.linalg (~0.2 s), only for speeds given by
+            # role; amb-run and the launch file load scenarios without them
             from amb_plant_sim.modal import critical_speeds
 
             crit = critical_speeds(rig, count=len(ROLES))
@@ -198,7 +200,7 @@ def resolve_samples_per_rev(requested: int | None, scenario: Scenario) -> int:
 
     One rule for the plant node (its ``samples_per_rev`` parameter, 0 = not set), ``amb-sim``
     (``--samples-per-rev``), ``amb-run`` and the launch file (which pass the scenario's value to
-    every node, :func:`amb_tools.system.run_parameters`).
+    every node, :func:`amb_apps.system.run_parameters`).
 
     Parameters
     ----------

@@ -35,6 +35,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
+from amb_common.rig import Rig
 from amb_plant_sim import amb as amb_law
 from amb_plant_sim.closed_loop import build_plant
 from amb_plant_sim.discretize import SpeedDiscretisation, discretise
@@ -42,7 +43,6 @@ from amb_plant_sim.errors import SimulationError
 from amb_plant_sim.event_inputs import EventInputs
 from amb_plant_sim.events import Event, event_from_dict
 from amb_plant_sim.pid import pid_state_space
-from amb_plant_sim.rig import Rig
 from amb_plant_sim.rotor import build_rotor
 from amb_plant_sim.scenario import Scenario
 from amb_plant_sim.step_by_step import StepByStepIntegration

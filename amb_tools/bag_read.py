@@ -8,7 +8,7 @@ read the same. Missing or empty topics are tolerated: their arrays are empty and
 listed in :attr:`BagData.missing`.
 
 The per-period 1 x wavelet phasor is rebuilt from ``/amb/wavelet/coefficients`` exactly as the
-in-process loop builds it (:class:`amb_controller.closed_loop._Loop`): for control period
+in-process loop builds it (:class:`amb_apps.closed_loop._Loop`): for control period
 ``k`` (samples ``k N .. k N + N - 1``), the last fixed-frame detail coefficient of the 1 x
 level ``j1 = log2(samples_per_rev)`` completed in that period,
 ``P_k = x_{1,1,even} + i x_{1,1,odd}`` (thesis section 4.3; the level indexing of chapters 7-8
@@ -21,15 +21,16 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from rosbags.rosbag2 import Reader
 
-from amb_tools.bag_types import typestore
-from amb_tools.topics import (
+from amb_common.topics import (
     COEFFICIENTS,
     COMMAND,
     FAULT_EVENTS,
     MEASUREMENT,
     STATUS,
 )
+from amb_tools.bag_types import typestore
 
 #: Topics a complete report uses (``/diagnostics`` is counted, not drawn).
 EXPECTED_TOPICS = (MEASUREMENT, COEFFICIENTS, COMMAND, STATUS, FAULT_EVENTS)
@@ -190,7 +191,7 @@ class BagData:
         From the last ``ControllerStatus``: ``controller``, ``mode``, ``delay_periods``,
         ``commands_sent``, ``commands_late``; empty if no status.
     fault_events : list of dict
-        One per ``FaultEvent`` (fields as :meth:`amb_fault_monitor.events.FaultEvent.to_dict`).
+        One per ``FaultEvent`` (fields as :meth:`amb_common.faults.FaultEvent.to_dict`).
     notes : list of str
         What could not be read and why.
     """
@@ -272,8 +273,6 @@ def read_bag(path: str | Path) -> BagData:
     BagReadError
         If ``path`` is not a readable rosbag2 folder.
     """
-    from rosbags.rosbag2 import Reader
-
     path = Path(path)
     if path.is_file():
         path = path.parent

@@ -28,7 +28,11 @@ import struct
 from dataclasses import dataclass
 from functools import lru_cache
 
+import amb_msgs.msg
 import numpy as np
+from builtin_interfaces.msg import Time
+from rclpy.serialization import deserialize_message
+from std_msgs.msg import Header
 
 CDR_LE = b"\x00\x01\x00\x00"
 _ORIGIN = len(CDR_LE)  # alignment counts from the end of the encapsulation header
@@ -67,9 +71,6 @@ class HeaderView:
 
     def to_msg(self):
         """Return a ``std_msgs.msg.Header`` (for a message built from this one's header)."""
-        from builtin_interfaces.msg import Time
-        from std_msgs.msg import Header
-
         return Header(
             stamp=Time(sec=self.stamp.sec, nanosec=self.stamp.nanosec), frame_id=self.frame_id
         )
@@ -246,9 +247,6 @@ def read_measurement(raw: bytes) -> MeasurementView:
 
 
 def _deserialise(raw: bytes, name: str):
-    import amb_msgs.msg
-    from rclpy.serialization import deserialize_message
-
     try:
         return deserialize_message(bytes(raw), getattr(amb_msgs.msg, name))
     except Exception as exc:  # rclpy raises RMWError (not a ValueError) on a garbled buffer

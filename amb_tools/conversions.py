@@ -6,7 +6,8 @@ copy; assigning a numpy array converts it element by element, far slower
 (docs/results.md#msg-arrays), so every conversion goes through :func:`to_float_array`.
 Readers use :func:`from_float_array` (``np.frombuffer``, no copy). Checks here raise
 :class:`MessageError` (a ``ValueError``) with the field, the expected and the actual value, so
-a node can count and report a bad message instead of propagating it.
+a node can count and report a bad message instead of propagating it. The wavelet coefficient
+messages (filterbank records in and out) are the wavelet part's: :mod:`amb_wavelet.messages`.
 """
 
 from __future__ import annotations
@@ -14,9 +15,17 @@ from __future__ import annotations
 from array import array
 
 import numpy as np
+from amb_msgs.msg import (
+    AxisCoefficients,
+    CoefficientSet,
+    ControlCommand,
+    ControllerStatus,
+    Measurement,
+)
 from builtin_interfaces.msg import Time
 
-from amb_tools.names import N_AXES, N_SENSORS, SENSOR_NAMES
+from amb_common.names import N_AXES
+from amb_tools.cdr import measurement_cdr_block
 
 
 class MessageError(ValueError):
@@ -87,8 +96,6 @@ def measurement_msgs(
     -------
     list of amb_msgs.msg.Measurement
     """
-    from amb_msgs.msg import Measurement
-
     n = block.sample_index.size
     flags = np.broadcast_to(np.asarray(status, dtype=np.int64), (n,)).copy()
     saturated = np.any(np.abs(block.bearing_force) >= force_limit * (1 - 1e-9), axis=1)
@@ -132,10 +139,6 @@ def measurement_bytes(
     flags : numpy.ndarray
         ``(n,)`` the ``status`` of each message (with ``STATUS_FORCE_SATURATED``).
     """
-    from amb_msgs.msg import Measurement
-
-    from amb_tools.cdr import measurement_cdr_block
-
     n = block.sample_index.size
     flags = np.broadcast_to(np.asarray(status, dtype=np.int64), (n,)).copy()
     saturated = np.any(np.abs(block.bearing_force) >= force_limit * (1 - 1e-9), axis=1)
@@ -154,193 +157,6 @@ def measurement_bytes(
         frame_id="amb_rig",
     )
     return messages, flags
-
-
-def _coefficient_set_fields(coefficients, slots, samples_per_rev: int, rotor_speed: float):
-    """Return the ``CoefficientSet`` fields of :func:`coefficients_msg` as tuples.
-
-    ``(level, kind, frame, quadrature, translation_index, first_sample_index,
-    last_sample_index, pseudo_frequency, settled, values)``, one per coefficient and slot, in
-    message order (the layout :func:`amb_tools.cdr.coefficients_cdr` takes).
-    """
-    from amb_msgs.msg import CoefficientSet
-
-    from amb_wavelet.analysis import APPROXIMATION
-    from amb_wavelet.levels import pseudo_frequency
-
-    fs = samples_per_rev * rotor_speed / (2.0 * np.pi)
-    n = N_SENSORS
-    sets = []
-    for c in coefficients:
-        kind = (
-            CoefficientSet.KIND_APPROXIMATION
-            if c.kind == APPROXIMATION
-            else CoefficientSet.KIND_DETAIL
-        )
-        f_level = pseudo_frequency(c.level, fs) if fs > 0 else 0.0
-        for i, (frame, quad) in enumerate(slots):
-            sets.append(
-                (c.level, kind, frame, quad, c.translation_index, c.first_sample_index,
-                 c.last_sample_index, f_level, bool(c.settled), c.values[i * n : (i + 1) * n])
-            )  # fmt: skip
-    return sets
-
-
-def coefficients_msg(
-    header,
-    wavelet: str,
-    samples_per_rev: int,
-    samples_per_period: int,
-    sample_index: int,
-    rotor_speed: float,
-    coefficients,
-    slots,
-):
-    """Build the ``WaveletCoefficients`` message of the coefficients one sample completed.
-
-    Parameters
-    ----------
-    header : std_msgs.msg.Header
-        Header of the completing ``Measurement``.
-    wavelet : str
-        PyWavelets name.
-    samples_per_rev, samples_per_period : int
-        Sampling and control period.
-    sample_index : int
-        The completing sample.
-    rotor_speed : float
-        rad/s, for the levels' pseudo-frequencies.
-    coefficients : list of amb_wavelet.analysis.Coefficient
-        What the filterbank returned for the sample; ``values`` ordered (slot, sensor channel).
-    slots : list of (frame, quadrature) codes
-        ``CoefficientSet.FRAME_*`` and ``QUADRATURE_*`` of each block of 8 values, in the
-        front end's channel order.
-
-    Returns
-    -------
-    amb_msgs.msg.WaveletCoefficients
-    """
-    from amb_msgs.msg import CoefficientSet, WaveletCoefficients
-
-    sets = [
-        CoefficientSet(
-            level=level,
-            kind=kind,
-            frame=frame,
-            quadrature=quad,
-            translation_index=translation,
-            first_sample_index=first,
-            last_sample_index=last,
-            pseudo_frequency=f_level,
-            settled=settled,
-            values=to_float_array(values),
-        )
-        for level, kind, frame, quad, translation, first, last, f_level, settled, values in (
-            _coefficient_set_fields(coefficients, slots, samples_per_rev, rotor_speed)
-        )
-    ]
-    return WaveletCoefficients(
-        header=header,
-        wavelet=wavelet,
-        samples_per_rev=samples_per_rev,
-        sample_index=sample_index,
-        period_index=sample_index // samples_per_period,
-        samples_per_period=samples_per_period,
-        channel_names=list(SENSOR_NAMES),
-        sets=sets,
-    )
-
-
-def coefficients_bytes(
-    header,
-    wavelet: str,
-    samples_per_rev: int,
-    samples_per_period: int,
-    sample_index: int,
-    rotor_speed: float,
-    coefficients,
-    slots,
-) -> bytes:
-    """Serialise the ``WaveletCoefficients`` message :func:`coefficients_msg` would build.
-
-    Same parameters and the same fields and values, written as CDR bytes
-    (:func:`amb_tools.cdr.coefficients_cdr`) without building the rclpy message objects;
-    ``header`` may be an rclpy ``Header`` or a :class:`amb_tools.cdr.HeaderView`.
-
-    Returns
-    -------
-    bytes
-        For ``Publisher.publish``.
-    """
-    from amb_tools.cdr import coefficients_cdr, header_view
-
-    sets = _coefficient_set_fields(coefficients, slots, samples_per_rev, rotor_speed)
-    return coefficients_cdr(
-        header_view(header),
-        wavelet,
-        samples_per_rev,
-        sample_index,
-        sample_index // samples_per_period,
-        samples_per_period,
-        SENSOR_NAMES,
-        sets,
-    )
-
-
-def coefficient_records(msg, slots) -> list:
-    """Turn a ``WaveletCoefficients`` message back into the filterbank's records.
-
-    Inverse of :func:`coefficients_msg`: the sets of one (level, kind, translation) are joined,
-    in the order of ``slots``, into one ``values`` vector, exactly as the filterbank core
-    produced it, so that a consumer of the message stream sees the same numbers as one fed by
-    the core directly.
-
-    Parameters
-    ----------
-    msg : amb_msgs.msg.WaveletCoefficients
-    slots : list of (frame, quadrature) codes
-        The blocks the consumer expects, in order (a subset of what the filterbank publishes).
-
-    Returns
-    -------
-    list of amb_wavelet.analysis.Coefficient
-        In message order (finest level first), ``values`` of shape ``(len(slots) * 8,)``.
-
-    Raises
-    ------
-    MessageError
-        If a set has the wrong number of values or a non-finite value, or a requested slot is
-        missing for a coefficient.
-    """
-    from amb_msgs.msg import CoefficientSet
-
-    from amb_wavelet.analysis import APPROXIMATION, DETAIL, Coefficient
-
-    records: dict[tuple, dict] = {}
-    for s in msg.sets:
-        key = (s.level, s.kind, s.translation_index)
-        entry = records.setdefault(key, {"set": s, "values": {}})
-        values = from_float_array(s.values)
-        check_length("sets[].values", values, N_SENSORS)
-        entry["values"][(s.frame, s.quadrature)] = values
-    out = []
-    for (level, kind, m), entry in records.items():
-        missing = [slot for slot in slots if slot not in entry["values"]]
-        if missing:
-            raise MessageError(
-                f"coefficient level {level} translation {m}: (frame, quadrature) {missing} "
-                "not published; configure the filterbank with those frames and channels"
-            )
-        values = np.concatenate([entry["values"][slot] for slot in slots])
-        check_finite("sets[].values", values)
-        s = entry["set"]
-        name = APPROXIMATION if kind == CoefficientSet.KIND_APPROXIMATION else DETAIL
-        out.append(
-            Coefficient(
-                level, name, m, s.first_sample_index, s.last_sample_index, values, s.settled
-            )
-        )
-    return out
 
 
 def command_msg(
@@ -383,8 +199,6 @@ def command_msg(
     MessageError
         If the force has the wrong shape or a non-finite value.
     """
-    from amb_msgs.msg import AxisCoefficients, CoefficientSet, ControlCommand
-
     force = np.asarray(command.force, dtype=float)
     if force.shape != (N_AXES, samples_per_period):
         raise MessageError(
@@ -440,8 +254,6 @@ def controller_status_msg(status: dict, header):
     -------
     amb_msgs.msg.ControllerStatus
     """
-    from amb_msgs.msg import ControllerStatus
-
     peak = check_length(
         "peak_wavelet_force", np.asarray(status["peak_wavelet_force"], dtype=float), N_AXES
     )

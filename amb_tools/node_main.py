@@ -45,6 +45,7 @@ import rclpy
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
@@ -99,8 +100,6 @@ def make_executor(choice: str | None = None):
     """
     choice = choice or os.environ.get("AMB_EXECUTOR", "events")
     if choice == "events":
-        from rclpy.experimental import EventsExecutor
-
         return EventsExecutor()
     if choice != "single":
         raise ConfigurationError(f"AMB_EXECUTOR = {choice!r}: allowed 'single' or 'events'")

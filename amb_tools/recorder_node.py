@@ -60,7 +60,7 @@ from rclpy.qos import (
 )
 from std_msgs.msg import Header
 
-from amb_tools import topics
+from amb_common import topics
 from amb_tools.bag_writer import STORAGE_PLUGINS, BagWriter, header_stamp_ns
 from amb_tools.node_main import ConfigurationError, descriptor, run_node
 

@@ -37,9 +37,9 @@ from rclpy.node import Node
 from rclpy.serialization import deserialize_message
 from rosbags.rosbag2 import Reader
 
-from amb_tools import topics
+from amb_common import topics
+from amb_common.names import N_AXES
 from amb_tools.conversions import from_float_array, stamp_seconds
-from amb_tools.names import N_AXES
 from amb_tools.node_main import ConfigurationError, descriptor, run_node
 from amb_tools.streams import COMMAND_QOS, stream_qos
 

@@ -14,8 +14,8 @@ import math
 
 import numpy as np
 
+from amb_common.names import N_AXES, N_SENSORS
 from amb_tools.conversions import MessageError, check_finite, check_length, from_float_array
-from amb_tools.names import N_AXES, N_SENSORS
 
 #: A stamp step may exceed the sample interval implied by the running speed by this factor
 #: before the sample counts as "stamped in the future" (speed changes, clock jitter).

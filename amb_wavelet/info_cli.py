@@ -78,6 +78,7 @@ def _table(rows: list[Uncertainty], k: float) -> str:
 
 
 def _plot(names: list[str], k: float, out: Path) -> list[Path]:
+    # heavy, optional: matplotlib, only with --plot
     import matplotlib
 
     matplotlib.use("Agg")

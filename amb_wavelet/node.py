@@ -36,9 +36,9 @@ from rcl_interfaces.msg import (
 )
 from rclpy.node import Node
 
-from amb_tools import topics
+from amb_common import topics
 from amb_tools.cdr import MeasurementView, read_measurement
-from amb_tools.conversions import MessageError, coefficients_bytes, stamp_seconds
+from amb_tools.conversions import MessageError, stamp_seconds
 from amb_tools.node_main import ConfigurationError, descriptor, run_node
 from amb_tools.streams import FRAME_CODES, QUAD_CODES, stream_qos
 from amb_tools.validation import SampleSequencer, check_measurement
@@ -47,6 +47,7 @@ from amb_wavelet.errors import LevelError, WaveletNameError
 from amb_wavelet.filters import get_filters
 from amb_wavelet.frontend import FRAMES, QUADRATURES, ChannelFrontEnd
 from amb_wavelet.levels import check_level, revolution_level
+from amb_wavelet.messages import coefficients_bytes
 
 
 class WaveletFilterbankNode(Node):

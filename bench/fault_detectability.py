@@ -36,11 +36,11 @@ sys.path.insert(0, str(ROOT))
 
 import numpy as np  # noqa: E402
 
+from amb_apps.evaluation import run_case, simulate_case  # noqa: E402
+from amb_common.rig import load_rig  # noqa: E402
 from amb_fault_monitor.config import MonitorConfig  # noqa: E402
-from amb_fault_monitor.evaluation import run_case, simulate_case  # noqa: E402
 from amb_fault_monitor.monitor import FaultMonitor  # noqa: E402
 from amb_fault_monitor.records import FilterbankAdapter  # noqa: E402
-from amb_plant_sim.rig import load_rig  # noqa: E402
 
 
 def clean_ratios(case, wavelet: str, thresholds: dict, sync_threshold) -> list:

@@ -31,11 +31,11 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy is imported
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from amb_apps.evaluation import load_case  # noqa: E402
+from amb_common.rig import load_rig  # noqa: E402
 from amb_fault_monitor.config import MonitorConfig  # noqa: E402
-from amb_fault_monitor.evaluation import load_case  # noqa: E402
 from amb_fault_monitor.monitor import FaultMonitor  # noqa: E402
 from amb_fault_monitor.records import FilterbankAdapter  # noqa: E402
-from amb_plant_sim.rig import load_rig  # noqa: E402
 from amb_plant_sim.scenario import scenario_from_dict  # noqa: E402
 from amb_plant_sim.simulator import PlantSimulator  # noqa: E402
 

@@ -66,7 +66,7 @@ def prepare(hz: float, spr: int, duration: float, work: Path) -> tuple[Path, Pat
         )
     )
     model_dir = work / f"model_{hz:g}"
-    _run([sys.executable, "-m", "amb_controller.sim_cli", "--scenario", str(scenario),
+    _run([sys.executable, "-m", "amb_apps.sim_cli", "--scenario", str(scenario),
           "--controller", "transient", "--model", "fe", "--duration", "0.5", "--no-bag",
           "--out", str(model_dir)])  # fmt: skip
     return scenario, model_dir / "model.npz"
@@ -83,7 +83,7 @@ def run_mode(
     """``amb-run`` the four nodes and the recorder in ``mode``; return the run folder."""
     sets = [f"wavelet_controller.model_file:={model}", "wavelet_controller.start_mode:=active",
             f"plant_sim.mode:={mode}", *extra]  # fmt: skip
-    _run([sys.executable, "-m", "amb_tools.run_cli", "--scenario", str(scenario),
+    _run([sys.executable, "-m", "amb_apps.run_cli", "--scenario", str(scenario),
           "--out", str(out), "--controller", "transient", "--quiet",
           *[a for s in sets for a in ("--set", s)]], env=env)  # fmt: skip
     return out

@@ -28,7 +28,7 @@ from pathlib import Path
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy is imported
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from amb_plant_sim.rig import load_rig
+from amb_common.rig import load_rig
 from amb_plant_sim.scenario import scenario_from_dict
 from amb_plant_sim.simulator import PlantSimulator
 

@@ -28,7 +28,7 @@ from pathlib import Path
 
 import yaml
 
-from amb_tools import topics
+from amb_common import topics
 
 
 def rss_kib(pid: int) -> int:
@@ -83,7 +83,7 @@ def main() -> int:
     if args.controller == "transient":
         model_dir = work / "model"
         subprocess.run(
-            [sys.executable, "-m", "amb_controller.sim_cli", "--scenario", str(scenario),
+            [sys.executable, "-m", "amb_apps.sim_cli", "--scenario", str(scenario),
              "--controller", "transient", "--model", "fe", "--duration", "0.5", "--no-bag",
              "--out", str(model_dir)],
             check=True, capture_output=True,

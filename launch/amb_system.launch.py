@@ -2,7 +2,7 @@ r"""The simulated rig with all four nodes and the recorder (full ROS 2 Jazzy ins
 
 What ``amb-run`` does where ``ros2 launch`` is not available: the same executables, the same
 params file, the same per-run parameters, built by the same function
-(:func:`amb_tools.system.run_parameters`: the scenario's ``samples_per_rev`` on every node, the
+(:func:`amb_apps.system.run_parameters`: the scenario's ``samples_per_rev`` on every node, the
 plant's scenario and subscriber count, the controller's choices, the recorder's bag). The
 launch ends when ``plant_sim`` has finished its scenario.
 
@@ -19,8 +19,8 @@ from launch.substitutions import LaunchConfiguration, PathJoinSubstitution
 from launch_ros.actions import Node
 from launch_ros.substitutions import FindPackageShare
 
-from amb_tools.paths import scenario_file
-from amb_tools.system import NODES, run_parameters
+from amb_apps.system import NODES, run_parameters
+from amb_common.paths import scenario_file
 from launch import LaunchDescription
 
 PACKAGE = "amb_wavelet_control"

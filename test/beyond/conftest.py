@@ -10,7 +10,7 @@ SCENARIOS = ROOT / "config" / "scenarios"
 
 @pytest.fixture(scope="session")
 def rig():
-    from amb_plant_sim.rig import load_rig
+    from amb_common.rig import load_rig
 
     return load_rig()
 

@@ -15,6 +15,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from amb_apps.plant_models import harmonic_model, influence_by_trials
 from amb_controller.baselines import BaselineSettings, HarmonicPipeline
 from amb_controller.config import ConfigError, ControllerConfig
 from amb_controller.errors import ControllerValueError
@@ -29,7 +30,6 @@ from amb_controller.fourier_basis import (
 from amb_controller.influence_coefficient import InfluenceCoefficientController
 from amb_controller.inverse import dc_gain
 from amb_controller.pipeline import ControllerPipeline
-from amb_controller.plant_models import harmonic_model, influence_by_trials
 
 N = 32
 
@@ -155,7 +155,7 @@ def test_wavelet_pipeline_refuses_a_baseline_and_baseline_pipeline_needs_fourier
     rig, first_critical
 ):
     cfg = ControllerConfig(samples_per_rev=N, controller="harmonic")
-    from amb_controller.closed_loop import fe_model
+    from amb_apps.closed_loop import fe_model
 
     haar = fe_model(rig, 2 * math.pi * first_critical.speed_hz, replace(cfg, controller="none"))
     with pytest.raises(ConfigError, match="HarmonicPipeline"):
@@ -166,7 +166,7 @@ def test_wavelet_pipeline_refuses_a_baseline_and_baseline_pipeline_needs_fourier
 
 @pytest.fixture(scope="module")
 def loops(rig, first_critical):
-    from amb_controller.closed_loop import run_closed_loop
+    from amb_apps.closed_loop import run_closed_loop
     from amb_controller.metrics import compute_metrics, inner_summary
 
     scenario = replace(first_critical, duration=7.0)
@@ -207,7 +207,7 @@ def test_one_command_per_period_for_the_next_period(loops):
 def test_amb_sim_selects_the_baseline(tmp_path, controller):
     import json
 
-    from amb_controller.sim_cli import main
+    from amb_apps.sim_cli import main
 
     scenario = str(
         __import__("pathlib").Path(__file__).resolve().parents[2]

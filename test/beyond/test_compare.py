@@ -10,8 +10,8 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from amb_apps.compare_runs import command_timing, run_metrics
 from amb_controller.baselines import perturb_model
-from amb_controller.compare_runs import command_timing, run_metrics
 from amb_controller.errors import ControllerValueError
 from amb_controller.model_file import WaveletModel
 from amb_controller.stability import exponential_stability_map
@@ -81,7 +81,7 @@ def _row(peak, revs, revs_1x, non1x, force=40.0, radius=None, peak_1x=None):
 
 
 def test_harmonic_content_removes_a_decaying_1x_revolution_by_revolution():
-    from amb_controller.compare_runs import harmonic_content
+    from amb_apps.compare_runs import harmonic_content
 
     n_rev = 12
     theta = 2 * np.pi * np.arange(n_rev * SPR) / SPR
@@ -97,7 +97,7 @@ def test_harmonic_content_removes_a_decaying_1x_revolution_by_revolution():
 
 
 def test_verdict_says_where_the_wavelet_controller_wins_and_loses_and_why():
-    from amb_controller.compare_report import verdict
+    from amb_apps.compare_report import verdict
 
     table = {
         "mass_loss_1st": {
@@ -122,7 +122,7 @@ def test_verdict_says_where_the_wavelet_controller_wins_and_loses_and_why():
 
 
 def test_rows_whose_own_model_predicts_divergence_are_flagged():
-    from amb_controller.compare_report import _notes
+    from amb_apps.compare_report import _notes
 
     rows = {
         "pid": _row(1e-4, None, None, 1.0),
@@ -192,7 +192,7 @@ def test_command_evaluation_is_a_small_fraction_of_a_period():
 
 
 def test_engage_on_starts_off_and_engages_at_the_detected_mass_loss(rig, first_critical):
-    from amb_controller.closed_loop import fe_model, run_closed_loop
+    from amb_apps.closed_loop import fe_model, run_closed_loop
     from amb_controller.config import ControllerConfig
 
     sc = replace(first_critical, duration=5.0)
@@ -208,7 +208,7 @@ def test_engage_on_starts_off_and_engages_at_the_detected_mass_loss(rig, first_c
 
 
 def test_residual_after_1x_is_the_third_harmonic_left_on_a_1x_orbit():
-    from amb_controller.compare_runs import residual_after_1x
+    from amb_apps.compare_runs import residual_after_1x
 
     n = 20 * SPR
     theta = 2 * np.pi * np.arange(n) / SPR
@@ -222,9 +222,9 @@ def test_residual_after_1x_is_the_third_harmonic_left_on_a_1x_orbit():
 def test_model_radius_predicts_the_third_critical_divergence_and_8_sensor_stability():
     # reference: the simulator, in which every inner-sensor eq.-8.10 controller diverges at
     # the third critical speed (amb-compare: 35.9 mm) and the 8-sensor one does not
-    from amb_controller.compare_cases import Matrix
-    from amb_controller.compare_runs import model_radius
-    from amb_tools.paths import config_file
+    from amb_apps.compare_cases import Matrix
+    from amb_apps.compare_runs import model_radius
+    from amb_common.paths import config_file
 
     matrix = Matrix(config_file("scenarios"), 32, None, True)
     assert model_radius(matrix, "wavelet_i1", "sync_150N_3rd") > 1.0

@@ -154,7 +154,7 @@ def test_missing_level_or_wrong_shape_is_refused():
 
 
 def test_diagonal_blocks_of_the_coupled_fe_model_are_the_single_level_models(rig, first_critical):
-    from amb_controller.closed_loop import fe_model
+    from amb_apps.closed_loop import fe_model
 
     omega = 2 * math.pi * first_critical.speed_hz
     cfg = ControllerConfig(samples_per_rev=SPR, levels=(1, 2), delay_periods=1)
@@ -170,7 +170,7 @@ def test_diagonal_blocks_of_the_coupled_fe_model_are_the_single_level_models(rig
 @pytest.fixture(scope="module")
 def mass_loss_runs(rig, first_critical):
     """PID, 1 level and per-level 1x+2x+4x on the first-critical mass loss (32 samples/rev)."""
-    from amb_controller.closed_loop import fe_model, run_closed_loop
+    from amb_apps.closed_loop import fe_model, run_closed_loop
 
     sc = replace(first_critical, duration=6.5)
     omega = 2 * math.pi * sc.speed_hz

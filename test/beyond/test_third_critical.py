@@ -61,7 +61,7 @@ def _simulated_step(rig, scenario, cfg, j, amplitude, n_settle=8, n_step=60):
 
 
 def test_fe_markov_parameters_predict_the_simulated_step_at_the_third_critical(rig, third):
-    from amb_controller.closed_loop import fe_model
+    from amb_apps.closed_loop import fe_model
 
     cfg = ControllerConfig(samples_per_rev=SPR, levels=(1, 2, 3), delay_periods=1)
     model = fe_model(rig, 2 * math.pi * third.speed_hz, cfg, n_terms=60)
@@ -76,7 +76,7 @@ def test_fe_markov_parameters_predict_the_simulated_step_at_the_third_critical(r
 
 
 def test_inner_sensor_loop_is_unstable_on_the_model_and_all_sensors_are_not(rig, third):
-    from amb_controller.closed_loop import fe_model
+    from amb_apps.closed_loop import fe_model
 
     omega = 2 * math.pi * third.speed_hz
     alpha = PrescribedResponse.exponential(0.75, 0.75)

@@ -11,7 +11,7 @@ import math
 import numpy as np
 import pytest
 
-from amb_controller.acceptability import (
+from amb_apps.acceptability import (
     ACCEPTABLE,
     UNSTABLE,
     SweepSetup,
@@ -96,7 +96,7 @@ def test_thesis_design_point_is_acceptable_and_a_small_gain_runs_away(setup):
 
 @pytest.mark.slow
 def test_coarse_map_follows_the_nominal_boundary_where_it_is_clear(setup):
-    from amb_controller.acceptability import exponential_sweep
+    from amb_apps.acceptability import exponential_sweep
 
     w = v = np.array([0.15, 0.75])
     out = exponential_sweep(setup, w, v)

@@ -40,11 +40,11 @@ import numpy as np
 import pytest
 from scipy import signal
 
-from amb_controller.closed_loop import fe_model, run_closed_loop
+from amb_apps.closed_loop import fe_model, run_closed_loop
+from amb_common.rig import load_rig
 from amb_controller.config import ControllerConfig
 from amb_controller.inverse import pseudo_inverse_series, series_product
 from amb_controller.metrics import INNER, compute_metrics, inner_summary, settling_periods
-from amb_plant_sim.rig import load_rig
 from amb_plant_sim.scenario import load_scenario
 
 SCENARIOS = Path(__file__).resolve().parents[2] / "config/scenarios"

@@ -5,10 +5,10 @@ from pathlib import Path
 
 import numpy as np
 
-from amb_controller.closed_loop import fe_model, identify_model, run_closed_loop
+from amb_apps.closed_loop import fe_model, identify_model, run_closed_loop
+from amb_common.rig import load_rig
 from amb_controller.config import ControllerConfig
 from amb_controller.metrics import compute_metrics, inner_summary
-from amb_plant_sim.rig import load_rig
 from amb_plant_sim.scenario import load_scenario
 
 SCENARIO = Path(__file__).resolve().parents[2] / "config/scenarios/mass_loss_first_critical.yaml"

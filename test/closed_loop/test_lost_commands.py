@@ -21,9 +21,9 @@ from dataclasses import replace
 import numpy as np
 from scenarios import SAMPLES_PER_REV, first_critical_mass_loss
 
-from amb_controller.closed_loop import fe_model, run_closed_loop
+from amb_apps.closed_loop import fe_model, run_closed_loop
+from amb_common.rig import load_rig
 from amb_controller.config import ControllerConfig
-from amb_plant_sim.rig import load_rig
 from amb_plant_sim.scenario import scenario_from_dict
 
 SPR = SAMPLES_PER_REV

@@ -11,9 +11,8 @@ import numpy as np
 import pytest
 import pywt
 
-from amb_controller.closed_loop import run_closed_loop
-from amb_controller.config import ControllerConfig
-from amb_controller.prediction_cli import (
+from amb_apps.closed_loop import run_closed_loop
+from amb_apps.prediction_cli import (
     DEFAULT_INVERSE_SENSORS,
     INVERSE_SENSORS,
     WAVELETS,
@@ -22,9 +21,10 @@ from amb_controller.prediction_cli import (
     settling_period,
     wrapped_weights,
 )
-from amb_plant_sim.rig import load_rig
+from amb_common.paths import config_file
+from amb_common.rig import load_rig
+from amb_controller.config import ControllerConfig
 from amb_plant_sim.scenario import load_scenario
-from amb_tools.paths import config_file
 
 SPR = 64
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from rosbags.rosbag2 import Reader
 
-from amb_controller import sim_cli
+from amb_apps import sim_cli
 from amb_tools.bag_types import typestore
 
 SCENARIO = Path(__file__).resolve().parents[2] / "config/scenarios/mass_loss_first_critical.yaml"

@@ -2,11 +2,11 @@
 
 import numpy as np
 
-from amb_controller.closed_loop import run_closed_loop
+from amb_apps.closed_loop import run_closed_loop
+from amb_common.paths import config_file
+from amb_common.rig import load_rig
 from amb_controller.config import ControllerConfig
-from amb_plant_sim.rig import load_rig
 from amb_plant_sim.scenario import load_scenario
-from amb_tools.paths import config_file
 
 SPR = 64
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from amb_plant_sim.rig import load_rig
+from amb_common.rig import load_rig
 from amb_plant_sim.scenario import scenario_from_dict
 from amb_plant_sim.simulator import MeasurementBlock, PlantSimulator
 

@@ -10,11 +10,11 @@ import numpy as np
 import pytest
 from synthetic import SPR, add_base_motion, make_run, run_monitor
 
+from amb_common.faults import FaultType
 from amb_fault_monitor.classifier import EpisodeEvidence, classify
 from amb_fault_monitor.config import MonitorConfig
 from amb_fault_monitor.episodes import Episode
 from amb_fault_monitor.errors import FaultMonitorError
-from amb_fault_monitor.events import FaultType
 from amb_fault_monitor.monitor import FaultMonitor
 
 WAVELETS = ("haar", "db2", "db4")

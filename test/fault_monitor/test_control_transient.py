@@ -16,12 +16,12 @@ import numpy as np
 import pytest
 from late_command import HZ, SPR, late_command_run, synchronous
 
+from amb_apps.evaluation import load_case, simulate_case
+from amb_common.faults import FaultType
+from amb_common.rig import load_rig
 from amb_fault_monitor.config import MonitorConfig
-from amb_fault_monitor.evaluation import load_case, simulate_case
-from amb_fault_monitor.events import FaultType
 from amb_fault_monitor.monitor import FaultMonitor
 from amb_fault_monitor.records import FilterbankAdapter
-from amb_plant_sim.rig import load_rig
 from amb_plant_sim.scenario import scenario_from_dict
 from amb_plant_sim.simulator import PlantSimulator
 

@@ -8,9 +8,9 @@ from pathlib import Path
 import matplotlib.image as mpimg
 import pytest
 
-from amb_fault_monitor.eval_cli import main
-from amb_fault_monitor.evaluation import run_case, simulate_case
-from amb_plant_sim.rig import load_rig
+from amb_apps.eval_cli import main
+from amb_apps.evaluation import run_case, simulate_case
+from amb_common.rig import load_rig
 
 pytestmark = pytest.mark.slow  # command lines writing figures
 

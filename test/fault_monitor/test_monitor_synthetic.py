@@ -10,13 +10,13 @@ import numpy as np
 import pytest
 from synthetic import OMEGA, SPR, make_run, run_monitor
 
+from amb_common.faults import FaultType
+from amb_common.rig import load_rig
 from amb_fault_monitor.classifier import bearing_of_plane
 from amb_fault_monitor.config import MonitorConfig
 from amb_fault_monitor.errors import FaultMonitorError, RecordError
-from amb_fault_monitor.events import FaultType
 from amb_fault_monitor.monitor import FaultMonitor
 from amb_fault_monitor.records import CoefficientSet, SampleCoefficients
-from amb_plant_sim.rig import load_rig
 from amb_wavelet.filters import get_filters
 from amb_wavelet.levels import support_length
 

@@ -22,10 +22,11 @@ import pytest
 from amb_msgs.msg import FaultEvent, Measurement, WaveletCoefficients
 from diagnostic_msgs.msg import DiagnosticArray
 
-from amb_tools.conversions import coefficients_msg, to_float_array
+from amb_tools.conversions import to_float_array
 from amb_tools.streams import FRAME_CODES, QUAD_CODES
 from amb_wavelet.analysis import AnalysisFilterbank
 from amb_wavelet.frontend import FRAMES, QUADRATURES, ChannelFrontEnd
+from amb_wavelet.messages import coefficients_msg
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "reliability"))
 from reliability_helpers import Diagnostics, get_parameter, set_parameters

@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
+from amb_common.rig import load_rig
 from amb_fault_monitor.errors import FaultMonitorError
 from amb_fault_monitor.trips import SynchronousAmplitude, TripMonitor, clearance_levels
-from amb_plant_sim.rig import load_rig
 
 SPR = 32
 

@@ -22,8 +22,8 @@ from pathlib import Path
 
 import pytest
 
-from amb_fault_monitor.evaluation import run_case, simulate_case, summarise
-from amb_plant_sim.rig import load_rig
+from amb_apps.evaluation import run_case, simulate_case, summarise
+from amb_common.rig import load_rig
 
 pytestmark = pytest.mark.slow
 

@@ -17,12 +17,8 @@ import pytest
 from msg_fill import diff, random_message, to_plain
 
 from amb_tools.cdr import read_coefficients, read_measurement
-from amb_tools.conversions import (
-    coefficients_bytes,
-    coefficients_msg,
-    measurement_bytes,
-    measurement_msgs,
-)
+from amb_tools.conversions import measurement_bytes, measurement_msgs
+from amb_wavelet.messages import coefficients_bytes, coefficients_msg
 
 pytestmark = pytest.mark.ros
 

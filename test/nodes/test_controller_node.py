@@ -7,10 +7,10 @@ import pytest
 from amb_msgs.msg import ControlCommand, ControllerStatus, Measurement
 from amb_msgs.srv import SetControllerMode, StartIdentification
 
-from amb_tools.conversions import coefficients_msg
 from amb_tools.streams import COMMAND_QOS, FRAME_CODES, QUAD_CODES
 from amb_wavelet.analysis import AnalysisFilterbank
 from amb_wavelet.frontend import FRAMES, QUADRATURES, ChannelFrontEnd
+from amb_wavelet.messages import coefficients_msg
 
 pytestmark = pytest.mark.ros
 

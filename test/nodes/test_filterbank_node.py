@@ -123,10 +123,10 @@ def test_a_gap_resets_the_filterbank_at_the_new_index(ros, node_process) -> None
 
 def test_records_rebuilt_from_messages_equal_the_core(ros, node_process) -> None:
     """What a consumer rebuilds from the messages is what the filterbank core computed."""
-    from amb_tools.conversions import coefficient_records
     from amb_tools.streams import FRAME_CODES, QUAD_CODES
     from amb_wavelet.analysis import AnalysisFilterbank
     from amb_wavelet.frontend import ChannelFrontEnd
+    from amb_wavelet.messages import coefficient_records
 
     rng = np.random.default_rng(5)
     n = 4 * SPR

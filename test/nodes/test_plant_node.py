@@ -15,7 +15,7 @@ from amb_msgs.msg import ControlCommand, Measurement
 from amb_msgs.srv import InjectFault
 from diagnostic_msgs.msg import DiagnosticArray
 
-from amb_plant_sim.rig import load_rig
+from amb_common.rig import load_rig
 from amb_plant_sim.scenario import scenario_from_dict
 from amb_plant_sim.simulator import PlantSimulator
 from amb_tools.conversions import to_float_array

@@ -4,7 +4,7 @@ from pathlib import Path
 
 import pytest
 
-from amb_plant_sim.rig import load_rig
+from amb_common.rig import load_rig
 
 RIG_PATH = Path(__file__).resolve().parents[2] / "config" / "rig.yaml"
 

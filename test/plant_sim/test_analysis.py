@@ -9,9 +9,9 @@ import math
 import numpy as np
 import pytest
 
+from amb_common.errors import RigError
 from amb_plant_sim import analysis
 from amb_plant_sim.closed_loop import build_closed_loop, build_plant
-from amb_plant_sim.errors import RigError
 from amb_plant_sim.modal import distinct_modes, free_free_modes
 from amb_plant_sim.modal_cli import main
 from amb_plant_sim.pid import pid_frequency_response

@@ -10,12 +10,12 @@ import math
 import numpy as np
 import pytest
 
+from amb_common.rig import PidGains
 from amb_plant_sim import amb as amb_law
 from amb_plant_sim.closed_loop import build_closed_loop, build_plant
 from amb_plant_sim.discretize import discretise
 from amb_plant_sim.modal import natural_frequencies
 from amb_plant_sim.pid import pid_frequency_response, pid_state_space
-from amb_plant_sim.rig import PidGains
 
 
 def test_pid_state_space_is_the_table_2_3_law(rig):
@@ -123,8 +123,8 @@ def test_calibration_record_round_trips_through_the_rig_file(rig, tmp_path):
     import dataclasses
     import shutil
 
+    from amb_common.rig import load_rig
     from amb_plant_sim.calibrate import apply_parameters, parameters_of, write_calibration
-    from amb_plant_sim.rig import load_rig
 
     from .conftest import RIG_PATH
 

@@ -17,8 +17,8 @@ import pytest
 import scipy.linalg
 import scipy.optimize
 
+from amb_common.rig import Material, ShaftData
 from amb_plant_sim.elements import shear_coefficient
-from amb_plant_sim.rig import Material, ShaftData
 from amb_plant_sim.rotor import assemble
 
 STEEL = Material(rho=7850.0, E=2.1e11, poisson=0.3)

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 import yaml
 
+from amb_common.rig import rig_from_dict
 from amb_plant_sim.closed_loop import build_plant
 from amb_plant_sim.modal import modes_from_matrix
-from amb_plant_sim.rig import rig_from_dict
 from amb_plant_sim.rotor import build_rotor
 
 from .conftest import RIG_PATH

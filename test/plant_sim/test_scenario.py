@@ -2,10 +2,11 @@
 
 import pytest
 
-from amb_plant_sim.errors import RigError, ScenarioError
+from amb_common.errors import RigError
+from amb_common.rig import load_rig, rig_from_dict
+from amb_plant_sim.errors import ScenarioError
 from amb_plant_sim.events import event_from_dict
 from amb_plant_sim.modal import critical_speeds
-from amb_plant_sim.rig import load_rig, rig_from_dict
 from amb_plant_sim.scenario import load_scenario, scenario_from_dict
 
 from .conftest import RIG_PATH

@@ -72,7 +72,7 @@ def fe_model_file(scenario: dict, tmp_path: Path) -> tuple[Path, Path]:
     path = tmp_path / "scenario.yaml"
     path.write_text(yaml.safe_dump(scenario))
     run = subprocess.run(
-        [sys.executable, "-m", "amb_controller.sim_cli", "--scenario", str(path),
+        [sys.executable, "-m", "amb_apps.sim_cli", "--scenario", str(path),
          "--controller", "transient", "--model", "fe", "--duration", "0.3", "--no-bag",
          "--out", str(tmp_path / "model")],
         capture_output=True, text=True, timeout=300,

@@ -22,11 +22,12 @@ from hypothesis import strategies as st
 from rclpy.serialization import serialize_message
 from reliability_helpers import Diagnostics
 
-from amb_plant_sim.rig import load_rig
-from amb_tools.conversions import coefficients_msg, from_float_array, to_float_array
+from amb_common.rig import load_rig
+from amb_tools.conversions import from_float_array, to_float_array
 from amb_tools.streams import COMMAND_QOS, FRAME_CODES, QUAD_CODES, stream_qos
 from amb_wavelet.analysis import AnalysisFilterbank
 from amb_wavelet.frontend import FRAMES, QUADRATURES, ChannelFrontEnd
+from amb_wavelet.messages import coefficients_msg
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 

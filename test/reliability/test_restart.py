@@ -28,7 +28,7 @@ from amb_msgs.msg import ControllerStatus, Measurement
 from reliability_helpers import fe_model_file
 from scenarios import SAMPLES_PER_REV, first_critical_mass_loss
 
-from amb_plant_sim.rig import load_rig
+from amb_common.rig import load_rig
 from amb_tools.streams import stream_qos
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]

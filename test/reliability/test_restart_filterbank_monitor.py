@@ -32,10 +32,10 @@ from amb_msgs.srv import InjectFault
 from reliability_helpers import Diagnostics, fe_model_file
 from scenarios import SAMPLES_PER_REV, first_critical_mass_loss
 
+from amb_common.faults import FaultEvent as CoreEvent
+from amb_common.faults import FaultType
+from amb_common.rig import load_rig
 from amb_fault_monitor.event_log import EventLog
-from amb_fault_monitor.events import FaultEvent as CoreEvent
-from amb_fault_monitor.events import FaultType
-from amb_plant_sim.rig import load_rig
 from amb_tools.streams import stream_qos
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]

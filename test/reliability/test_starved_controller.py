@@ -24,9 +24,9 @@ from reliability_helpers import fe_model_file
 from scenarios import SAMPLES_PER_REV, first_critical_mass_loss
 from throttle import Throttle
 
-from amb_controller.closed_loop import run_closed_loop
+from amb_apps.closed_loop import run_closed_loop
+from amb_common.rig import load_rig
 from amb_controller.config import ControllerConfig
-from amb_plant_sim.rig import load_rig
 from amb_plant_sim.scenario import load_scenario
 from amb_tools.streams import stream_qos
 

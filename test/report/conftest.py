@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from amb_controller import sim_cli
+from amb_apps import sim_cli
 
 ROOT = Path(__file__).resolve().parents[2]
 SCENARIO = ROOT / "config/scenarios/mass_loss_first_critical.yaml"

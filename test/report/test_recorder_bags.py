@@ -22,9 +22,9 @@ from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosbags.rosbag2 import Reader
 from scenarios import first_critical_mass_loss
 
-from amb_tools import report_cli
+from amb_apps import report_cli
+from amb_apps.report_metrics import NOT_IN_BAG, bag_metrics, choose_fault_time
 from amb_tools.bag_read import read_bag
-from amb_tools.report_metrics import NOT_IN_BAG, bag_metrics, choose_fault_time
 
 pytestmark = pytest.mark.ros
 
@@ -109,13 +109,13 @@ def test_report_of_an_amb_run_bag_equals_amb_sim_metrics(tmp_path, ros_domain_id
     scenario = tmp_path / "scenario.yaml"
     scenario.write_text(yaml.safe_dump(SCENARIO))
     sim = subprocess.run(
-        [sys.executable, "-m", "amb_controller.sim_cli", "--scenario", str(scenario),
+        [sys.executable, "-m", "amb_apps.sim_cli", "--scenario", str(scenario),
          "--controller", "none", "--out", str(tmp_path / "sim")],
         capture_output=True, text=True, timeout=300,
     )  # fmt: skip
     assert sim.returncode == 0, sim.stderr
     run = subprocess.run(
-        [sys.executable, "-m", "amb_tools.run_cli", "--scenario", str(scenario),
+        [sys.executable, "-m", "amb_apps.run_cli", "--scenario", str(scenario),
          "--out", str(tmp_path / "run"), "--controller", "none", "--without", "fault_monitor"],
         capture_output=True, text=True, timeout=300,
     )  # fmt: skip

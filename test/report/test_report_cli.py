@@ -17,11 +17,11 @@ import pywt
 from PIL import Image
 from rosbags.rosbag2 import Reader
 
-from amb_tools import report_cli
+from amb_apps import report_cli
+from amb_apps.report_metrics import NOT_IN_BAG, bag_metrics, choose_fault_time
+from amb_common.topics import COEFFICIENTS, MEASUREMENT
 from amb_tools.bag_read import read_bag
 from amb_tools.bag_writer import BagWriter
-from amb_tools.report_metrics import NOT_IN_BAG, bag_metrics, choose_fault_time
-from amb_tools.topics import COEFFICIENTS, MEASUREMENT
 
 pytestmark = pytest.mark.slow  # command lines writing figures
 

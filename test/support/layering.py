@@ -2,16 +2,25 @@
 
 Four layers, each importing only its own and those below:
 
-1. ``vocabulary``: errors, the rig loader, fault kinds, paths (names every part shares);
+1. ``vocabulary``: the package ``amb_common`` (names, topics, paths, the rig loader and its
+   error, fault kinds) and each part's ``errors`` (names every part shares);
 2. ``core``: the ROS-free numerics of each part (arrays in, arrays out). A core imports the
    vocabulary, its own part's core and the wavelet core (``amb_wavelet``: the filterbank is the
    language the controller and the fault monitor are written in), never another part's core;
-3. ``ros``: each part's ``node.py`` and the shared ROS glue of ``amb_tools`` (message
-   conversion, CDR, node main, recorder, bags). A node never imports another part's node;
-4. ``application``: command lines, the in-process loop, experiments, reports, benchmarks.
+3. ``ros``: each part's ``node.py`` (and its other message modules) and the shared ROS glue,
+   the package ``amb_tools`` (message conversion, CDR, node main, recorder, bags). A node never
+   imports another part's node;
+4. ``application``: the package ``amb_apps`` (command lines across the parts, the in-process
+   loop, experiments, reports), a part's own ``*_cli`` and plots, and the benchmarks.
 
 ``rclpy`` belongs to the last two. Every import counts, those inside functions too (they hide
 cycles, not remove them), and no two modules may import each other, directly or round a loop.
+
+The packages keep the same order as a whole (:func:`package_violations`): ``amb_common`` <
+``amb_tools`` < the parts < ``amb_apps``, where among the parts only the controller and the
+fault monitor import another part, the wavelet one; ``bench/`` may import anything, and no
+package imports ``amb_apps``. A package imports another when any of its modules imports any
+module of the other, and the graph of the packages has no cycle.
 """
 
 from __future__ import annotations
@@ -21,62 +30,53 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
-PACKAGES = ("amb_tools", "amb_wavelet", "amb_plant_sim", "amb_controller", "amb_fault_monitor")
+PACKAGES = (
+    "amb_common",
+    "amb_tools",
+    "amb_wavelet",
+    "amb_plant_sim",
+    "amb_controller",
+    "amb_fault_monitor",
+    "amb_apps",
+)
 LAYERS = ("vocabulary", "core", "ros", "application")
 #: The part whose core the other cores may use.
 SHARED_CORE = "amb_wavelet"
 
-VOCABULARY = {
-    "amb_tools.paths",
-    "amb_tools.topics",
-    "amb_tools.names",
-    "amb_plant_sim.rig",
-    "amb_fault_monitor.events",
-}
+#: Whole packages of one layer.
+PACKAGE_LAYER = {"amb_common": "vocabulary", "amb_tools": "ros", "amb_apps": "application"}
+#: Modules of a part outside its core (besides ``node``, ``errors`` and ``*_cli``).
 ROS = {
-    "amb_tools.conversions",
-    "amb_tools.cdr",
-    "amb_tools.streams",
-    "amb_tools.validation",
-    "amb_tools.node_main",
-    "amb_tools.recorder_node",
-    "amb_tools.replay_bridge",
-    "amb_tools.bag_writer",
-    "amb_tools.bag_types",
-    "amb_tools.bag_read",
     "amb_controller.node_params",  # the node's parameters <-> ControllerConfig
     "amb_fault_monitor.blackbox",  # the node's black-box bags
     "amb_fault_monitor.coefficient_messages",  # the node's check and conversion of messages
     "amb_fault_monitor.node_params",  # the node's parameter table
+    "amb_wavelet.messages",  # the coefficient messages (filterbank records <-> amb_msgs)
 }
 APPLICATION = {
-    "amb_tools.run_cli",
-    "amb_tools.report_cli",
-    "amb_tools.report_figures",
-    "amb_tools.report_metrics",
-    "amb_tools.reproduce",
-    "amb_controller.closed_loop",
-    "amb_controller.plant_models",
-    "amb_tools.system",
-    "amb_controller.acceptability",
-    "amb_controller.acceptance",
-    "amb_controller.compare_cases",  # amb-compare: the matrix (loads the rig, runs the loop)
-    "amb_controller.compare_runs",  # amb-compare: running it
-    "amb_controller.compare_report",  # amb-compare: its report
-    "amb_fault_monitor.evaluation",
-    "amb_fault_monitor.eval_figures",
-    "amb_plant_sim.plots",
+    "amb_plant_sim.plots",  # amb-modal's figures
 }
+
+#: The parts: each imports amb_common and amb_tools, and only those of PART_IMPORTS.
+PARTS = ("amb_wavelet", "amb_plant_sim", "amb_controller", "amb_fault_monitor")
+PART_IMPORTS = {"amb_controller": {SHARED_CORE}, "amb_fault_monitor": {SHARED_CORE}}
+#: Rank of each package: a package imports only those of a lower rank (the parts: PART_IMPORTS).
+PACKAGE_RANK = {"amb_common": 0, "amb_tools": 1, **dict.fromkeys(PARTS, 2), "amb_apps": 3}
+#: Importers outside the packages that may import any package (amb_apps included).
+TOP = {"bench"}
 
 
 def layer_of(module: str) -> str:
     """The layer of a dotted module name (``bench.*`` and ``*_cli`` are applications)."""
+    package = module.split(".")[0]
     name = module.rsplit(".", 1)[-1]
-    if module in VOCABULARY or name == "errors":
+    if package in PACKAGE_LAYER:
+        return PACKAGE_LAYER[package]
+    if name == "errors":
         return "vocabulary"
     if module in ROS or name == "node":
         return "ros"
-    if module in APPLICATION or name.endswith("_cli") or module.startswith("bench."):
+    if module in APPLICATION or name.endswith("_cli") or package in TOP:
         return "application"
     return "core"
 
@@ -193,3 +193,45 @@ def cycles(graph: dict[str, set[str]]) -> list[list[str]]:
         if v not in index:
             visit(v)
     return sorted(groups)
+
+
+def package_graph(graph: dict[str, set[str]]) -> dict[str, set[str]]:
+    """The top-level packages of ``graph`` (from :func:`module_imports`) and those each imports.
+
+    ``a`` imports ``b`` when any module of ``a`` imports any module of ``b`` (inner imports
+    included, as in ``graph``); ``rclpy`` is left out (the module rules place it).
+    """
+    packages: dict[str, set[str]] = {}
+    for mod, targets in graph.items():
+        a = mod.split(".")[0]
+        out = packages.setdefault(a, set())
+        out.update(b for b in (t.split(".")[0] for t in targets) if b not in (a, "rclpy"))
+    return packages
+
+
+def package_violations(packages: dict[str, set[str]]) -> list[Violation]:
+    """The imports between packages (from :func:`package_graph`) against their order.
+
+    Each import must go to a package of a lower :data:`PACKAGE_RANK` (among the parts only
+    those of :data:`PART_IMPORTS`; :data:`TOP` may import anything), and no packages may import
+    each other, directly or round a loop.
+    """
+    found: set[Violation] = set()
+    for a, targets in packages.items():
+        if a in TOP:
+            continue
+        for b in targets:
+            if a in PARTS and b in PARTS:
+                if b not in PART_IMPORTS.get(a, ()):
+                    found.add(Violation(a, b, "package order: a part imports another part"))
+            elif b not in PACKAGE_RANK or a not in PACKAGE_RANK:
+                found.add(Violation(a, b, "package order: a package outside PACKAGE_RANK"))
+            elif PACKAGE_RANK[b] >= PACKAGE_RANK[a]:
+                found.add(
+                    Violation(
+                        a, b, f"package order: rank {PACKAGE_RANK[a]} imports {PACKAGE_RANK[b]}"
+                    )
+                )
+    for group in cycles(packages):
+        found.add(Violation(group[0], group[1], "package cycle among " + ", ".join(group)))
+    return sorted(found)

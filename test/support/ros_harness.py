@@ -26,7 +26,7 @@ import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
-from amb_tools.system import param_text
+from amb_apps.system import param_text
 
 ROOT = Path(__file__).resolve().parents[2]
 INSTALL_LIB = ROOT / "install" / "amb_wavelet_control" / "lib" / "amb_wavelet_control"

@@ -92,7 +92,7 @@ def test_a_lagging_fault_monitor_is_drained_before_it_is_stopped(tmp_path, ros_d
     scenario.write_text(yaml.safe_dump(SCENARIO))
     run = subprocess.Popen(
         [
-            sys.executable, "-m", "amb_tools.run_cli", "--scenario", str(scenario),
+            sys.executable, "-m", "amb_apps.run_cli", "--scenario", str(scenario),
             "--out", str(tmp_path / "run"), "--controller", "none",
         ],
         stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,

@@ -1,7 +1,7 @@
 """The launch file and amb-run start the same node set with the same per-run parameters.
 
 The launch file is not runnable here (launch is not on PyPI): it is parsed, and the function it
-builds its nodes with, :func:`amb_tools.system.run_parameters`, which ``amb-run`` uses too, is
+builds its nodes with, :func:`amb_apps.system.run_parameters`, which ``amb-run`` uses too, is
 tested. Every node it starts is a console script of ``setup.py``, every parameter it sets is
 one the node declares, every launch argument has a description, and a scenario's
 ``samples_per_rev`` reaches every sampling node (``ros2 launch`` once ran the 32-sample fault
@@ -17,9 +17,9 @@ from pathlib import Path
 
 import pytest
 
+from amb_apps.system import NODES, run_parameters
+from amb_common.paths import scenario_file
 from amb_plant_sim.errors import ScenarioError
-from amb_tools.paths import scenario_file
-from amb_tools.system import NODES, run_parameters
 
 ROOT = Path(__file__).resolve().parents[2]
 LAUNCH = ROOT / "launch" / "amb_system.launch.py"
@@ -43,7 +43,7 @@ def test_launch_builds_its_nodes_with_run_parameters() -> None:
     imported = {
         a.name
         for n in ast.walk(tree)
-        if isinstance(n, ast.ImportFrom) and n.module == "amb_tools.system"
+        if isinstance(n, ast.ImportFrom) and n.module == "amb_apps.system"
         for a in n.names
     }
     assert {"NODES", "run_parameters"} <= imported

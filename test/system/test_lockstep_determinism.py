@@ -45,7 +45,7 @@ def test_amb_run_and_amb_sim_bags_are_identical(tmp_path, ros_domain_id) -> None
     scenario.write_text(yaml.safe_dump(SCENARIO))
     sim = _cli(
         [
-            sys.executable, "-m", "amb_controller.sim_cli", "--scenario", str(scenario),
+            sys.executable, "-m", "amb_apps.sim_cli", "--scenario", str(scenario),
             "--controller", "transient", "--model", "fe", "--out", str(tmp_path / "sim"),
         ]
     )  # fmt: skip
@@ -54,7 +54,7 @@ def test_amb_run_and_amb_sim_bags_are_identical(tmp_path, ros_domain_id) -> None
     assert model.is_file()
     run = _cli(
         [
-            sys.executable, "-m", "amb_tools.run_cli", "--scenario", str(scenario),
+            sys.executable, "-m", "amb_apps.run_cli", "--scenario", str(scenario),
             "--out", str(tmp_path / "run"), "--controller", "transient",
             "--without", "fault_monitor",
             "--set", f"wavelet_controller.model_file:={model}",

@@ -47,7 +47,7 @@ def test_nodes_run_unchanged_on_the_replay_bridge(tmp_path, node_process) -> Non
     scenario = tmp_path / "scenario.yaml"
     scenario.write_text(yaml.safe_dump(SCENARIO))
     sim = subprocess.run(
-        [sys.executable, "-m", "amb_controller.sim_cli", "--scenario", str(scenario),
+        [sys.executable, "-m", "amb_apps.sim_cli", "--scenario", str(scenario),
          "--controller", "none", "--out", str(tmp_path / "sim")],
         capture_output=True, text=True, timeout=600,
     )  # fmt: skip

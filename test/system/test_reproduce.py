@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 import yaml
 
-from amb_tools.reproduce import main
+from amb_apps.reproduce import main
 
 SCENARIO = {
     "name": "repro_small",

@@ -15,7 +15,7 @@ from typing import Any
 
 import yaml
 
-from amb_plant_sim.errors import RigError
+from amb_common.errors import RigError
 
 DEFAULT_RIG_PATH = Path(__file__).resolve().parent.parent / "config" / "rig.yaml"
 

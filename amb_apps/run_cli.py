@@ -37,6 +37,7 @@ Examples
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import math
 import os
 import signal
@@ -46,10 +47,14 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray
+from rclpy.executors import SingleThreadedExecutor
+
+from amb_apps.system import NODE_MODULES, NODES, ros_arguments, run_parameters
+from amb_common import topics
+from amb_common.paths import config_file, scenario_file
 from amb_plant_sim.errors import ScenarioError
-from amb_tools import topics
-from amb_tools.paths import config_file, scenario_file
-from amb_tools.system import NODE_MODULES, NODES, ros_arguments, run_parameters
 
 INSTALL_LIB = Path(__file__).resolve().parent.parent / "install" / "amb_wavelet_control" / "lib"
 #: Nice value added to the nodes that are not on the control loop's chain.
@@ -182,15 +187,11 @@ class _Progress:
     """Reads the nodes' /diagnostics in a node of this process (simulated time, counts)."""
 
     def __init__(self) -> None:
-        import rclpy
-        from diagnostic_msgs.msg import DiagnosticArray
-
         self.context = rclpy.Context()
         rclpy.init(context=self.context)
         self.node = rclpy.create_node("amb_run_progress", context=self.context)
         self.statuses: dict[str, dict[str, str]] = {}  # status name -> its last key values
         self.node.create_subscription(DiagnosticArray, topics.DIAGNOSTICS, self._on_diag, 100)
-        from rclpy.executors import SingleThreadedExecutor
 
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
@@ -470,7 +471,6 @@ def _expected_subscribers(names: list[str]) -> dict[str, int]:
 def _available(name: str) -> bool:
     if (INSTALL_LIB / "amb_wavelet_control" / name).exists():
         return True
-    import importlib.util
 
     module = executable(name)[-1]
     return module.startswith("amb_") and importlib.util.find_spec(module) is not None

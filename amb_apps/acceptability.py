@@ -6,7 +6,7 @@ The thesis tested controllers with the exponential prescribed response
 ``i = 2``, 5th-order inverse, and classified each (w, v) as unacceptable "if the vibration
 exceeded a specified limit of 0.5 mm in any control plane" (figure 8.4); the same search gave
 a maximum linear decay rate of 0.31 per time step. Here the rig is the FE simulator run
-in-process (:func:`amb_controller.closed_loop.run_closed_loop`) on the mass-loss scenario at
+in-process (:func:`amb_apps.closed_loop.run_closed_loop`) on the mass-loss scenario at
 the model's own first critical speed (``config/scenarios/mass_loss_first_critical.yaml``,
 430 g cm at D1), with the chapter-6 FE-route model.
 
@@ -46,9 +46,15 @@ from pathlib import Path
 
 import numpy as np
 
+from amb_apps.closed_loop import fe_model, run_closed_loop
+from amb_common.paths import config_file
+from amb_common.rig import load_rig
+from amb_common.topics import DELAY_PERIODS
+from amb_controller.config import ControllerConfig
+from amb_controller.metrics import INNER, steady_sync_amplitude
 from amb_controller.response import PrescribedResponse
 from amb_controller.stability import exponential_stability_map, is_nominally_stable
-from amb_tools.topics import DELAY_PERIODS
+from amb_plant_sim.scenario import load_scenario
 
 __all__ = [
     "ACCEPTABLE",
@@ -157,7 +163,7 @@ def classify_run(result, speed_hz: float, limit: float = LIMIT) -> RunClass:
 
     Parameters
     ----------
-    result : amb_controller.closed_loop.RunResult
+    result : amb_apps.closed_loop.RunResult
         The run (fault time, displacement, per-period 1 x phasors, commands).
     speed_hz : float
         Running speed in Hz.
@@ -169,8 +175,6 @@ def classify_run(result, speed_hz: float, limit: float = LIMIT) -> RunClass:
     RunClass
 
     """
-    from amb_controller.metrics import INNER, steady_sync_amplitude
-
     x = np.asarray(result.displacement)
     after = result.time >= result.fault_time - 1e-12
     if not after.any():  # stopped before the fault
@@ -202,7 +206,7 @@ class SweepSetup:
 
     Attributes
     ----------
-    rig : amb_plant_sim.rig.Rig
+    rig : amb_common.rig.Rig
     scenario : amb_plant_sim.scenario.Scenario
     model : amb_controller.model_file.WaveletModel
     config : amb_controller.config.ControllerConfig
@@ -240,12 +244,6 @@ class SweepSetup:
         SweepSetup
 
         """
-        from amb_controller.closed_loop import fe_model
-        from amb_controller.config import ControllerConfig
-        from amb_plant_sim.rig import load_rig
-        from amb_plant_sim.scenario import load_scenario
-        from amb_tools.paths import config_file
-
         rig = load_rig()
         path = scenario_path or config_file("scenarios/mass_loss_first_critical.yaml")
         scenario = load_scenario(path, rig)
@@ -265,7 +263,7 @@ class SweepSetup:
         """
         Run the scenario with ``ControllerConfig`` fields overridden; classify it.
 
-        The run is :func:`amb_controller.closed_loop.run_closed_loop` period by period
+        The run is :func:`amb_apps.closed_loop.run_closed_loop` period by period
         (its lock-step loop), stopped at the first period after which the divergence guard
         has tripped or any clearance bearing is in contact: such a run is unstable
         (module docstring), and once the rotor rubs on an auxiliary bearing the contact can
@@ -279,14 +277,14 @@ class SweepSetup:
 
 def run_until_runaway(rig, scenario, config, model):
     """
-    Run one scenario as :func:`~amb_controller.closed_loop.run_closed_loop`, stopping early.
+    Run one scenario as :func:`~amb_apps.closed_loop.run_closed_loop`, stopping early.
 
     Stops after the first period that ends with the divergence guard tripped or with contact
     at a clearance bearing (simulator truth).
 
     Parameters
     ----------
-    rig : amb_plant_sim.rig.Rig
+    rig : amb_common.rig.Rig
     scenario : amb_plant_sim.scenario.Scenario
         Resolved scenario (constant speed).
     config : amb_controller.config.ControllerConfig
@@ -294,12 +292,10 @@ def run_until_runaway(rig, scenario, config, model):
 
     Returns
     -------
-    amb_controller.closed_loop.RunResult
+    amb_apps.closed_loop.RunResult
         Over the periods run.
 
     """
-    from amb_controller.closed_loop import run_closed_loop
-
     return run_closed_loop(rig, scenario, config, model, 0, stop=_runaway)
 
 
@@ -462,6 +458,7 @@ def plot_acceptability(result: dict, path: str | Path) -> Path:
     pathlib.Path
 
     """
+    # heavy, optional: matplotlib, only for the figure
     import matplotlib
 
     matplotlib.use("Agg")

@@ -1,6 +1,6 @@
 """The matrix of ``amb-compare``: scenarios, controller rows, and the rig and models they share.
 
-:data:`SCENARIOS` and :data:`SPECS` name the cases (:mod:`amb_controller.compare_cli` says what
+:data:`SCENARIOS` and :data:`SPECS` name the cases (:mod:`amb_apps.compare_cli` says what
 each is); :class:`Matrix` loads the rig and the scenarios once, builds each row's
 ``ControllerConfig`` (same force limit for every row, the rig's bearing capacity unless given)
 and computes each row's model once per speed.
@@ -11,6 +11,12 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, replace
 from pathlib import Path
+
+from amb_apps.closed_loop import fe_model, run_closed_loop
+from amb_apps.plant_models import harmonic_model, influence_by_trials
+from amb_common.rig import load_rig
+from amb_controller.config import ControllerConfig
+from amb_plant_sim.scenario import load_scenario
 
 SCENARIOS = {
     "mass_loss_1st": "mass_loss_first_critical.yaml",
@@ -53,9 +59,6 @@ class Matrix:
     """Rig, scenarios and models shared by the runs (models computed once per speed)."""
 
     def __init__(self, scenario_dir: Path, samples_per_rev: int | None, force_limit, quick):
-        from amb_plant_sim.rig import load_rig
-        from amb_plant_sim.scenario import load_scenario
-
         self.rig = load_rig()
         self.force_limit = float(force_limit or self.rig.amb.force_limit)
         self.scenarios = {}
@@ -70,8 +73,6 @@ class Matrix:
 
     def config(self, spec: Spec, scenario, **overrides):
         """Return the ControllerConfig of ``spec`` for ``scenario``."""
-        from amb_controller.config import ControllerConfig
-
         return ControllerConfig(
             samples_per_rev=self.spr or scenario.samples_per_rev or 64,
             controller=spec.controller,
@@ -86,9 +87,6 @@ class Matrix:
 
     def model(self, spec: Spec, scenario, config, speed_hz: float | None = None):
         """Return (and cache) the model of ``spec`` identified at ``speed_hz``."""
-        from amb_controller.closed_loop import fe_model
-        from amb_controller.plant_models import harmonic_model, influence_by_trials
-
         if spec.model == "none":
             return None
         hz = scenario.speed_hz if speed_hz is None else speed_hz
@@ -114,8 +112,6 @@ class Matrix:
 
     def run(self, spec: Spec, key: str, model=None, speed_hz=None, **kw):
         """Run ``spec`` on scenario ``key``; return the RunResult."""
-        from amb_controller.closed_loop import run_closed_loop
-
         scenario = self.scenarios[key]
         config = self.config(spec, scenario)
         if model is None:

@@ -9,7 +9,7 @@ and writes ``OUT/index.md``: per experiment the thesis's words, our numbers, eac
 reproduced or not, and the figures. A check that fails is a finding reported in the index, not
 an error: the exit status is non-zero only if a run itself failed.
 
-    python -m amb_tools.reproduce --out out/reproduce [--only ID,...] [--skip-faults]
+    python -m amb_apps.reproduce --out out/reproduce [--only ID,...] [--skip-faults]
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ from pathlib import Path
 
 import yaml
 
-from amb_tools.paths import config_file
+from amb_common.paths import config_file
 
 INNER = ("x2", "y2", "x3", "y3")
 OPS = {"<=": operator.le, ">=": operator.ge}
@@ -70,7 +70,7 @@ def run_experiment(exp: dict, out: Path) -> dict:
     for run in exp["runs"]:
         label = run["label"]
         run_dir = folder / _slug(label)
-        cmd = [sys.executable, "-m", "amb_controller.sim_cli", "--scenario", str(scenario),
+        cmd = [sys.executable, "-m", "amb_apps.sim_cli", "--scenario", str(scenario),
                "--out", str(run_dir), "--controller", run["controller"],
                "--delay", str(exp.get("delay", 2))]  # fmt: skip
         for opt in ("w", "v", "linear", "k"):
@@ -86,7 +86,7 @@ def run_experiment(exp: dict, out: Path) -> dict:
         print(f"[reproduce] {exp['id']}: {label} ({time.monotonic() - t0:.0f} s)", flush=True)
     bags = [str(folder / _slug(r["label"]) / "bag") for r in exp["runs"]]
     labels = ",".join(r["label"] for r in exp["runs"])
-    _run([sys.executable, "-m", "amb_tools.report_cli", *bags, "--out", str(folder / "report"),
+    _run([sys.executable, "-m", "amb_apps.report_cli", *bags, "--out", str(folder / "report"),
           "--labels", labels, "--scenario", str(scenario)], folder / "report.log")  # fmt: skip
     checks = []
     for c in exp.get("checks", []):
@@ -106,7 +106,7 @@ def fault_suite(out: Path) -> dict | None:
     log = out / "fault_eval.json"
     with log.open("w") as fh:
         code = subprocess.run(
-            [sys.executable, "-m", "amb_fault_monitor.eval_cli", "--scenarios", str(suite),
+            [sys.executable, "-m", "amb_apps.eval_cli", "--scenarios", str(suite),
              "--json"], stdout=fh, stderr=subprocess.DEVNULL,
         ).returncode  # fmt: skip
     try:

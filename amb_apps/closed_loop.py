@@ -31,9 +31,10 @@ Models (``--model`` of ``amb-sim``)
 Bag
 ---
 With a :class:`BagRecorder` the run is written to a rosbag2 with the ROS pipeline's topics
-and types, built by the builders of :mod:`amb_tools.conversions` and serialised with
-``rclpy.serialization.serialize_message`` (the bytes the nodes publish); the bag time of every
-message is its header stamp (simulated time). rclpy is imported only when a bag is written.
+and types, built by the builders of :mod:`amb_tools.conversions` and :mod:`amb_wavelet.messages`
+and serialised with ``rclpy.serialization.serialize_message`` (the bytes the nodes publish);
+the bag time of every message is its header stamp (simulated time). rclpy and the messages are
+imported only when a bag is written.
 """
 
 from __future__ import annotations
@@ -45,15 +46,22 @@ from typing import ClassVar
 
 import numpy as np
 
+from amb_common import topics
+from amb_common.names import SENSOR_NAMES
+from amb_controller.baselines import HarmonicPipeline
 from amb_controller.basis import control_basis
 from amb_controller.config import BASELINE_CONTROLLERS, ControllerConfig
+from amb_controller.errors import ControllerValueError, NotIdentifiedError
 from amb_controller.inverse import pseudo_inverse_series
 from amb_controller.model_file import WaveletModel
 from amb_controller.pipeline import ControllerPipeline, selected_measurement_basis
 from amb_controller.supervisor import Command, Mode
 from amb_controller.wavelet_dynamics import wavelet_markov
-from amb_tools import topics
-from amb_tools.names import SENSOR_NAMES
+from amb_fault_monitor.config import MonitorConfig
+from amb_fault_monitor.monitor import FaultMonitor
+from amb_fault_monitor.records import CoefficientSet, SampleCoefficients
+from amb_plant_sim.closed_loop import build_closed_loop
+from amb_plant_sim.simulator import PlantSimulator
 from amb_wavelet.analysis import AnalysisFilterbank
 from amb_wavelet.frontend import FRAMES, QUADRATURES, ChannelFrontEnd
 
@@ -128,7 +136,7 @@ def fe_model(rig, omega: float, config: ControllerConfig, n_terms: int = 60) -> 
 
     Parameters
     ----------
-    rig : amb_plant_sim.rig.Rig
+    rig : amb_common.rig.Rig
         Rig description.
     omega : float
         Running speed in rad/s (the period is ``2 pi / omega``).
@@ -143,8 +151,6 @@ def fe_model(rig, omega: float, config: ControllerConfig, n_terms: int = 60) -> 
         ``source = "fe"``.
 
     """
-    from amb_plant_sim.closed_loop import build_closed_loop
-
     cl = build_closed_loop(rig, omega)
     n = config.period_samples
     cb = control_basis(config.wavelet, n, config.levels, 4, config.quadratures)
@@ -183,7 +189,7 @@ def identify_model(
 
     Parameters
     ----------
-    rig : amb_plant_sim.rig.Rig
+    rig : amb_common.rig.Rig
     scenario : amb_plant_sim.scenario.Scenario
         Resolved scenario; its speed, noise and ``unbalance`` events are kept, every other
         event is dropped.
@@ -207,8 +213,6 @@ def identify_model(
         If the identification does not complete.
 
     """
-    from amb_controller.errors import NotIdentifiedError
-
     quiet = replace(
         scenario,
         events=tuple(e for e in scenario.events if e.kind == "unbalance"),
@@ -250,8 +254,6 @@ class _Loop:
 
     def __init__(self, rig, scenario, config: ControllerConfig, model, seed, recorder=None,
                  monitor=None, baseline=None):  # fmt: skip
-        from amb_plant_sim.simulator import PlantSimulator
-
         self.rig = rig
         self.config = config
         self.N = config.period_samples
@@ -261,8 +263,6 @@ class _Loop:
         self.levels = spr.bit_length()  # log2(spr) + 1, the filterbank node's default
         self.bank = AnalysisFilterbank(config.wavelet, self.levels, self.front.n_channels)
         if config.controller in BASELINE_CONTROLLERS:
-            from amb_controller.baselines import HarmonicPipeline
-
             self.pipeline = HarmonicPipeline(config, rig.amb.force_limit, model, baseline)
         else:
             self.pipeline = ControllerPipeline(
@@ -328,9 +328,6 @@ class _Monitor:
     """The ``amb_fault_monitor`` core fed from the filterbank records (optional)."""
 
     def __init__(self, samples_per_rev: int, wavelet: str) -> None:
-        from amb_fault_monitor.config import MonitorConfig
-        from amb_fault_monitor.monitor import FaultMonitor
-
         self.core = FaultMonitor(MonitorConfig(samples_per_rev=samples_per_rev))
         self.spr = samples_per_rev
         self.wavelet = wavelet
@@ -341,8 +338,6 @@ class _Monitor:
 
     def step(self, n: int, omega: float, records, force: np.ndarray) -> list[dict]:
         """Sample ``n``: its wavelet force (N per axis) and the coefficients it completed."""
-        from amb_fault_monitor.records import CoefficientSet, SampleCoefficients
-
         # the applied force first, as the node gets the Measurement before the coefficients
         # it completes (FaultMonitor.control_force)
         self.core.control_force(n, force)
@@ -390,7 +385,7 @@ def run_closed_loop(
 
     Parameters
     ----------
-    rig : amb_plant_sim.rig.Rig
+    rig : amb_common.rig.Rig
     scenario : amb_plant_sim.scenario.Scenario
         Resolved scenario (constant speed).
     config : ControllerConfig
@@ -442,14 +437,10 @@ def run_closed_loop(
     if controller is not None:
         loop.pipeline.supervisor.set_controller(controller)
     if engage_on and not fault_monitor:
-        from amb_controller.errors import ControllerValueError
-
         raise ControllerValueError("engage_on needs fault_monitor=True (events engage control)")
     if config.controller != "none" and not engage_on:
         ok, message = loop.pipeline.set_mode(Mode.ACTIVE)
         if not ok:
-            from amb_controller.errors import ControllerValueError
-
             raise ControllerValueError(f"cannot activate the controller: {message}")
     speed = scenario.speed_hz
     n_periods = max(1, round(scenario.duration * speed))
@@ -500,7 +491,8 @@ class BagRecorder:
     TOPICS: ClassVar[dict[str, str]] = topics.STREAM_TYPES
 
     def __init__(self, path: str | Path, config: ControllerConfig, force_limit: float) -> None:
-        from amb_msgs.msg import CoefficientSet
+        # heavy, optional: ROS messages and rclpy/rosbags, only when the loop records a bag
+        from amb_msgs.msg import CoefficientSet as CoefficientSetMsg
         from rclpy.serialization import serialize_message
 
         from amb_tools.bag_writer import BagWriter
@@ -511,8 +503,11 @@ class BagRecorder:
             self.writer.add_topic(topic, msgtype)
         self.config = config
         self.force_limit = float(force_limit)
-        frame = {"fixed": CoefficientSet.FRAME_FIXED, "rotating": CoefficientSet.FRAME_ROTATING}
-        quad = {"even": CoefficientSet.QUADRATURE_EVEN, "odd": CoefficientSet.QUADRATURE_ODD}
+        frame = {
+            "fixed": CoefficientSetMsg.FRAME_FIXED,
+            "rotating": CoefficientSetMsg.FRAME_ROTATING,
+        }
+        quad = {"even": CoefficientSetMsg.QUADRATURE_EVEN, "odd": CoefficientSetMsg.QUADRATURE_ODD}
         self.slots = [(frame[f], quad[q]) for f in FRAMES for q in QUADRATURES]
 
     def _write(self, topic: str, msg) -> None:
@@ -521,6 +516,7 @@ class BagRecorder:
 
     def measurements(self, block, force: np.ndarray) -> list:
         """Write the block's ``Measurement`` messages; return them (for their headers)."""
+        # heavy, optional: ROS messages and rclpy/rosbags, only when the loop records a bag
         from amb_tools.conversions import measurement_msgs
 
         msgs = measurement_msgs(block, force, 0, self.config.samples_per_rev, self.force_limit)
@@ -530,7 +526,8 @@ class BagRecorder:
 
     def coefficients(self, measurement, sample_index: int, omega: float, records) -> None:
         """Write the ``WaveletCoefficients`` of one sample."""
-        from amb_tools.conversions import coefficients_msg
+        # heavy, optional: ROS messages and rclpy/rosbags, only when the loop records a bag
+        from amb_wavelet.messages import coefficients_msg
 
         cfg = self.config
         msg = coefficients_msg(
@@ -541,6 +538,7 @@ class BagRecorder:
 
     def command(self, command: Command, header, pipeline: ControllerPipeline) -> None:
         """Write a ``ControlCommand`` and the ``ControllerStatus`` after it."""
+        # heavy, optional: ROS messages and rclpy/rosbags, only when the loop records a bag
         from amb_tools.conversions import command_msg, controller_status_msg
 
         cfg = self.config
@@ -554,7 +552,8 @@ class BagRecorder:
         self._write(topics.STATUS, controller_status_msg(pipeline.status(), header))
 
     def fault_event(self, event: dict, stamp) -> None:
-        """Write a ``FaultEvent`` (fields of :class:`amb_fault_monitor.events.FaultEvent`)."""
+        """Write a ``FaultEvent`` (fields of :class:`amb_common.faults.FaultEvent`)."""
+        # heavy, optional: ROS messages and rclpy/rosbags, only when the loop records a bag
         from amb_msgs.msg import FaultEvent
         from diagnostic_msgs.msg import KeyValue
 

@@ -20,9 +20,9 @@ synchronous force at the third, and the figure-5.27 case-2 mass loss that leads 
 (19 Hz; with ``wavelet_reconf``: transient controller OFF until the fault monitor reports
 MASS_LOSS, HOLD on AUX_BEARING_CONTACT, section 3.3.2).
 
-The cases are in :mod:`amb_controller.compare_cases`, the runs and the metrics of each (their
-definitions) in :mod:`amb_controller.compare_runs`, the report in
-:mod:`amb_controller.compare_report`.
+The cases are in :mod:`amb_apps.compare_cases`, the runs and the metrics of each (their
+definitions) in :mod:`amb_apps.compare_runs`, the report in
+:mod:`amb_apps.compare_report`.
 
 Multi-level (``--multilevel``, issue 9): on the two mass-loss scenarios, levels 1 x, 2 x and
 4 x (thesis p = 1, 2, 3) controlled at once, w = v = 0.75 per level, i = 1:
@@ -59,9 +59,10 @@ import sys
 import time
 from pathlib import Path
 
-from amb_controller.compare_cases import Matrix
-from amb_controller.compare_report import figures, markdown
-from amb_controller.compare_runs import command_timing, comparison, robustness
+from amb_apps.compare_cases import Matrix
+from amb_apps.compare_report import figures, markdown
+from amb_apps.compare_runs import command_timing, comparison, robustness
+from amb_common.paths import config_file
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -89,7 +90,6 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     """Entry point of ``amb-compare``; exit 0, or 2 on invalid arguments."""
     args = build_parser().parse_args(argv)
-    from amb_tools.paths import config_file
 
     scenario_dir = args.scenario_dir or config_file("scenarios")
 

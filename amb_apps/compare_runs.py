@@ -1,6 +1,6 @@
 """Running the ``amb-compare`` matrix and the metrics of each run.
 
-:func:`comparison` runs every row of :mod:`amb_controller.compare_cases` on every scenario,
+:func:`comparison` runs every row of :mod:`amb_apps.compare_cases` on every scenario,
 :func:`robustness` the rows with perturbed models, :func:`command_timing` times one command.
 
 Metrics (per run; inner sensors x2, y2, x3, y3 unless said)
@@ -32,7 +32,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from amb_controller.compare_cases import (
+from amb_apps.closed_loop import run_closed_loop
+from amb_apps.compare_cases import (
     CONTROLLERS,
     HOLD_RAMP_PERIODS,
     MASS_LOSS,
@@ -41,12 +42,24 @@ from amb_controller.compare_cases import (
     SPECS,
     Matrix,
 )
+from amb_common.rig import load_rig
+from amb_controller.baselines import perturb_model
+from amb_controller.basis import control_basis
+from amb_controller.influence_coefficient import InfluenceCoefficientController
+from amb_controller.lti import fir_state_space
 from amb_controller.metrics import INNER, steady_sync_amplitude
+from amb_controller.multilevel import LevelResponse, MultiLevelController, block_diagonal_model
+from amb_controller.pipeline import prescribed_response, selected_measurement_basis
+from amb_controller.response import PrescribedResponse
+from amb_controller.stability import closed_loop, spectral_radius
+from amb_controller.supervisor import Mode
+from amb_controller.synthesis import ForceLimiter
+from amb_controller.transient import TransientController
 
 
 def run_metrics(result, speed_hz: float, pid_steady: float | None = None) -> dict:
     """
-    Return the comparison metrics of one :class:`~amb_controller.closed_loop.RunResult`.
+    Return the comparison metrics of one :class:`~amb_apps.closed_loop.RunResult`.
 
     Parameters
     ----------
@@ -119,11 +132,6 @@ def model_radius(matrix: Matrix, name: str, key: str) -> float | None:
     model itself, before any run. ``None`` for PID, the synchronous baseline (no dynamic
     model) and the multi-level rows (their radii are in :mod:`amb_controller.multilevel`).
     """
-    from amb_controller.lti import fir_state_space
-    from amb_controller.pipeline import prescribed_response
-    from amb_controller.stability import closed_loop, spectral_radius
-    from amb_controller.transient import TransientController
-
     scenario = matrix.scenarios[key]
     if name == "wavelet_i1_8sensors":
         spec = SPECS["wavelet_i1"]
@@ -169,11 +177,6 @@ def harmonic_content(result, revs: int = 10) -> dict:
 
 def run_multilevel(matrix: Matrix, name: str, key: str):
     """Run ``wavelet_124_coupled`` or ``wavelet_124_perlevel`` on scenario ``key``."""
-    from amb_controller.basis import control_basis
-    from amb_controller.closed_loop import run_closed_loop
-    from amb_controller.multilevel import LevelResponse, MultiLevelController, block_diagonal_model
-    from amb_controller.pipeline import selected_measurement_basis
-
     scenario = matrix.scenarios[key]
     config = replace(matrix.config(SPECS["wavelet_i1"], scenario), levels=ML_LEVELS)
     coupled = matrix.model(SPECS["wavelet_i1"], scenario, config)
@@ -194,8 +197,6 @@ def run_multilevel(matrix: Matrix, name: str, key: str):
 
 def _engage_at_alarm(loop) -> bool:
     """``stop`` hook of run_closed_loop: set ACTIVE once the fault monitor's alarm is raised."""
-    from amb_controller.supervisor import Mode
-
     if loop.monitor.core.alarm and loop.pipeline.supervisor.mode == Mode.OFF:
         loop.pipeline.set_mode(Mode.ACTIVE)
     return False
@@ -211,8 +212,6 @@ def comparison(
     matrix: Matrix, controllers=CONTROLLERS, progress=None, multilevel: bool = False
 ) -> dict:
     """Run every controller on every scenario; return ``{scenario: {controller: metrics}}``."""
-    from amb_controller.closed_loop import run_closed_loop
-
     table: dict = {}
     traces: dict = {}
     for key, scenario in matrix.scenarios.items():
@@ -277,8 +276,6 @@ def robustness(matrix: Matrix, progress=None) -> dict:
 
     On the first-critical mass loss; the model stays the one of the nominal speed.
     """
-    from amb_controller.baselines import perturb_model
-
     key = "mass_loss_1st"
     scenario = matrix.scenarios[key]
     cases = {
@@ -324,13 +321,6 @@ def command_timing(
     ``force_limit`` (N per axis, also the capacity) defaults to the rig's bearing capacity
     (``amb.force_limit`` of config/rig.yaml).
     """
-    from amb_controller.basis import control_basis
-    from amb_controller.influence_coefficient import InfluenceCoefficientController
-    from amb_controller.response import PrescribedResponse
-    from amb_controller.synthesis import ForceLimiter
-    from amb_controller.transient import TransientController
-    from amb_plant_sim.rig import load_rig
-
     if force_limit is None:
         force_limit = load_rig().amb.force_limit
     rng = np.random.default_rng(0)

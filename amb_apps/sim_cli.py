@@ -7,7 +7,7 @@ r"""
             --controller transient --w 0.75 --v 0.75 --delay 2 --out runs/ml1
 
 composes the simulated rig, the filterbank front end and the controller pipeline in the
-lock-step order of the ROS nodes (:mod:`amb_controller.closed_loop`) and writes
+lock-step order of the ROS nodes (:mod:`amb_apps.closed_loop`) and writes
 
 * ``DIR/bag``: rosbag2 (MCAP) with ``/amb/measurement``, ``/amb/wavelet/coefficients``,
   ``/amb/control/command``, ``/amb/control/status`` and ``/amb/fault/events`` (with
@@ -25,12 +25,24 @@ import argparse
 import json
 import sys
 import time
-from dataclasses import fields
+from dataclasses import fields, replace
 from pathlib import Path
 
 import numpy as np
 
+from amb_apps.closed_loop import (
+    BagRecorder,
+    fe_model,
+    identify_model,
+    run_closed_loop,
+)
+from amb_apps.plant_models import harmonic_model, influence_by_trials
+from amb_common.rig import load_rig
+from amb_controller.baselines import BaselineSettings
 from amb_controller.config import CONTROLLERS, ControllerConfig, default_of
+from amb_controller.metrics import compute_metrics, inner_summary
+from amb_controller.model_file import WaveletModel
+from amb_plant_sim.scenario import load_scenario, resolve_samples_per_rev
 
 #: The controller's defaults (ControllerConfig's fields), the options' defaults.
 DEFAULTS = {f.name: default_of(f) for f in fields(ControllerConfig)}
@@ -135,19 +147,6 @@ def config_from_args(args, spr: int, capacity: float):
 
 def run(args) -> dict:
     """Run ``amb-sim`` with parsed arguments; return the metrics written."""
-    from dataclasses import replace
-
-    from amb_controller.closed_loop import (
-        BagRecorder,
-        fe_model,
-        identify_model,
-        run_closed_loop,
-    )
-    from amb_controller.metrics import compute_metrics
-    from amb_controller.model_file import WaveletModel
-    from amb_plant_sim.rig import load_rig
-    from amb_plant_sim.scenario import load_scenario, resolve_samples_per_rev
-
     t0 = time.perf_counter()
     rig = load_rig(args.rig) if args.rig else load_rig()
     scenario = load_scenario(args.scenario, rig)
@@ -162,9 +161,6 @@ def run(args) -> dict:
     source = "none"
     baseline = None
     if config.controller in ("synchronous", "harmonic"):
-        from amb_controller.baselines import BaselineSettings
-        from amb_controller.plant_models import harmonic_model, influence_by_trials
-
         baseline = BaselineSettings(window=args.window)
         if args.model == "fe":
             model, source = harmonic_model(rig, omega, config), "fe-harmonic"
@@ -246,8 +242,6 @@ def main(argv: list[str] | None = None) -> int:
     if args.json:
         print(json.dumps(metrics, indent=2, default=_json_default))
     else:
-        from amb_controller.metrics import inner_summary
-
         s = inner_summary(metrics)
         print(
             f"{metrics['scenario_name']}: controller {metrics['controller']['controller']}, "

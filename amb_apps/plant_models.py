@@ -15,8 +15,9 @@ from dataclasses import replace
 
 import numpy as np
 
+from amb_apps.closed_loop import fe_model, identify_model
+from amb_common.names import N_AXES
 from amb_controller.baselines import BaselineSettings, fourier_model
-from amb_controller.closed_loop import fe_model, identify_model
 from amb_controller.errors import ControllerValueError
 from amb_controller.fourier_basis import (
     complex_from_real,
@@ -28,7 +29,6 @@ from amb_controller.model_file import WaveletModel
 from amb_controller.wavelet_dynamics import wavelet_markov
 from amb_plant_sim.closed_loop import build_closed_loop
 from amb_plant_sim.simulator import PlantSimulator
-from amb_tools.names import N_AXES
 
 __all__ = ["harmonic_model", "influence_by_trials", "level_models"]
 
@@ -39,7 +39,7 @@ def harmonic_model(rig, omega: float, config, n_terms: int = 60) -> WaveletModel
 
     Parameters
     ----------
-    rig : amb_plant_sim.rig.Rig
+    rig : amb_common.rig.Rig
         Rig description.
     omega : float
         Running speed in rad/s.
@@ -81,7 +81,7 @@ def influence_by_trials(
 
     Parameters
     ----------
-    rig : amb_plant_sim.rig.Rig
+    rig : amb_common.rig.Rig
     scenario : amb_plant_sim.scenario.Scenario
         Resolved scenario.
     config : ControllerConfig
@@ -137,15 +137,15 @@ def level_models(rig, omega: float, config, route: str = "fe", scenario=None,
 
     Parameters
     ----------
-    rig : amb_plant_sim.rig.Rig
+    rig : amb_common.rig.Rig
     omega : float
         Running speed in rad/s.
     config : ControllerConfig
         Levels, wavelet, samples per period, sensors, inverse order.
     route : str
-        ``fe`` (chapter-6 route, :func:`amb_controller.closed_loop.fe_model` with
+        ``fe`` (chapter-6 route, :func:`amb_apps.closed_loop.fe_model` with
         ``levels = (p,)``) or ``identify`` (section 6.4 step identification on the
-        simulated rig with only level p stepped, :func:`~amb_controller.closed_loop.
+        simulated rig with only level p stepped, :func:`~amb_apps.closed_loop.
         identify_model`; needs ``scenario``).
     scenario : amb_plant_sim.scenario.Scenario, optional
         For ``identify``: speed, unbalance and noise of the identification run.

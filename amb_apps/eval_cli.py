@@ -10,13 +10,13 @@ Usage::
 Prints the confusion matrix (expected class per row, reported class per column; row ``NONE``
 holds false alarms), detection delay (ms and revolutions), decision delay, onset-time error
 and false alarms per simulated hour. The file format is in
-:mod:`amb_fault_monitor.evaluation`. Several wavelets (comma-separated) simulate each
+:mod:`amb_apps.evaluation`. Several wavelets (comma-separated) simulate each
 scenario once and run the monitor once per wavelet; the report (and the JSON, under
 ``wavelets``) then has one part per wavelet. Exit status 0 when every expected fault is
 classified correctly and there is no false alarm (with every wavelet), 1 otherwise, 2 on bad
 input.
 
-``--figures DIR`` also writes PNG figures (:mod:`amb_fault_monitor.eval_figures`): one per
+``--figures DIR`` also writes PNG figures (:mod:`amb_apps.eval_figures`): one per
 scenario and wavelet, ``DIR/<file stem>_<wavelet>.png`` (displacement at the four planes and
 the monitor's detection ratio per level and frame around the first true onset, with the true
 onsets and each event's estimated onset, detection and decision), and ``DIR/summary.png``
@@ -33,7 +33,8 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from amb_fault_monitor.evaluation import run_case, simulate_case, summarise
+from amb_apps.evaluation import run_case, simulate_case, summarise
+from amb_common.rig import load_rig
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -108,7 +109,6 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not files:
         print(f"no *.yaml scenario files in {folder}", file=sys.stderr)
         return 2
-    from amb_plant_sim.rig import load_rig
 
     rig = load_rig(args.rig) if args.rig else load_rig()
     wavelets = [w.strip() for w in args.wavelet.split(",")] if args.wavelet else [None]
@@ -119,7 +119,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         except OSError as exc:
             print(f"--figures {fig_dir}: {exc}", file=sys.stderr)
             return 2
-        from amb_fault_monitor import eval_figures
+        # heavy, optional: matplotlib, only with --figures
+        from amb_apps import eval_figures
     written: list[Path] = []
     results: dict[str | None, list] = {w: [] for w in wavelets}
     for f in files:

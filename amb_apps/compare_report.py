@@ -11,12 +11,13 @@ from pathlib import Path
 
 import numpy as np
 
-from amb_controller.compare_cases import (
+from amb_apps.compare_cases import (
     BASELINE_ROWS,
     CONTROLLERS,
     HOLD_RAMP_PERIODS,
     MARGINAL_RADIUS,
 )
+from amb_controller.stability import exponential_stability_map
 
 
 def _fmt(value, scale=1.0, digits=1):
@@ -223,12 +224,11 @@ def markdown(result: dict, timing: dict, speeds: dict, force_limit: float | None
 
 def figures(result: dict, out: Path) -> list[Path]:
     """Write the bar charts, the x2 traces per scenario and figure 8.3 for i = 1..4."""
+    # heavy, optional: matplotlib, only for the figures
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-
-    from amb_controller.stability import exponential_stability_map
 
     paths = []
     table = result["table"]

@@ -1,6 +1,6 @@
 """``metrics.json`` of a bag with the functions ``amb-sim`` uses (:mod:`amb_controller.metrics`).
 
-The bag's arrays are put in the shape of a :class:`amb_controller.closed_loop.RunResult` and
+The bag's arrays are put in the shape of a :class:`amb_apps.closed_loop.RunResult` and
 passed to :func:`amb_controller.metrics.compute_metrics`, so that the report of an ``amb-sim``
 bag gives the same numbers as ``amb-sim``'s own ``metrics.json``. What a bag cannot hold is
 said in the JSON (``not_in_bag``):
@@ -30,7 +30,12 @@ from pathlib import Path
 
 import numpy as np
 
-from amb_tools import topics
+from amb_apps.closed_loop import FAULT_KINDS
+from amb_common import topics
+from amb_common.names import SENSOR_NAMES
+from amb_common.rig import load_rig
+from amb_controller.metrics import INNER, compute_metrics
+from amb_plant_sim.scenario import load_scenario
 from amb_tools.bag_read import BagData
 
 #: amb-sim keys that a bag cannot reproduce, and why.
@@ -56,7 +61,7 @@ class FaultTime:
 
 @dataclass
 class _BagResult:
-    """The :class:`~amb_controller.closed_loop.RunResult` fields compute_metrics reads."""
+    """The :class:`~amb_apps.closed_loop.RunResult` fields compute_metrics reads."""
 
     time: np.ndarray
     displacement: np.ndarray
@@ -83,10 +88,6 @@ def scenario_fault(path: str | Path) -> tuple[float | None, float, str]:
         Onset of the first fault event in s (``None`` if the scenario has none), running speed
         in Hz (speed role resolved on ``config/rig.yaml``), scenario name.
     """
-    from amb_controller.closed_loop import FAULT_KINDS
-    from amb_plant_sim.rig import load_rig
-    from amb_plant_sim.scenario import load_scenario
-
     scenario = load_scenario(path, load_rig())
     faults = [e.time for e in scenario.events if e.kind in FAULT_KINDS]
     return (float(min(faults)) if faults else None), float(scenario.speed_hz), scenario.name
@@ -147,8 +148,6 @@ def bag_metrics(
         ``null`` for what a missing topic prevents, plus ``bag``, ``bag_counts``,
         ``controller``, ``fault_time_source``, ``missing_topics``, ``not_in_bag``.
     """
-    from amb_controller.metrics import SENSOR_NAMES, compute_metrics
-
     spr = data.samples_per_rev or 0
     speed = speed_hz if speed_hz is not None else data.speed_hz()
     meas = data.measurements
@@ -265,7 +264,6 @@ def inner_summary(metrics: dict) -> dict:
         after the fault at those sensors, m), ``settling`` (largest settling, revolutions),
         ``peak_wavelet_force`` (largest over both bearings, N), ``peak_total_force`` (N).
     """
-    from amb_controller.metrics import INNER, SENSOR_NAMES
 
     def worst(key):
         s = metrics.get("sensors")

@@ -31,12 +31,15 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
+import io
+
 import matplotlib.pyplot as plt
 import numpy as np
+from PIL import Image
 
-from amb_tools import topics
+from amb_common import topics
+from amb_common.names import AXIS_NAMES, SENSOR_NAMES
 from amb_tools.bag_read import BagData
-from amb_tools.names import AXIS_NAMES, SENSOR_NAMES
 
 DPI = 110
 UM = 1e6
@@ -90,10 +93,6 @@ def _colour(i: int) -> str:
 
 def save_figure(fig, path: Path) -> Path:
     """Write ``fig`` as a palette PNG (256 adaptive colours: a third of the RGBA size)."""
-    import io
-
-    from PIL import Image
-
     buf = io.BytesIO()
     fig.savefig(buf, dpi=DPI, format="png")
     plt.close(fig)

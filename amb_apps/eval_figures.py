@@ -1,7 +1,7 @@
 """
 Figures of ``amb-fault-eval --figures DIR`` (matplotlib, Agg backend, PNG).
 
-The conventions of :mod:`amb_tools.report_figures` (its DPI, palette PNG writer, µm, plane
+The conventions of :mod:`amb_apps.report_figures` (its DPI, palette PNG writer, µm, plane
 names): displacement in µm, time in s from sample 0 (``sample_index / fs``, constant speed),
 detection ratios dimensionless (feature / threshold, :mod:`amb_fault_monitor.features`).
 
@@ -32,8 +32,8 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.lines import Line2D
 
-from amb_fault_monitor.evaluation import CaseResult, SimulatedCase
-from amb_tools.report_figures import PLANE_NOTE, UM, save_figure
+from amb_apps.evaluation import CaseResult, SimulatedCase
+from amb_apps.report_figures import PLANE_NOTE, UM, save_figure
 from amb_wavelet.levels import revolution_level
 
 __all__ = ["case_figure", "case_window", "summary_figure"]

@@ -9,7 +9,7 @@ assembled as the ``wavelet_controller`` node does (:class:`ControllerPipeline`, 
 sensors, levels p = 1, 2, 3 = 1 x, 2 x, 4 x, both quadratures), and each level is passed
 through its own steady-state predictor ``W = S Q`` with ``S = Gamma (G B_u)^*`` (eq. 7.2,
 7.6; :func:`level_operator`), from the FE-route model of that level
-(:func:`~amb_controller.closed_loop.fe_model`, 5th-order inverse as in section 7.4.2, with
+(:func:`~amb_apps.closed_loop.fe_model`, 5th-order inverse as in section 7.4.2, with
 the ``B(1) G(1) = I`` weight of :mod:`amb_controller.inverse`, truncated-SVD inverse of the
 rank-deficient level models, ``RANK_RTOL``). The inverted model is that of all 8 sensors by
 default, as in section 6.4 (:func:`level_operator`).
@@ -37,7 +37,7 @@ after the step from which ``|X_k - X_final| <= 0.05 |X_final|`` for every later 
 amplitudes are compared separately, ``amplitude_ratio``). Times are measured from the
 step, at the end of the period (when the value exists).
 
-Command: ``python -m amb_controller.prediction_cli --out DIR [--json] [--inverse-sensors
+Command: ``python -m amb_apps.prediction_cli --out DIR [--json] [--inverse-sensors
 inner|all]`` writes
 ``prediction.json`` and, per wavelet, ``prediction_<wavelet>_signal.png`` (figure 7.2 style)
 and ``prediction_<wavelet>_coefficients.png`` (figures 7.3-7.5 style).
@@ -54,10 +54,16 @@ from pathlib import Path
 
 import numpy as np
 
+from amb_apps.closed_loop import fe_model, run_closed_loop
+from amb_common.paths import config_file
+from amb_common.rig import load_rig
 from amb_controller.basis import measurement_basis
 from amb_controller.config import ControllerConfig
-from amb_controller.inverse import pseudo_inverse_series
+from amb_controller.inverse import dc_gain, pseudo_inverse_series, series_product
 from amb_controller.pipeline import ControllerPipeline
+from amb_plant_sim.scenario import load_scenario
+from amb_wavelet.analysis import AnalysisFilterbank
+from amb_wavelet.frontend import FRAMES, QUADRATURES, ChannelFrontEnd
 
 __all__ = [
     "LEVELS",
@@ -119,10 +125,6 @@ def coefficient_stream(
         (start-up of long wavelets), and the labels (``p1/q1/even/c0``...).
 
     """
-    from amb_plant_sim.rig import load_rig
-    from amb_wavelet.analysis import AnalysisFilterbank
-    from amb_wavelet.frontend import FRAMES, QUADRATURES, ChannelFrontEnd
-
     x = np.asarray(displacement, dtype=float)
     if x.ndim != 2 or x.shape[1] != 8:
         raise PredictionValueError(f"displacement must have shape (n, 8), got {x.shape}")
@@ -302,7 +304,7 @@ def level_operator(
 
     Parameters
     ----------
-    rig : amb_plant_sim.rig.Rig
+    rig : amb_common.rig.Rig
     omega : float
         rad/s.
     config : ControllerConfig
@@ -319,9 +321,6 @@ def level_operator(
         the output (all-sensor) labels.
 
     """
-    from amb_controller.closed_loop import fe_model
-    from amb_controller.inverse import dc_gain, series_product
-
     if inverse_sensors not in INVERSE_SENSORS:
         raise PredictionValueError(
             f"inverse_sensors must be one of {sorted(INVERSE_SENSORS)}, got {inverse_sensors!r}"
@@ -374,9 +373,9 @@ def predict_run(
 
     Parameters
     ----------
-    rig : amb_plant_sim.rig.Rig
+    rig : amb_common.rig.Rig
         For the FE-route model.
-    result : amb_controller.closed_loop.RunResult
+    result : amb_apps.closed_loop.RunResult
         The measured run (constant speed ``speed_hz``).
     speed_hz : float
         Running speed, Hz.
@@ -466,6 +465,7 @@ def plot_prediction(pr: PredictionResult, out: Path, step_time: float) -> list[P
     list of Path
 
     """
+    # heavy, optional: matplotlib, only for the figures
     import matplotlib
 
     matplotlib.use("Agg")
@@ -532,11 +532,6 @@ def run_prediction(
         Results per wavelet and the step time (s).
 
     """
-    from amb_controller.closed_loop import run_closed_loop
-    from amb_plant_sim.rig import load_rig
-    from amb_plant_sim.scenario import load_scenario
-    from amb_tools.paths import config_file
-
     rig = load_rig()
     scenario = load_scenario(
         scenario_path or config_file("scenarios/sync_force_200N_22Hz.yaml"), rig
@@ -556,7 +551,7 @@ def run_prediction(
 def main(argv=None) -> int:
     """Predict, print the settling times, write PNGs and ``prediction.json``."""
     ap = argparse.ArgumentParser(
-        prog="python -m amb_controller.prediction_cli",
+        prog="python -m amb_apps.prediction_cli",
         description="Steady-state prediction (thesis 7.4.1) on the 22 Hz step synchronous force.",
     )
     ap.add_argument("--out", type=Path, required=True, help="output folder (created)")

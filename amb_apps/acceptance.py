@@ -1,14 +1,14 @@
 """
 Thesis acceptance runs (sections 7.4.2 and 8.5.3) on the FE plant; prints JSON.
 
-``python -m amb_controller.acceptance [--quick]``: mass loss at the first two critical
+``python -m amb_apps.acceptance [--quick]``: mass loss at the first two critical
 speeds (PID only vs transient w = v = 0.75, 0.65, 0.9, linear 0.2; delay 2) and the
 chapter-7 comparison at 15 Hz (proportional k = 0.21 vs moderated k = 0.34, delay 3) with
 the largest acceptable gain of each (peak |x| <= 0.5 mm at every sensor after the fault,
 bisection). Models: the chapter-6 FE route. ``--investigate`` compares the 1 x coefficient
 per period of each prescribed response with the nominal loop of eq. 8.11 (below). The (w, v)
-map and the linear-rate limit are in :mod:`amb_controller.acceptability`, the 22 Hz
-prediction in :mod:`amb_controller.prediction_cli`.
+map and the linear-rate limit are in :mod:`amb_apps.acceptability`, the 22 Hz
+prediction in :mod:`amb_apps.prediction_cli`.
 
 Nominal response with delay (eq. 8.11)
 --------------------------------------
@@ -29,10 +29,15 @@ from dataclasses import replace
 
 import numpy as np
 
-from amb_controller.closed_loop import fe_model, run_closed_loop
+from amb_apps.closed_loop import fe_model, run_closed_loop
+from amb_common.paths import config_file
+from amb_common.rig import load_rig
 from amb_controller.config import ControllerConfig
+from amb_controller.inverse import pseudo_inverse_series
 from amb_controller.metrics import compute_metrics, inner_summary
-from amb_tools.paths import config_file
+from amb_controller.pipeline import prescribed_response
+from amb_controller.stability import characteristic_polynomial, nominal_poles
+from amb_plant_sim.scenario import load_scenario
 
 LIMIT = 0.5e-3  # m, the thesis's acceptability bound (sections 7.4.2, 8.5.1)
 
@@ -47,8 +52,6 @@ def _run(rig, scenario, cfg, model):
 
 def mass_loss(rig, name: str) -> dict:
     """PID only and the transient controller variants of section 8.5.3."""
-    from amb_plant_sim.scenario import load_scenario
-
     scenario = load_scenario(config_file(f"scenarios/{name}.yaml"), rig)
     cfg = ControllerConfig(samples_per_rev=64, delay_periods=2)
     model = fe_model(rig, 2 * math.pi * scenario.speed_hz, cfg)
@@ -68,8 +71,6 @@ def mass_loss(rig, name: str) -> dict:
 
 def chapter7(rig, quick: bool) -> dict:
     """Proportional vs moderated at 15 Hz, 196 g cm, delay 3; largest acceptable gains."""
-    from amb_plant_sim.scenario import load_scenario
-
     scenario = load_scenario(config_file("scenarios/mass_loss_196gcm_15Hz.yaml"), rig)
     cfg = ControllerConfig(samples_per_rev=64, delay_periods=3, inverse_order=5)
     model = fe_model(rig, 2 * math.pi * scenario.speed_hz, cfg)
@@ -105,9 +106,8 @@ def nominal_transfer(alpha, delay: int, n: int) -> np.ndarray:
         ``t_0 .. t_{n-1}`` (dimensionless).
 
     """
+    # heavy, optional: scipy.signal, only for --investigate
     from scipy import signal
-
-    from amb_controller.stability import characteristic_polynomial
 
     # alpha (z-1) z^i / den_cl, both multiplied by z^-(i+1) den(z^-1): numerator
     # a(z^-1) (1 - z^-1) with a = alpha.num (ascending, a_0 = 0) shifted back one period.
@@ -124,7 +124,7 @@ def investigate(rig, gain_error: float = 1.0) -> dict:
 
     Parameters
     ----------
-    rig : amb_plant_sim.rig.Rig
+    rig : amb_common.rig.Rig
     gain_error : float
         The controller's model Markov parameters are multiplied by this (1 = exact FE
         model; < 1 makes the controller over-compensate by ``1 / gain_error``).
@@ -137,11 +137,6 @@ def investigate(rig, gain_error: float = 1.0) -> dict:
         through zero = "flutter"), sign changes, and both series (x2, first 20 periods).
 
     """
-    from amb_controller.inverse import pseudo_inverse_series
-    from amb_controller.pipeline import prescribed_response
-    from amb_controller.stability import nominal_poles
-    from amb_plant_sim.scenario import load_scenario
-
     scenario = load_scenario(config_file("scenarios/mass_loss_first_critical.yaml"), rig)
     cfg = ControllerConfig(samples_per_rev=64, delay_periods=2)
     model = fe_model(rig, 2 * math.pi * scenario.speed_hz, cfg)
@@ -188,9 +183,7 @@ def investigate(rig, gain_error: float = 1.0) -> dict:
 
 def main(argv=None) -> int:
     """Print the acceptance numbers as JSON."""
-    from amb_plant_sim.rig import load_rig
-
-    ap = argparse.ArgumentParser(prog="python -m amb_controller.acceptance")
+    ap = argparse.ArgumentParser(prog="python -m amb_apps.acceptance")
     ap.add_argument("--quick", action="store_true", help="fewer bisection steps")
     ap.add_argument(
         "--investigate",

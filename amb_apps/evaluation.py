@@ -21,7 +21,7 @@ A fault scenario is an ``amb_plant_sim`` scenario file (speed, duration, noise, 
     monitor: {wavelet: db2}                 # optional MonitorConfig / filterbank overrides
 
 ``expect: []`` (or no ``expect``) declares a healthy run: every event is a false alarm. The
-``fault`` names are those of :class:`~amb_fault_monitor.events.FaultType`. ``from: contact``
+``fault`` names are those of :class:`~amb_common.faults.FaultType`. ``from: contact``
 takes the true onset from the simulator's truth (first sample after a contact force), so
 contact cases need no guessed time; the run must then contain a contact or the case is
 reported as ``NO_TRUTH``. To add a case, copy a file, change the events and the
@@ -47,6 +47,7 @@ the scenario, not the method, is then at fault (place faults later).
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
@@ -54,11 +55,13 @@ from typing import Any
 import numpy as np
 import yaml
 
+from amb_common.faults import FaultEvent, FaultType
 from amb_fault_monitor.config import MonitorConfig
 from amb_fault_monitor.errors import FaultMonitorError
-from amb_fault_monitor.events import FaultEvent, FaultType
 from amb_fault_monitor.monitor import FaultMonitor
 from amb_fault_monitor.records import FilterbankAdapter
+from amb_plant_sim.scenario import scenario_from_dict
+from amb_plant_sim.simulator import PlantSimulator
 from amb_wavelet.filters import get_filters
 from amb_wavelet.levels import support_length
 
@@ -187,7 +190,7 @@ def simulate_case(
     ----------
     path : str or Path
         Fault scenario file (module docstring).
-    rig : amb_plant_sim.rig.Rig
+    rig : amb_common.rig.Rig
     samples_per_rev : int, optional
         Overrides the file (default 32).
     seed : int
@@ -197,11 +200,6 @@ def simulate_case(
     -------
     SimulatedCase
     """
-    import time
-
-    from amb_plant_sim.scenario import scenario_from_dict
-    from amb_plant_sim.simulator import PlantSimulator
-
     scen_d, expect, mon_d = load_case(path)
     scenario = scenario_from_dict(scen_d, rig)
     spr = int(samples_per_rev or scenario.samples_per_rev or 32)
@@ -250,8 +248,6 @@ def run_case(
         carries ``first_contact_peak_n``, the largest force of the first simulated contact
         burst (a graze of a few tens of N may lie below the noise floor).
     """
-    import time
-
     spr = case.samples_per_rev
     mon_d = case.monitor
     wav = wavelet or mon_d.get("wavelet", "haar")

@@ -1,7 +1,7 @@
 """
 The node set of one run and the parameters a run sets on each node.
 
-``amb-run`` (:mod:`amb_tools.run_cli`) and the launch file (``launch/amb_system.launch.py``)
+``amb-run`` (:mod:`amb_apps.run_cli`) and the launch file (``launch/amb_system.launch.py``)
 start the same five nodes with the same params file and build their per-run overrides here, so
 that the two ways of starting the system cannot drift apart (a test of
 :func:`run_parameters` covers both). What a run sets on top of the params file:
@@ -22,8 +22,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from amb_common import topics
 from amb_plant_sim.scenario import load_scenario
-from amb_tools import topics
 
 __all__ = ["NODES", "NODE_MODULES", "param_text", "ros_arguments", "run_parameters"]
 
@@ -56,7 +56,7 @@ def run_parameters(
     Parameters
     ----------
     scenario : pathlib.Path
-        The scenario file (:func:`amb_tools.paths.scenario_file`).
+        The scenario file (:func:`amb_common.paths.scenario_file`).
     nodes : tuple of str
         The nodes started (a subset of :data:`NODES`; ``plant_sim`` among them).
     controller, start_mode, model_file, model_file_out : str

@@ -11,7 +11,7 @@ recorder or ``ros2 bag record``; missing topics are tolerated and listed) and wr
 * ``displacement.png`` (fig. 8.11), ``coefficients_1x.png`` (figs. 8.11 (e-h), 7.3),
   ``forces.png`` (fig. 8.12), ``orbits.png`` (fig. 5.27), ``fault_timeline.png`` and
   ``levels_<label>.png`` per bag (figs. 5.1-5.18);
-* ``<label>/metrics.json`` per bag (:mod:`amb_tools.report_metrics`: the functions and keys of
+* ``<label>/metrics.json`` per bag (:mod:`amb_apps.report_metrics`: the functions and keys of
   ``amb-sim``'s ``metrics.json``), ``comparison.md`` (key metrics side by side) and
   ``report.md`` (links to everything, what was missing).
 
@@ -28,6 +28,9 @@ import sys
 from pathlib import Path
 
 import numpy as np
+
+from amb_apps.report_metrics import bag_metrics, choose_fault_time, inner_summary, scenario_fault
+from amb_tools.bag_read import read_bag
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -91,8 +94,6 @@ def comparison_table(labels: list[str], metrics: list[dict]) -> str:
     to settle (largest over the inner sensors), peak wavelet and total force per bearing (N);
     with two bags a last column gives the ratio second / first.
     """
-    from amb_tools.report_metrics import inner_summary
-
     inner = ("x2", "y2", "x3", "y3")
     rows: list[tuple[str, list]] = []
     for name in inner:
@@ -233,9 +234,8 @@ def make_report(
         If the number of labels differs from the number of bags, or a bag is unreadable
         (:class:`amb_tools.bag_read.BagReadError`).
     """
-    from amb_tools import report_figures as rf
-    from amb_tools.bag_read import read_bag
-    from amb_tools.report_metrics import bag_metrics, choose_fault_time, scenario_fault
+    # heavy, optional: matplotlib, only where figures are drawn (not for the tables and metrics)
+    from amb_apps import report_figures as rf
 
     bags = [Path(b) for b in bags]
     if labels is None:
@@ -304,8 +304,6 @@ def main(argv: list[str] | None = None) -> int:
     if args.json:
         print(json.dumps(result, indent=2, default=_json_default))
     else:
-        from amb_tools.report_metrics import inner_summary
-
         for label, m in result.items():
             s = inner_summary(m)
             missing = ", ".join(m["missing_topics"]) or "none"
