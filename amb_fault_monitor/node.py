@@ -22,8 +22,9 @@ clearance bearing read from the rig file (``rig`` parameter, default ``config/ri
 coefficient message processed (``amb-run`` stops the monitor only once they reach the plant's
 last sample).
 
-Black box (``blackbox_dir`` non-empty): every accepted measurement and coefficient message is
-serialised (``rclpy.serialization.serialize_message``) into a ring buffer of
+Both streams are taken as raw CDR and read with :mod:`amb_tools.cdr` (no rclpy message objects
+per sample). Black box (``blackbox_dir`` non-empty): every accepted measurement and coefficient
+message goes, as received (CDR), into a ring buffer of
 ``blackbox_pre_s`` seconds; at each event ``blackbox_post_s`` more seconds are captured and the
 lot written to its own bag ``blackbox_dir/event_<id>_<TYPE>`` (topic names as subscribed).
 
@@ -79,7 +80,6 @@ from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
-from rclpy.serialization import serialize_message
 
 from amb_common import topics
 from amb_common.errors import RigError
@@ -98,6 +98,13 @@ from amb_fault_monitor.event_log import EventLog
 from amb_fault_monitor.monitor import FaultMonitor
 from amb_fault_monitor.node_params import FLOATS, RUNTIME, check_runtime_value
 from amb_fault_monitor.trips import SynchronousAmplitude, TripMonitor, clearance_levels
+from amb_tools.cdr import (
+    CoefficientsView,
+    MeasurementView,
+    StampView,
+    read_coefficients,
+    read_measurement,
+)
 from amb_tools.conversions import (
     MessageError,
     from_float_array,
@@ -204,10 +211,10 @@ class FaultMonitorNode(Node):
         )
         self._diag = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS, 10)
         self._coef_sub = self.create_subscription(
-            WaveletCoefficients, topics.COEFFICIENTS, self._on_coefficients, qos
+            WaveletCoefficients, topics.COEFFICIENTS, self._on_coefficients, qos, raw=True
         )
         self._meas_sub = self.create_subscription(
-            Measurement, topics.MEASUREMENT, self._on_measurement, qos
+            Measurement, topics.MEASUREMENT, self._on_measurement, qos, raw=True
         )
         self._status_timer = self.create_timer(p("status_period").value, self._publish_status)
         self.get_logger().info(
@@ -314,12 +321,14 @@ class FaultMonitorNode(Node):
             self._status_timer = self.create_timer(p("status_period").value, self._publish_status)
 
     # ------------------------------------------------------------------ streams
-    def _record(self, sub, msgtype: str, msg) -> None:
-        """Hand an accepted message to the black box; write its bag when a capture completes."""
+    def _record(
+        self, sub, msgtype: str, msg: MeasurementView | CoefficientsView, raw: bytes
+    ) -> None:
+        """Hand an accepted message's CDR, as received, to the black box; write a completed bag."""
         if self._box is None:
             return
         t_ns = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
-        path = self._box.add(sub.topic_name, msgtype, t_ns, serialize_message(msg))
+        path = self._box.add(sub.topic_name, msgtype, t_ns, raw)
         if path is not None:
             self.bags_written += 1
             self.get_logger().info(f"black box written to {path}")
@@ -329,31 +338,36 @@ class FaultMonitorNode(Node):
         self._last_reason = reason
         self.get_logger().warning(reason, throttle_duration_sec=5.0)
 
-    def _sequence(self, seq: SampleSequencer, index: int, msg, omega: float) -> list:
-        """Offer a checked message to a sequencer; log what it refused; return the accepted."""
+    def _sequence(self, seq: SampleSequencer, index: int, item: tuple, omega: float) -> list:
+        """Offer a checked (message view, CDR) pair to a sequencer; return the accepted pairs."""
         before = dict(seq.counts)
-        accepted = seq.push(index, stamp_seconds(msg.header.stamp), omega, msg)
+        accepted = seq.push(index, stamp_seconds(item[0].header.stamp), omega, item)
         if seq.counts != before:
             self._last_reason = seq.last_reason
             if any(seq.counts[k] != before[k] for k in ("stray", "stamp", "repeat")):
                 self.get_logger().warning(self._last_reason, throttle_duration_sec=5.0)
         return accepted
 
-    def _on_measurement(self, msg: Measurement) -> None:
+    def _on_measurement(self, raw: bytes) -> None:
+        try:
+            msg = read_measurement(raw)
+        except ValueError as exc:
+            self._reject("measurements_rejected", f"measurement not readable: {exc}; dropped")
+            return
         try:
             check_measurement(msg, self._spr)
         except MessageError as exc:
             self._reject("measurements_rejected", f"sample {msg.sample_index}: {exc}; dropped")
             return
-        for reset, m in self._sequence(
-            self._meas_seq, int(msg.sample_index), msg, float(msg.rotor_speed)
+        for reset, (m, r) in self._sequence(
+            self._meas_seq, int(msg.sample_index), (msg, raw), float(msg.rotor_speed)
         ):
             if reset:
                 self._sync_amp.reset()  # the 1 x window must not straddle a discontinuity
-            self._measurement(m)
+            self._measurement(m, r)
 
-    def _measurement(self, msg: Measurement) -> None:
-        self._record(self._meas_sub, "amb_msgs/msg/Measurement", msg)
+    def _measurement(self, msg: MeasurementView, raw: bytes) -> None:
+        self._record(self._meas_sub, "amb_msgs/msg/Measurement", msg, raw)
         self._omega = float(msg.rotor_speed)
         n = int(msg.sample_index)
         self._monitor.control_force(n, from_float_array(msg.wavelet_force))
@@ -377,7 +391,12 @@ class FaultMonitorNode(Node):
             )  # fmt: skip
             self._emit(ev, msg.header.stamp, n)
 
-    def _on_coefficients(self, msg: WaveletCoefficients) -> None:
+    def _on_coefficients(self, raw: bytes) -> None:
+        try:
+            msg = read_coefficients(raw)
+        except ValueError as exc:
+            self._reject("coefficients_rejected", f"coefficients not readable: {exc}; dropped")
+            return
         try:
             check_coefficients(msg, self._spr)
         except MessageError as exc:
@@ -387,13 +406,15 @@ class FaultMonitorNode(Node):
             )
             return
         omega = self._omega if self._omega > 0 else UNKNOWN_OMEGA
-        for reset, m in self._sequence(self._coef_seq, int(msg.sample_index) // 2, msg, omega):
-            self._coefficients(m, reset)
+        for reset, (m, r) in self._sequence(
+            self._coef_seq, int(msg.sample_index) // 2, (msg, raw), omega
+        ):
+            self._coefficients(m, r, reset)
 
-    def _coefficients(self, msg: WaveletCoefficients, reset: bool) -> None:
+    def _coefficients(self, msg: CoefficientsView, raw: bytes, reset: bool) -> None:
         if reset and self._monitor.samples:
             self._restart(f"coefficient stream discontinuous at sample {msg.sample_index}")
-        self._record(self._coef_sub, "amb_msgs/msg/WaveletCoefficients", msg)
+        self._record(self._coef_sub, "amb_msgs/msg/WaveletCoefficients", msg, raw)
         self.received += 1
         counted = self._monitor.control_transients
         self.last_coefficient_sample = int(msg.sample_index)
@@ -432,7 +453,8 @@ class FaultMonitorNode(Node):
             return now
         return stamp(max(stamp_seconds(now) - (now_index - index) / fs, 0.0))
 
-    def _emit(self, ev: FaultEvent, now: Time, now_index: int) -> None:
+    def _emit(self, ev: FaultEvent, stamp_in: StampView, now_index: int) -> None:
+        now = Time(sec=stamp_in.sec, nanosec=stamp_in.nanosec)
         self._log.append(ev, stamp_seconds(now))
         if self._box is not None:
             t_ns = now.sec * 1_000_000_000 + now.nanosec
