@@ -389,7 +389,7 @@ class HarmonicPipeline:
             sup.reset_controller()
             zeros = np.zeros(self.control.n_coefficients)
             result = self.limiter.apply(zeros)
-            sup._sent[m + sup.delay] = zeros
+            sup.record_zero(m + sup.delay)
             command = Command(
                 m + sup.delay, m, zeros, result.force, sup.mode, True, result.saturated,
                 bool(sup.guard is not None and sup.guard.tripped), f"period {m} incomplete",

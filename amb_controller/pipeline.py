@@ -491,7 +491,7 @@ class ControllerPipeline:
         zeros = np.zeros(self.control.n_coefficients)
         result = self.limiter.apply(zeros)
         target = m + sup.delay
-        sup._sent[target] = zeros
+        sup.record_zero(target)
         msg = self._period_message or f"period {m} incomplete"
         return Command(
             target, m, zeros, result.force, sup.mode, True, result.saturated,

@@ -87,6 +87,20 @@ class SteadyStatePredictor:
         self._history = np.zeros((self.operator.shape[0], self.n_channels))
         self._last_period: int | None = None
 
+    def get_state(self) -> tuple[np.ndarray, int | None]:
+        """Return a copy of the streaming state (history of ``Q``, last period)."""
+        return self._history.copy(), self._last_period
+
+    def set_state(self, state: tuple[np.ndarray, int | None]) -> None:
+        """Restore a state from :meth:`get_state`."""
+        history, last = state
+        self._history = np.array(history, dtype=float)
+        self._last_period = last
+
+    def skip(self, period_index: int) -> None:
+        """Mark ``period_index`` consumed without a measurement (history unchanged)."""
+        self._last_period = int(period_index)
+
     def step(self, period_index: int, measured: np.ndarray) -> np.ndarray:
         """
         Return the predicted steady-state coefficients after period ``period_index``.
@@ -187,7 +201,7 @@ class ProportionalController:
         """Return a copy of the state (predictor history)."""
         if self.predictor is None:
             return self._last_period
-        return (self._last_period, self.predictor._history.copy(), self.predictor._last_period)
+        return (self._last_period, *self.predictor.get_state())
 
     def set_state(self, state) -> None:
         """Restore a state from :meth:`get_state`."""
@@ -195,14 +209,13 @@ class ProportionalController:
             self._last_period = state
         else:
             self._last_period, history, last = state
-            self.predictor._history = history.copy()
-            self.predictor._last_period = last
+            self.predictor.set_state((history, last))
 
     def skip(self, period_index: int) -> None:
         """Mark ``period_index`` consumed without updating the predictor (hold)."""
         self._last_period = int(period_index)
         if self.predictor is not None:
-            self.predictor._last_period = int(period_index)
+            self.predictor.skip(period_index)
 
     def step(self, period_index: int, measured: np.ndarray) -> ControlStep:
         """

@@ -351,6 +351,14 @@ class WaveletControlSupervisor:
                 self.controller.step(later.period, later.measured)
         return sent
 
+    def record_zero(self, target_period: int) -> None:
+        """Record a zero-force command for ``target_period`` sent outside :meth:`step`.
+
+        The pipeline answers an incomplete period with zero force; :meth:`applied` and the
+        undo of lost commands must know it.
+        """
+        self._sent[int(target_period)] = np.zeros(self.limiter.basis.n_coefficients)
+
     def applied(self, period_index: int) -> np.ndarray:
         """Return the control coefficients commanded for ``period_index`` (zeros if none)."""
         return self._sent.get(period_index, np.zeros(self.limiter.basis.n_coefficients))
