@@ -62,6 +62,11 @@ build_hash=$( { cat requirements.txt setup.py setup.cfg package.xml;
               } | sha256sum | cut -c1-16)
 if [ "${FORCE:-0}" = 1 ] || [ ! -f install/setup.bash ] || [ "$(cat build/.bootstrap-stamp 2>/dev/null)" != "$build_hash" ]; then
   say "colcon build --base-paths . amb_msgs"
+  # a data file removed from the tree leaves a dangling symlink in the symlink-install build,
+  # on which setup.py's copy fails: drop those first
+  for d in build/amb_wavelet_control install/amb_wavelet_control; do
+    if [ -d "$d" ]; then find "$d" -xtype l -delete; fi
+  done
   (
     # shellcheck disable=SC1091
     source "$VENV/bin/activate"
