@@ -400,7 +400,7 @@ class WaveletControllerNode(Node):
             try:
                 records = coefficient_records(coeffs, self._slots)
             except MessageError as exc:
-                self._pipe._stats["inputs_rejected"] += 1
+                self._pipe.count_rejected_input()
                 self._reject(
                     "coefficients_rejected", f"coefficients of sample {m.sample_index}: {exc}"
                 )

@@ -529,6 +529,10 @@ class ControllerPipeline:
         sup.message = message
 
     # ------------------------------------------------------------------ status
+    def count_rejected_input(self) -> None:
+        """Count an input refused before it reached :meth:`on_sample` (``inputs_rejected``)."""
+        self._stats["inputs_rejected"] += 1
+
     def status(self) -> dict:
         """
         Return the ``ControllerStatus`` fields as a dict (the node copies them).
