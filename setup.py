@@ -14,6 +14,7 @@ NODES = {
     "replay_bridge": "amb_tools.replay_bridge:main",
     "wavelet_controller": "amb_controller.node:main",
     "wavelet_filterbank": "amb_wavelet.node:main",
+    "wavelet_stack": "amb_apps.stack:main",
 }
 TOOLS = {
     "amb-acceptability": "amb_apps.acceptability:main",

@@ -119,6 +119,7 @@ from amb_tools.conversions import (
     controller_status_msg,
     stamp_seconds,
 )
+from amb_tools.local_bus import LocalBus, stream_subscription
 from amb_tools.node_main import ConfigurationError, run_node
 from amb_tools.streams import COMMAND_QOS, FRAME_CODES, QUAD_CODES, stream_qos
 from amb_tools.validation import SampleSequencer, check_measurement
@@ -132,7 +133,7 @@ COEFFICIENT_HORIZON_PERIODS = 8
 class WaveletControllerNode(Node):
     """The wavelet controller (module docstring)."""
 
-    def __init__(self) -> None:
+    def __init__(self, bus: LocalBus | None = None) -> None:
         super().__init__("wavelet_controller")
         for cls in (ControllerConfig, NodeSettings):
             for f in parameter_fields(cls):
@@ -142,11 +143,9 @@ class WaveletControllerNode(Node):
         qos = stream_qos(self._pipe.samples_per_period)
         self._cmd_pub = self.create_publisher(ControlCommand, topics.COMMAND, COMMAND_QOS)
         self._status_pub = self.create_publisher(ControllerStatus, topics.STATUS, 10)
-        self.create_subscription(
-            Measurement, topics.MEASUREMENT, self._on_measurement, qos, raw=True
-        )
-        self.create_subscription(
-            WaveletCoefficients, topics.COEFFICIENTS, self._on_coefficients, qos, raw=True
+        stream_subscription(self, bus, Measurement, topics.MEASUREMENT, self._on_measurement, qos)
+        stream_subscription(
+            self, bus, WaveletCoefficients, topics.COEFFICIENTS, self._on_coefficients, qos
         )
         self.create_subscription(FaultEvent, topics.FAULT_EVENTS, self._on_fault, 10)
         self.create_service(SetControllerMode, topics.SET_MODE, self._on_set_mode)

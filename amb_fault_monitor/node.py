@@ -111,6 +111,7 @@ from amb_tools.conversions import (
     stamp,
     stamp_seconds,
 )
+from amb_tools.local_bus import LocalBus, stream_subscription
 from amb_tools.node_main import ConfigurationError, descriptor, run_node
 from amb_tools.streams import stream_qos
 from amb_tools.validation import SampleSequencer, check_measurement
@@ -130,7 +131,7 @@ REFUSED = ("repeat", "stray", "stamp")
 class FaultMonitorNode(Node):
     """Publish fault events classified from the wavelet coefficients (module docstring)."""
 
-    def __init__(self) -> None:
+    def __init__(self, bus: LocalBus | None = None) -> None:
         super().__init__("fault_monitor")
         self._declare(
             "samples_per_rev",
@@ -210,12 +211,10 @@ class FaultMonitorNode(Node):
             QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE),
         )
         self._diag = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS, 10)
-        self._coef_sub = self.create_subscription(
-            WaveletCoefficients, topics.COEFFICIENTS, self._on_coefficients, qos, raw=True
+        stream_subscription(
+            self, bus, WaveletCoefficients, topics.COEFFICIENTS, self._on_coefficients, qos
         )
-        self._meas_sub = self.create_subscription(
-            Measurement, topics.MEASUREMENT, self._on_measurement, qos, raw=True
-        )
+        stream_subscription(self, bus, Measurement, topics.MEASUREMENT, self._on_measurement, qos)
         self._status_timer = self.create_timer(p("status_period").value, self._publish_status)
         self.get_logger().info(
             f"{len(self._log.events)} logged events reloaded; contacts per bearing "
@@ -322,13 +321,13 @@ class FaultMonitorNode(Node):
 
     # ------------------------------------------------------------------ streams
     def _record(
-        self, sub, msgtype: str, msg: MeasurementView | CoefficientsView, raw: bytes
+        self, topic: str, msgtype: str, msg: MeasurementView | CoefficientsView, raw: bytes
     ) -> None:
         """Hand an accepted message's CDR, as received, to the black box; write a completed bag."""
         if self._box is None:
             return
         t_ns = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
-        path = self._box.add(sub.topic_name, msgtype, t_ns, raw)
+        path = self._box.add(self.resolve_topic_name(topic), msgtype, t_ns, raw)
         if path is not None:
             self.bags_written += 1
             self.get_logger().info(f"black box written to {path}")
@@ -367,7 +366,7 @@ class FaultMonitorNode(Node):
             self._measurement(m, r)
 
     def _measurement(self, msg: MeasurementView, raw: bytes) -> None:
-        self._record(self._meas_sub, "amb_msgs/msg/Measurement", msg, raw)
+        self._record(topics.MEASUREMENT, "amb_msgs/msg/Measurement", msg, raw)
         self._omega = float(msg.rotor_speed)
         n = int(msg.sample_index)
         self._monitor.control_force(n, from_float_array(msg.wavelet_force))
@@ -414,7 +413,7 @@ class FaultMonitorNode(Node):
     def _coefficients(self, msg: CoefficientsView, raw: bytes, reset: bool) -> None:
         if reset and self._monitor.samples:
             self._restart(f"coefficient stream discontinuous at sample {msg.sample_index}")
-        self._record(self._coef_sub, "amb_msgs/msg/WaveletCoefficients", msg, raw)
+        self._record(topics.COEFFICIENTS, "amb_msgs/msg/WaveletCoefficients", msg, raw)
         self.received += 1
         counted = self._monitor.control_transients
         self.last_coefficient_sample = int(msg.sample_index)

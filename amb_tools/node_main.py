@@ -130,6 +130,24 @@ def run_node(
     int
         Process exit status: 0 on a clean stop, 2 on a configuration error.
     """
+    return run_nodes([factory], args, spin_timeout, executor)
+
+
+def run_nodes(
+    factories: Sequence[Callable[[], Node]],
+    args: Sequence[str] | None = None,
+    spin_timeout: float = 0.1,
+    executor: str | None = None,
+    process_name: str | None = None,
+) -> int:
+    """Create nodes with ``factories`` (in order) and spin them in one executor.
+
+    As :func:`run_node`, for several nodes composed in one process (``wavelet_stack``): a
+    configuration error in any stops the process with status 2; the process ends when one node
+    sets ``done``; a callback's exception is counted in the ``callback_errors`` of the node
+    whose method raised it. Profiles (``AMB_CPU_LOG``, ``AMB_PROFILE``) are written under
+    ``process_name`` (default: the first node's name).
+    """
     stop = False
 
     def _request_stop(signum: int, frame: FrameType | None) -> None:
@@ -138,31 +156,31 @@ def run_node(
 
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     previous = {s: signal.signal(s, _request_stop) for s in (signal.SIGINT, signal.SIGTERM)}
-    node = None
+    nodes: list[Node] = []
     profiler = None
     try:
         try:
-            node = factory()
-        except ConfigurationError as exc:
-            print(f"[ERROR] configuration: {exc}", file=sys.stderr, flush=True)
-            return EXIT_CONFIGURATION_ERROR
-        except ParameterException as exc:
-            # rclpy's own refusal of a -p / params-file value against its descriptor (range,
-            # type): its message names the value, the reason (range) and the parameter.
+            for factory in factories:
+                nodes.append(factory())
+        except (ConfigurationError, ParameterException) as exc:
+            # ParameterException: rclpy's own refusal of a -p / params-file value against its
+            # descriptor (range, type); its message names the value, the reason and the name.
             print(f"[ERROR] configuration: {exc}", file=sys.stderr, flush=True)
             return EXIT_CONFIGURATION_ERROR
         spinner = make_executor(executor)
-        spinner.add_node(node)
-        node.callback_errors = 0
+        for node in nodes:
+            spinner.add_node(node)
+            node.callback_errors = 0
         profiler = _Profiler.from_environment()
         if profiler is not None:
             profiler.start()
-        while not stop and rclpy.ok() and not getattr(node, "done", False):
+        while not stop and rclpy.ok() and not any(getattr(n, "done", False) for n in nodes):
             try:
                 spinner.spin_once(timeout_sec=spin_timeout)
             except (KeyboardInterrupt, ExternalShutdownException):
                 raise
-            except Exception:
+            except Exception as exc:
+                node = _raised_in(nodes, exc)
                 node.callback_errors += 1
                 node.get_logger().error(
                     f"callback error #{node.callback_errors} (node keeps running):\n"
@@ -174,8 +192,8 @@ def run_node(
         return 0
     finally:
         if profiler is not None:
-            profiler.dump(node.get_name())
-        if node is not None:
+            profiler.dump(process_name or nodes[0].get_name())
+        for node in reversed(nodes):
             on_shutdown = getattr(node, "on_shutdown", None)
             if on_shutdown is not None:
                 on_shutdown()
@@ -183,6 +201,16 @@ def run_node(
         rclpy.try_shutdown()
         for sig, handler in previous.items():
             signal.signal(sig, handler)
+
+
+def _raised_in(nodes: Sequence[Node], exc: BaseException) -> Node:
+    """The node whose method is deepest in ``exc``'s traceback (the first node if none is)."""
+    found = nodes[0]
+    for frame, _ in traceback.walk_tb(exc.__traceback__):
+        owner = frame.f_locals.get("self")
+        if any(owner is n for n in nodes):
+            found = owner
+    return found
 
 
 class _Profiler:

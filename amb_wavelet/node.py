@@ -39,6 +39,7 @@ from rclpy.node import Node
 from amb_common import topics
 from amb_tools.cdr import MeasurementView, read_measurement
 from amb_tools.conversions import MessageError, stamp_seconds
+from amb_tools.local_bus import LocalBus, stream_publisher, stream_subscription
 from amb_tools.node_main import ConfigurationError, descriptor, run_node
 from amb_tools.streams import FRAME_CODES, QUAD_CODES, stream_qos
 from amb_tools.validation import SampleSequencer, check_measurement
@@ -53,7 +54,7 @@ from amb_wavelet.messages import coefficients_bytes
 class WaveletFilterbankNode(Node):
     """Publish the wavelet coefficients of the measurement stream (module docstring)."""
 
-    def __init__(self) -> None:
+    def __init__(self, bus: LocalBus | None = None) -> None:
         super().__init__("wavelet_filterbank")
         d = self.declare_parameter
         d("wavelet", "haar", descriptor("PyWavelets name (orthogonal)"))
@@ -88,11 +89,9 @@ class WaveletFilterbankNode(Node):
         )
         self._configure()
         qos = stream_qos(self._samples_per_period)
-        self._pub = self.create_publisher(WaveletCoefficients, topics.COEFFICIENTS, qos)
+        self._pub = stream_publisher(self, bus, WaveletCoefficients, topics.COEFFICIENTS, qos)
         self._diag = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS, 10)
-        self.create_subscription(
-            Measurement, topics.MEASUREMENT, self._on_measurement, qos, raw=True
-        )
+        stream_subscription(self, bus, Measurement, topics.MEASUREMENT, self._on_measurement, qos)
         self._status_timer = self.create_timer(
             self.get_parameter("status_period").value, self._publish_status
         )

@@ -1,0 +1,162 @@
+"""
+In-process hand-off of the sample-rate streams between nodes composed in one process.
+
+rclpy has no intra-process path (rclcpp's ``use_intra_process_comms``): two rclpy nodes in one
+process still exchange every message through DDS, paying a publish and one take per reader.
+At 67 Hz x 32 the measurement stream alone is 2144 messages per second to the filterbank, the
+controller and the fault monitor. A :class:`LocalBus` shared by nodes created in one process
+(``wavelet_stack``, :mod:`amb_apps.stack`) carries the streams as raw CDR bytes:
+
+- a topic published by one of the composed nodes (the filterbank's coefficients) is still
+  published on DDS for every outside reader (the recorder, tools, another host) and handed, in
+  the publisher's call, to the composed readers, which create no DDS reader of their own;
+- a topic published outside (the plant's or the bridge's measurements) is taken from DDS by one
+  raw reader for the whole process, and each message is handed to every composed reader.
+
+Readers get the same bytes a ``raw=True`` subscription gives, in the order DDS delivered them;
+each stays keyed on its sample indices, so a composed system computes what separate processes
+compute (lock-step results are bit-identical; ``test/system``). Nodes take ``bus=None`` when
+run alone and then subscribe and publish as usual (:func:`stream_subscription`,
+:func:`stream_publisher`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+from rclpy.node import Node
+from rclpy.qos import QoSProfile
+
+__all__ = ["LocalBus", "StreamPublisher", "stream_publisher", "stream_subscription"]
+
+RawCallback = Callable[[bytes], None]
+
+
+@dataclass
+class _Topic:
+    """The composed readers of one resolved topic name and how its messages arrive."""
+
+    msg_type: type
+    readers: list[RawCallback] = field(default_factory=list)
+    local: bool = False  # published by a composed node (else: one DDS reader feeds the readers)
+    dds_reader: object | None = None
+    delivered: int = 0
+
+
+class LocalBus:
+    """
+    The streams shared by the nodes of one process.
+
+    Parameters
+    ----------
+    local_topics : iterable of str
+        Names (relative or absolute, resolved against each node's namespace) published by a
+        composed node. Readers of these get the publisher's bytes directly; declare them before
+        the readers subscribe, so that none opens a DDS reader for them.
+    """
+
+    def __init__(self, local_topics: tuple[str, ...] = ()) -> None:
+        self._local_names = tuple(local_topics)
+        self._topics: dict[str, _Topic] = {}
+
+    def _topic(self, node: Node, msg_type: type, name: str) -> tuple[str, _Topic]:
+        resolved = node.resolve_topic_name(name)
+        topic = self._topics.get(resolved)
+        if topic is None:
+            local = any(node.resolve_topic_name(n) == resolved for n in self._local_names)
+            topic = self._topics[resolved] = _Topic(msg_type, local=local)
+        elif topic.msg_type is not msg_type:
+            raise TypeError(
+                f"{resolved}: {msg_type.__name__} requested, the bus carries "
+                f"{topic.msg_type.__name__}"
+            )
+        return resolved, topic
+
+    def subscribe(
+        self, node: Node, msg_type: type, name: str, callback: RawCallback, qos: QoSProfile
+    ) -> None:
+        """
+        Hand every message of topic ``name`` (CDR bytes) to ``callback``.
+
+        Parameters
+        ----------
+        node : rclpy.node.Node
+            The reading node (its namespace resolves ``name``; for a topic published outside,
+            the first reader's node holds the process's one DDS reader).
+        msg_type : type
+            The message class.
+        name : str
+            Topic name.
+        callback : callable
+            Called with the raw CDR of each message.
+        qos : rclpy.qos.QoSProfile
+            QoS of the DDS reader (outside topics), as the node would have used alone.
+        """
+        resolved, topic = self._topic(node, msg_type, name)
+        topic.readers.append(callback)
+        if not topic.local and topic.dds_reader is None:
+            topic.dds_reader = node.create_subscription(
+                msg_type, resolved, lambda raw, t=topic: self._deliver(t, raw), qos, raw=True
+            )
+
+    def publisher(self, node: Node, msg_type: type, name: str, qos: QoSProfile) -> StreamPublisher:
+        """A publisher of ``name`` that also hands each message to the composed readers."""
+        resolved, topic = self._topic(node, msg_type, name)
+        if not topic.local:
+            raise ValueError(
+                f"{resolved} is not one of the bus's local topics {self._local_names}: declare "
+                "it, or readers composed before this publisher took it from DDS as well"
+            )
+        return StreamPublisher(node.create_publisher(msg_type, resolved, qos), topic, self)
+
+    def _deliver(self, topic: _Topic, raw: bytes) -> None:
+        topic.delivered += 1
+        for reader in topic.readers:
+            reader(raw)
+
+    def delivered(self, name: str, node: Node) -> int:
+        """Messages of ``name`` handed to the composed readers so far."""
+        topic = self._topics.get(node.resolve_topic_name(name))
+        return 0 if topic is None else topic.delivered
+
+
+class StreamPublisher:
+    """A DDS publisher whose messages (CDR bytes) also go to the bus's composed readers."""
+
+    def __init__(self, dds, topic: _Topic, bus: LocalBus) -> None:
+        self.dds = dds
+        self._topic = topic
+        self._bus = bus
+
+    @property
+    def topic_name(self) -> str:
+        """The resolved topic name."""
+        return self.dds.topic_name
+
+    def publish(self, raw: bytes) -> None:
+        """Publish serialised ``raw`` on DDS, then hand it to the composed readers."""
+        self.dds.publish(raw)
+        self._bus._deliver(self._topic, raw)
+
+
+def stream_subscription(
+    node: Node,
+    bus: LocalBus | None,
+    msg_type: type,
+    name: str,
+    callback: RawCallback,
+    qos: QoSProfile,
+):
+    """Subscribe ``callback`` (raw CDR) to a stream: from the bus if composed, else from DDS."""
+    if bus is None:
+        return node.create_subscription(msg_type, name, callback, qos, raw=True)
+    bus.subscribe(node, msg_type, name, callback, qos)
+    return None
+
+
+def stream_publisher(node: Node, bus: LocalBus | None, msg_type: type, name: str, qos: QoSProfile):
+    """A publisher of a stream (``publish(raw_bytes)``): bus-aware if composed."""
+    if bus is None:
+        return node.create_publisher(msg_type, name, qos)
+    return bus.publisher(node, msg_type, name, qos)
