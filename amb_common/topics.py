@@ -157,7 +157,7 @@ def bag_namespace(topic_names: Iterable[str]) -> str:
         if found:
             raise ValueError(
                 f"{stream} is in the bag under {len(found)} namespaces {found}: "
-                "say which one to read"
+                "say which one to read (read_bag(..., namespace=), amb-report --namespace)"
             )
     return ROOT_NAMESPACE
 

@@ -316,7 +316,7 @@ def read_bag(path: str | Path, namespace: str | None = None) -> BagData:
             try:
                 ns = bag_namespace(counts) if namespace is None else as_namespace(namespace)
             except ValueError as exc:
-                raise BagReadError(f"bag {path}: {exc} (the namespace argument)") from exc
+                raise BagReadError(f"bag {path}: {exc}") from exc
             stream = {absolute(t, ns): t for t in EXPECTED_TOPICS}  # name in the bag -> stream
             for conn, _t, data in reader.messages():
                 counts[conn.topic] = counts.get(conn.topic, 0) + 1
