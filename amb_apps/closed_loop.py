@@ -488,7 +488,11 @@ class BagRecorder:
 
     """
 
-    TOPICS: ClassVar[dict[str, str]] = topics.STREAM_TYPES
+    #: The streams under their canonical absolute names (the root namespace: ``/amb/...``), as
+    #: the nodes started without a namespace publish them.
+    TOPICS: ClassVar[dict[str, str]] = topics.stream_types()
+    #: Each stream's relative name (:mod:`amb_common.topics`) -> its name in the bag.
+    TOPIC: ClassVar[dict[str, str]] = {t: topics.absolute(t) for t in topics.STREAM_TYPES}
 
     def __init__(self, path: str | Path, config: ControllerConfig, force_limit: float) -> None:
         # heavy, optional: ROS messages and rclpy/rosbags, only when the loop records a bag
@@ -521,7 +525,7 @@ class BagRecorder:
 
         msgs = measurement_msgs(block, force, 0, self.config.samples_per_rev, self.force_limit)
         for m in msgs:
-            self._write(topics.MEASUREMENT, m)
+            self._write(self.TOPIC[topics.MEASUREMENT], m)
         return msgs
 
     def coefficients(self, measurement, sample_index: int, omega: float, records) -> None:
@@ -534,7 +538,7 @@ class BagRecorder:
             measurement.header, cfg.wavelet, cfg.samples_per_rev, cfg.period_samples,
             sample_index, omega, records, self.slots,
         )  # fmt: skip
-        self._write(topics.COEFFICIENTS, msg)
+        self._write(self.TOPIC[topics.COEFFICIENTS], msg)
 
     def command(self, command: Command, header, pipeline: ControllerPipeline) -> None:
         """Write a ``ControlCommand`` and the ``ControllerStatus`` after it."""
@@ -543,13 +547,13 @@ class BagRecorder:
 
         cfg = self.config
         self._write(
-            topics.COMMAND,
+            self.TOPIC[topics.COMMAND],
             command_msg(
                 command, header, pipeline.control.labels, cfg.period_samples,
                 cfg.delay_periods, cfg.wavelet,
             ),
         )  # fmt: skip
-        self._write(topics.STATUS, controller_status_msg(pipeline.status(), header))
+        self._write(self.TOPIC[topics.STATUS], controller_status_msg(pipeline.status(), header))
 
     def fault_event(self, event: dict, stamp) -> None:
         """Write a ``FaultEvent`` (fields of :class:`amb_common.faults.FaultEvent`)."""
@@ -574,7 +578,7 @@ class BagRecorder:
         msg.evidence = [KeyValue(key=str(k), value=str(v)) for k, v in event["evidence"].items()]
         msg.description = str(event.get("description", ""))
         msg.detection_stamp = stamp
-        self._write(topics.FAULT_EVENTS, msg)
+        self._write(self.TOPIC[topics.FAULT_EVENTS], msg)
 
     def close(self) -> None:
         """Finish the bag."""

@@ -6,7 +6,9 @@ r"""``amb-report``: thesis-style figures and ``metrics.json`` from any bag of th
                --scenario config/scenarios/mass_loss_first_critical.yaml --out report/
 
 reads one or more rosbag2 folders with the ``/amb/*`` topics (``amb-sim``, ``amb-run``'s
-recorder or ``ros2 bag record``; missing topics are tolerated and listed) and writes to ``DIR``:
+recorder or ``ros2 bag record``; missing topics are tolerated and listed; a bag of a system run in
+a namespace, ``/rig1/amb/*``, is read under the one namespace it holds the streams in, or the one
+``--namespace`` names) and writes to ``DIR``:
 
 * ``displacement.png`` (fig. 8.11), ``coefficients_1x.png`` (figs. 8.11 (e-h), 7.3),
   ``forces.png`` (fig. 8.12), ``orbits.png`` (fig. 5.27), ``fault_timeline.png`` and
@@ -58,6 +60,12 @@ def build_parser() -> argparse.ArgumentParser:
         type=float,
         default=None,
         help="s, fault time for the 'after the fault' metrics (overrides scenario and FaultEvents)",
+    )
+    ap.add_argument(
+        "--namespace",
+        default=None,
+        help="namespace the system ran in (/rig1: /rig1/amb/measurement, ...); default: the one "
+        "each bag holds the streams under",
     )
     ap.add_argument("--json", action="store_true", help="print the metrics as JSON to stdout")
     return ap
@@ -207,6 +215,7 @@ def make_report(
     labels: list[str] | None = None,
     scenario: str | Path | None = None,
     fault_time: float | None = None,
+    namespace: str | None = None,
 ) -> dict:
     """Write the report of ``bags`` to ``out``; return ``{label: metrics}``.
 
@@ -222,6 +231,9 @@ def make_report(
         Scenario YAML (fault time and running speed as ``amb-sim``).
     fault_time : float, optional
         s, overrides the scenario's and the bags' fault times.
+    namespace : str, optional
+        The namespace the system ran in; None: found in each bag
+        (:func:`amb_tools.bag_read.read_bag`).
 
     Returns
     -------
@@ -253,7 +265,7 @@ def make_report(
     runs, all_metrics, metric_paths = [], [], []
     taken: set[str] = set()
     for bag, label in zip(bags, labels, strict=True):
-        data = read_bag(bag)
+        data = read_bag(bag, namespace)
         fault = choose_fault_time(data, fault_time, sc_fault)
         m = bag_metrics(data, fault, sc_speed)
         if scenario is not None:
@@ -297,7 +309,9 @@ def main(argv: list[str] | None = None) -> int:
     if args.labels is not None:
         labels = [s.strip() for s in args.labels.split(",")]
     try:
-        result = make_report(args.bags, args.out, labels, args.scenario, args.fault_time)
+        result = make_report(
+            args.bags, args.out, labels, args.scenario, args.fault_time, args.namespace
+        )
     except (ValueError, TypeError, FileNotFoundError) as exc:
         print(f"amb-report: {exc}", file=sys.stderr)
         return 2

@@ -499,8 +499,9 @@ def timeline_figure(runs: list[Run], path: Path) -> Figure:
             )
         if not events:
             msg = "no FaultEvent in this bag"
-            if topics.FAULT_EVENTS in run.data.missing:
-                msg += " (/amb/fault/events empty or not recorded: fault monitor not running?)"
+            events_topic = run.data.topic(topics.FAULT_EVENTS)
+            if events_topic in run.data.missing:
+                msg += f" ({events_topic} empty or not recorded: fault monitor not running?)"
             ax.text(
                 0.01,
                 0.95,

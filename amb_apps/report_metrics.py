@@ -212,7 +212,9 @@ def bag_metrics(
         {
             "bag": str(data.path),
             "bag_counts": {
-                t: n for t, n in data.counts.items() if t.startswith(topics.PREFIX) and n
+                t: n
+                for t, n in data.counts.items()
+                if t.startswith(data.topic(topics.PREFIX)) and n
             },
             "controller": _controller(data),
             "fault_time_source": fault.source,

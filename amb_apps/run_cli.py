@@ -2,11 +2,13 @@
 
 What ``launch/amb_system.launch.py`` does on a full ROS 2 install, for environments without
 ``ros2 launch``: each node executable is started as its own process with
-``--ros-args --params-file <params>`` (plus ``-p`` overrides), the recorder writes
-``OUT/bag``, progress (simulated time, real-time factor) is printed from the plant's
-``/diagnostics`` while it runs, and when ``plant_sim`` exits at the end of its scenario the other
-nodes are stopped with SIGINT (the recorder last, after its queue has drained). Logs of every
-node are in ``OUT/logs``. The exit status is 0 only if every node stopped cleanly.
+``--ros-args --params-file <params> --params-file OUT/run_params.yaml`` (the run's own
+parameters and the ``--set`` overrides, each node's under its fully qualified name:
+:func:`amb_apps.system.run_params_document`), the recorder writes ``OUT/bag``, progress
+(simulated time, real-time factor) is printed from the plant's ``/diagnostics`` while it runs,
+and when ``plant_sim`` exits at the end of its scenario the other nodes are stopped with SIGINT
+(the recorder last, after its queue has drained). Logs of every node are in ``OUT/logs``. The
+exit status is 0 only if every node stopped cleanly.
 
 Draining: a node that is behind the plant when the plant exits still has the end of the run in
 its subscription queues (the fault monitor, off the lock-step chain, may be many revolutions
@@ -16,6 +18,13 @@ indices they report as processed on ``/diagnostics`` (:data:`DRAINED`) reach the
 sample, at most ``--drain-timeout`` wall seconds (progress printed each second). A node that has
 not caught up by then is stopped anyway, named with how far it got, and the exit status is 1:
 what it had not processed (events, commands, coefficients) is missing from the bag.
+
+Namespace: ``--namespace /rig1`` starts every node in ``/rig1`` (``-r __ns:=/rig1``), so that
+the system's topics are ``/rig1/amb/...`` and a second run in another namespace, on the same
+machine and ROS domain, does not cross-talk with this one; the bag then holds
+``/rig1/amb/...`` (``amb-report`` finds the namespace in it). ``/diagnostics`` is shared: the
+nodes name their reports with their namespace (``rig1/plant_sim``), and the progress and the
+drain read only this run's.
 
 Scheduling: the recorder, off the control loop, runs with a higher nice value
 (:data:`NICENESS`, ``--nice NODE=N`` to change, e.g. ``--nice fault_monitor=5`` as well: it
@@ -32,6 +41,7 @@ Examples
     amb-run --scenario config/scenarios/mass_loss_first_critical.yaml --out out/run1
     amb-run --scenario mass_loss_first_critical.yaml --controller none --out out/pid_only
     amb-run --scenario ... --set wavelet_controller.w:=0.65 --set wavelet_filterbank.wavelet:=db4
+    amb-run --scenario mass_loss_first_critical.yaml --namespace /rig1 --out out/rig1
 """
 
 from __future__ import annotations
@@ -48,10 +58,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import rclpy
+import yaml
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.executors import SingleThreadedExecutor
 
-from amb_apps.system import NODE_MODULES, NODES, ros_arguments, run_parameters
+from amb_apps.system import NODE_MODULES, NODES, run_parameters, run_params_document
 from amb_common import topics
 from amb_common.paths import config_file, scenario_file
 from amb_plant_sim.errors import ScenarioError
@@ -152,6 +163,11 @@ def build_parser() -> argparse.ArgumentParser:
         help="parameter override for one node (repeatable)",
     )
     p.add_argument(
+        "--namespace",
+        default=topics.ROOT_NAMESPACE,
+        help="namespace of every node (e.g. /rig1: topics /rig1/amb/...; default /)",
+    )
+    p.add_argument(
         "--nice",
         action="append",
         default=[],
@@ -170,26 +186,41 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-def _set_overrides(args: argparse.Namespace) -> dict[str, list[str]]:
-    """The ``--set NODE.PARAM:=VALUE`` items as node-scoped ``-p`` arguments per node."""
-    over: dict[str, list[str]] = {n: [] for n in NODES}
+def _set_overrides(args: argparse.Namespace) -> dict[str, dict[str, object]]:
+    """The ``--set NODE.PARAM:=VALUE`` items as parameters per node.
+
+    VALUE is read as YAML, as rcl reads a ``-p name:=value``: ``0.65`` is a double, ``db4`` a
+    string, ``[fixed]`` a list, ``true`` a bool.
+    """
+    over: dict[str, dict[str, object]] = {n: {} for n in NODES}
     for item in args.set:
         node, _, rest = item.partition(".")
-        if node not in over or ":=" not in rest:
+        name, sep, text = rest.partition(":=")
+        if node not in over or not sep or not name:
             raise SystemExit(
                 f"amb-run: --set {item!r}: expected NODE.PARAM:=VALUE with NODE in {NODES}"
             )
-        over[node] += ["-p", f"{node}:{rest}"]
+        try:
+            value = yaml.safe_load(text)
+        except yaml.YAMLError as exc:
+            raise SystemExit(f"amb-run: --set {item!r}: VALUE is not YAML: {exc}") from None
+        over[node][name] = text if value is None else value
     return over
 
 
 class _Progress:
-    """Reads the nodes' /diagnostics in a node of this process (simulated time, counts)."""
+    """Reads the nodes' /diagnostics in a node of this process (simulated time, counts).
 
-    def __init__(self) -> None:
+    The node is in the run's namespace, so that the graph counts of the (relative) streams are
+    the run's; of the reports on the ROS-wide ``/diagnostics`` it keeps the run's nodes' (their
+    names carry the namespace: :func:`amb_common.topics.diagnostic_name`).
+    """
+
+    def __init__(self, namespace: str = topics.ROOT_NAMESPACE) -> None:
+        self.namespace = namespace
         self.context = rclpy.Context()
         rclpy.init(context=self.context)
-        self.node = rclpy.create_node("amb_run_progress", context=self.context)
+        self.node = rclpy.create_node("amb_run_progress", namespace=namespace, context=self.context)
         self.statuses: dict[str, dict[str, str]] = {}  # status name -> its last key values
         self.node.create_subscription(DiagnosticArray, topics.DIAGNOSTICS, self._on_diag, 100)
 
@@ -203,11 +234,12 @@ class _Progress:
     @property
     def values(self) -> dict[str, str]:
         """The plant's last report (empty before the first)."""
-        return self.statuses.get("plant_sim", {})
+        return self.statuses.get(topics.diagnostic_name("plant_sim", self.namespace), {})
 
     def processed(self, name: str, key: str) -> int | None:
         """Sample index ``key`` last reported by node ``name`` (None if not reported yet)."""
-        value = self.statuses.get(name, {}).get(key)
+        status = self.statuses.get(topics.diagnostic_name(name, self.namespace), {})
+        value = status.get(key)
         return int(value) if value is not None and value.lstrip("-").isdigit() else None
 
     def spin(self, seconds: float) -> None:
@@ -246,6 +278,11 @@ def run(args: argparse.Namespace) -> int:
     if not Path(params).is_file():
         print(f"amb-run: params file {params} not found", file=sys.stderr)
         return 2
+    try:
+        namespace = topics.namespace(args.namespace)
+    except ValueError as exc:
+        print(f"amb-run: --namespace: {exc}", file=sys.stderr)
+        return 2
     out: Path = args.out
     if out.exists():
         print(f"amb-run: output folder {out} exists; choose a new one", file=sys.stderr)
@@ -267,7 +304,18 @@ def run(args: argparse.Namespace) -> int:
         print(f"amb-run: {exc}", file=sys.stderr)
         return 2
     (out / "logs").mkdir(parents=True)
-    over = {n: ros_arguments(n, run_params[n]) + set_by_user[n] for n in names}
+    run_params_file = out / "run_params.yaml"
+    run_params_file.write_text(
+        "# amb-run: this run's parameters, given to every node after the params file\n"
+        + yaml.safe_dump(
+            run_params_document({n: {**run_params[n], **set_by_user[n]} for n in names}, namespace),
+            default_flow_style=None,
+            sort_keys=False,
+        )
+    )
+    ros_args = ["--params-file", str(params), "--params-file", str(run_params_file)]
+    if namespace != topics.ROOT_NAMESPACE:
+        ros_args = ["-r", f"__ns:={namespace}", *ros_args]
     nice = dict(NICENESS)
     for item in args.nice:
         node, _, value = item.partition("=")
@@ -277,7 +325,7 @@ def run(args: argparse.Namespace) -> int:
     runs = [
         NodeRun(
             n,
-            [*executable(n), "--ros-args", "--params-file", str(params), *over[n]],
+            [*executable(n), "--ros-args", *ros_args],
             out / "logs" / f"{n}.log",
             nice=nice.get(n, 0),
         )
@@ -286,10 +334,11 @@ def run(args: argparse.Namespace) -> int:
     env = dict(os.environ)
     env["PYTHONUNBUFFERED"] = "1"
     if not args.quiet:
-        print(f"[amb-run] {scenario.name}: starting {', '.join(names)}", flush=True)
+        where = "" if namespace == topics.ROOT_NAMESPACE else f" in namespace {namespace}"
+        print(f"[amb-run] {scenario.name}: starting {', '.join(names)}{where}", flush=True)
         if missing:
             print(f"[amb-run] not built yet, not started: {', '.join(missing)}", flush=True)
-    progress = _Progress()
+    progress = _Progress(namespace)
     status = 0
     t0 = time.monotonic()
     try:

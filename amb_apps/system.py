@@ -15,7 +15,18 @@ that the two ways of starting the system cannot drift apart (a test of
 - the controller's ``controller``, ``start_mode``, ``model_file``, ``model_file_out`` when
   given;
 - the recorder's ``output`` folder and the streams it subscribes at start
-  (``topic_types``: nothing is lost before discovery).
+  (``topic_types``, relative names resolved in the recorder's namespace: nothing is lost before
+  discovery).
+
+Namespace: both start every node in one namespace (``/`` by default; ``amb-run --namespace``,
+the launch file's ``namespace``). The topic names are relative (:mod:`amb_common.topics`), so
+that the namespace moves the whole system. A params file's node sections must then match a node
+in any namespace (``/**/plant_sim:``, as ``config/amb_params.yaml`` writes them; a bare
+``plant_sim:`` matches only ``/plant_sim``), and a run's own parameters are given as a second
+params file with each node's section under its fully qualified name
+(:func:`run_params_document`): rclpy takes the later section, so they win over the params
+file's, in any namespace. (A node-scoped ``-p plant_sim:mode:=...`` cannot name a node in a
+namespace, and an unscoped ``-p`` loses to the params file's node sections.)
 """
 
 from __future__ import annotations
@@ -25,7 +36,14 @@ from pathlib import Path
 from amb_common import topics
 from amb_plant_sim.scenario import load_scenario
 
-__all__ = ["NODES", "NODE_MODULES", "param_text", "ros_arguments", "run_parameters"]
+__all__ = [
+    "NODES",
+    "NODE_MODULES",
+    "node_name",
+    "param_text",
+    "run_parameters",
+    "run_params_document",
+]
 
 #: The nodes of a run, in start order (the plant last: it waits for the others).
 NODES = ("recorder", "wavelet_filterbank", "fault_monitor", "wavelet_controller", "plant_sim")
@@ -101,17 +119,33 @@ def run_parameters(
     return out
 
 
-def ros_arguments(node: str, params: dict[str, object]) -> list[str]:
-    """
-    ``-p node:name:=value`` arguments for ``params`` (node-scoped: see below).
+def node_name(node: str, namespace: str = topics.ROOT_NAMESPACE) -> str:
+    """The fully qualified name of ``node`` started in ``namespace`` (``/rig1/plant_sim``)."""
+    return topics.absolute(node, namespace)
 
-    rcl ranks a node's section of a params file above an unscoped ``-p``, so ``-p mode:=...``
-    would lose to ``plant_sim: mode: lockstep``; a node-scoped ``-p`` wins.
+
+def run_params_document(
+    params: dict[str, dict[str, object]], namespace: str = topics.ROOT_NAMESPACE
+) -> dict[str, dict]:
     """
-    args: list[str] = []
-    for name, value in params.items():
-        args += ["-p", f"{node}:{name}:={param_text(value)}"]
-    return args
+    A params-file document of a run's parameters: each node's under its fully qualified name.
+
+    Given to every node after the params file (``--params-file FILE --params-file RUN``), a
+    node's section here comes after the file's ``/**`` and ``/**/node`` sections and so wins
+    over them (module notes); nodes with nothing to set have no section.
+
+    Parameters
+    ----------
+    params : dict
+        Node name -> {parameter: value} (:func:`run_parameters`, user overrides).
+    namespace : str
+        The namespace every node is started in.
+    """
+    return {
+        node_name(node, namespace): {"ros__parameters": dict(values)}
+        for node, values in params.items()
+        if values
+    }
 
 
 def param_text(value: object) -> str:

@@ -464,7 +464,7 @@ class WaveletControllerNode(Node):
             status=[
                 DiagnosticStatus(
                     level=level,
-                    name="wavelet_controller",
+                    name=topics.diagnostic_name("wavelet_controller", self.get_namespace()),
                     message=self._last_reason or status["message"] or "ok",
                     values=[KeyValue(key=k, value=str(v)) for k, v in values.items()],
                 )

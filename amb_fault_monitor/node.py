@@ -494,7 +494,9 @@ class FaultMonitorNode(Node):
             statuses.append(
                 DiagnosticStatus(
                     level=level,
-                    name=f"fault_monitor: plane {p + 1}",
+                    name=topics.diagnostic_name(
+                        f"fault_monitor: plane {p + 1}", self.get_namespace()
+                    ),
                     message=message,
                     values=[
                         KeyValue(key="peak_displacement_m", value=f"{self._trip.peak[p]:.6g}"),
@@ -531,7 +533,7 @@ class FaultMonitorNode(Node):
         statuses.append(
             DiagnosticStatus(
                 level=DiagnosticStatus.OK if ok else DiagnosticStatus.WARN,
-                name="fault_monitor",
+                name=topics.diagnostic_name("fault_monitor", self.get_namespace()),
                 message=self._last_reason
                 or ("monitoring" if self._monitor.calibrated else "calibrating"),
                 values=[KeyValue(key=k, value=str(v)) for k, v in values.items()],

@@ -366,8 +366,9 @@ class PlantSimNode(Node):
                     return
                 self.get_logger().warning(
                     f"{self._meas_pub.get_subscription_count()} of {want} subscribers of "
-                    f"{topics.MEASUREMENT}, {self._cmd_sub.get_publisher_count()} publishers of "
-                    f"{topics.COMMAND} after startup_timeout: starting anyway"
+                    f"{self._meas_pub.topic_name}, {self._cmd_sub.get_publisher_count()} "
+                    f"publishers of {self._cmd_sub.topic_name} after startup_timeout: starting "
+                    "anyway"
                 )
             self._started = True
             self._wall0 = time.monotonic()
@@ -553,7 +554,7 @@ class PlantSimNode(Node):
         }
         status = DiagnosticStatus(
             level=level,
-            name="plant_sim",
+            name=topics.diagnostic_name("plant_sim", self.get_namespace()),
             message=self._last_reason or "ok",
             hardware_id=self._scenario.name,
             values=[KeyValue(key=k, value=str(v)) for k, v in values.items()],

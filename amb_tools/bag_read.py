@@ -7,6 +7,11 @@ Reads bags written by ``amb-sim``, by the ``recorder`` node (``amb-run``) or by
 read the same. Missing or empty topics are tolerated: their arrays are empty and the topic is
 listed in :attr:`BagData.missing`.
 
+A bag recorded under a namespace (the system started in ``/rig1`` records
+``/rig1/amb/measurement``, ...) reads the same: the streams are looked up under the namespace
+given, or else under the one namespace in which the bag holds them
+(:func:`amb_common.topics.bag_namespace`); :attr:`BagData.namespace` says which.
+
 The per-period 1 x wavelet phasor is rebuilt from ``/amb/wavelet/coefficients`` exactly as the
 in-process loop builds it (:class:`amb_apps.closed_loop._Loop`): for control period
 ``k`` (samples ``k N .. k N + N - 1``), the last fixed-frame detail coefficient of the 1 x
@@ -28,11 +33,16 @@ from amb_common.topics import (
     COMMAND,
     FAULT_EVENTS,
     MEASUREMENT,
+    ROOT_NAMESPACE,
     STATUS,
+    absolute,
+    bag_namespace,
 )
+from amb_common.topics import namespace as as_namespace
 from amb_tools.bag_types import typestore
 
-#: Topics a complete report uses (``/diagnostics`` is counted, not drawn).
+#: Topics a complete report uses, relative to the bag's namespace (``/diagnostics`` is counted,
+#: not drawn).
 EXPECTED_TOPICS = (MEASUREMENT, COEFFICIENTS, COMMAND, STATUS, FAULT_EVENTS)
 
 # CoefficientSet constants (amb_msgs/msg/CoefficientSet.msg)
@@ -180,9 +190,11 @@ class BagData:
     ----------
     path : pathlib.Path
     counts : dict of str to int
-        Messages per topic in the bag (every topic, including ``/diagnostics``).
+        Messages per topic in the bag (every topic, including ``/diagnostics``; names as in
+        the bag).
     missing : list of str
-        Expected topics (:data:`EXPECTED_TOPICS`) absent or empty.
+        Expected topics (:data:`EXPECTED_TOPICS`) absent or empty, absolute names under
+        :attr:`namespace`.
     measurements : Measurements or None
     one_x : OneXCoefficients or None
     levels : dict of int to LevelSeries
@@ -194,6 +206,8 @@ class BagData:
         One per ``FaultEvent`` (fields as :meth:`amb_common.faults.FaultEvent.to_dict`).
     notes : list of str
         What could not be read and why.
+    namespace : str
+        The namespace the streams were read under (``/``: ``/amb/measurement``, ...).
     """
 
     path: Path
@@ -207,7 +221,12 @@ class BagData:
     fault_events: list[dict] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
     samples_per_rev: int | None = None
+    namespace: str = ROOT_NAMESPACE
     _stamp_map: tuple[np.ndarray, np.ndarray] | None = None
+
+    def topic(self, name: str) -> str:
+        """Return the name stream ``name`` (relative, :mod:`amb_common.topics`) has in the bag."""
+        return absolute(name, self.namespace)
 
     def sample_time(self, sample_index: np.ndarray | int) -> np.ndarray:
         """Return the time (s) of sample indices from the stamps of sample-indexed messages.
@@ -256,13 +275,16 @@ def _parse_evidence_value(text: str):
     return text
 
 
-def read_bag(path: str | Path) -> BagData:
+def read_bag(path: str | Path, namespace: str | None = None) -> BagData:
     """Read one bag of this project's topics.
 
     Parameters
     ----------
     path : str or pathlib.Path
         Bag folder (with ``metadata.yaml``) or a single ``.mcap``/``.db3`` file's folder.
+    namespace : str, optional
+        The namespace the system ran in (``/rig1``: ``/rig1/amb/measurement``, ...); None: the
+        one the bag holds the streams under (:func:`amb_common.topics.bag_namespace`).
 
     Returns
     -------
@@ -271,7 +293,8 @@ def read_bag(path: str | Path) -> BagData:
     Raises
     ------
     BagReadError
-        If ``path`` is not a readable rosbag2 folder.
+        If ``path`` is not a readable rosbag2 folder, ``namespace`` is not a namespace, or
+        none is given and the bag holds the streams under several.
     """
     path = Path(path)
     if path.is_file():
@@ -282,7 +305,7 @@ def read_bag(path: str | Path) -> BagData:
             "by amb-sim, amb-run or 'ros2 bag record')"
         )
     store = typestore()
-    raw: dict[str, list] = {t: [] for t in EXPECTED_TOPICS}
+    raw: dict[str, list] = {t: [] for t in EXPECTED_TOPICS}  # by relative name
     counts: dict[str, int] = {}
     notes: list[str] = []
     unreadable: set[str] = set()
@@ -290,22 +313,27 @@ def read_bag(path: str | Path) -> BagData:
         with Reader(path) as reader:
             for conn in reader.connections:
                 counts.setdefault(conn.topic, 0)
+            try:
+                ns = bag_namespace(counts) if namespace is None else as_namespace(namespace)
+            except ValueError as exc:
+                raise BagReadError(f"bag {path}: {exc}") from exc
+            stream = {absolute(t, ns): t for t in EXPECTED_TOPICS}  # name in the bag -> stream
             for conn, _t, data in reader.messages():
                 counts[conn.topic] = counts.get(conn.topic, 0) + 1
-                if conn.topic not in raw or conn.topic in unreadable:
+                if conn.topic not in stream or conn.topic in unreadable:
                     continue
                 try:
-                    raw[conn.topic].append(store.deserialize_cdr(data, conn.msgtype))
+                    raw[stream[conn.topic]].append(store.deserialize_cdr(data, conn.msgtype))
                 except Exception as exc:  # a foreign or changed type: skip the topic, say so
                     notes.append(f"{conn.topic}: cannot deserialise {conn.msgtype}: {exc}")
                     unreadable.add(conn.topic)
-                    raw[conn.topic] = []
+                    raw[stream[conn.topic]] = []
     except Exception as exc:  # rosbags raises its own hierarchy (ReaderError, ...)
         if isinstance(exc, BagReadError):
             raise
         raise BagReadError(f"cannot read bag {path}: {exc}") from exc
-    missing = [t for t in EXPECTED_TOPICS if not raw[t]]
-    data = BagData(path=path, counts=counts, missing=missing, notes=notes)
+    missing = [absolute(t, ns) for t in EXPECTED_TOPICS if not raw[t]]
+    data = BagData(path=path, counts=counts, missing=missing, notes=notes, namespace=ns)
     if raw[MEASUREMENT]:
         data.measurements = _measurements(raw[MEASUREMENT])
         data.samples_per_rev = data.measurements.samples_per_rev
@@ -321,7 +349,7 @@ def read_bag(path: str | Path) -> BagData:
         data.one_x, data.levels = _coefficients(raw[COEFFICIENTS], data.samples_per_rev, n_last)
         if data.one_x is None:
             notes.append(
-                f"{COEFFICIENTS}: no fixed-frame even/odd detail at the 1 x level "
+                f"{data.topic(COEFFICIENTS)}: no fixed-frame even/odd detail at the 1 x level "
                 f"j = log2({data.samples_per_rev}); the 1 x phasor and settling are not available"
             )
     if raw[STATUS]:

@@ -1,7 +1,8 @@
 """``recorder``: write topics of this project to a rosbag2 without a ROS install.
 
 Subscribes raw (CDR bytes, no deserialisation) to every topic whose name matches one of the
-``topics`` patterns, as it appears in the graph, and writes each message to a rosbag2 with the
+``topics`` patterns, as it appears in the graph (resolved names: ``/rig1/amb/measurement`` for a
+system started in namespace ``/rig1``), and writes each message to a rosbag2 with the
 ``rosbags`` library (MCAP by default, custom types registered from the ``amb_msgs`` ``.msg``
 files). The subscription QoS follows the publishers: reliable unless one of them is best effort.
 On SIGINT or SIGTERM the bag is closed cleanly. Counts per topic are published once per
@@ -12,11 +13,14 @@ Parameters (ROS)
 output : str
     Bag folder to create (must not exist).
 topics : str[]
-    Shell-style patterns of topic names (``*`` also matches ``/``); default ``/amb/*`` and
-    ``/diagnostics``.
+    Shell-style patterns of topic names (``*`` also matches ``/``); default ``amb/*`` and
+    ``/diagnostics``. A relative pattern is taken under the recorder's namespace, as a relative
+    topic name is (``amb/*`` is ``/rig1/amb/*`` in ``/rig1``, ``/amb/*`` at the root); an
+    absolute one as it is. The bag holds the resolved (absolute) names.
 topic_types : str[]
-    ``/topic:pkg/msg/Type`` entries subscribed at start, before any publisher is discovered, so
-    that a run started right after the recorder loses nothing on them (reliable, volatile).
+    ``topic:pkg/msg/Type`` entries subscribed at start, before any publisher is discovered, so
+    that a run started right after the recorder loses nothing on them (reliable, volatile); a
+    relative topic is resolved against the recorder's namespace.
 storage : str
     ``mcap`` or ``sqlite3``.
 stamp_source : str
@@ -115,7 +119,7 @@ class Recorder(Node):
         d(
             "topics",
             [topics.PREFIX + "*", topics.DIAGNOSTICS],
-            descriptor("topic name patterns to record"),
+            descriptor("topic name patterns to record (relative: under the node's namespace)"),
         )
         d("storage", "mcap", descriptor("mcap | sqlite3"))
         d("stamp_source", "receive", descriptor("receive | header"))
@@ -156,7 +160,7 @@ class Recorder(Node):
         output = self.get_parameter("output").value
         storage = self.get_parameter("storage").value
         self._stamp_source = self.get_parameter("stamp_source").value
-        self._patterns = list(self.get_parameter("topics").value)
+        patterns = list(self.get_parameter("topics").value)
         self._depth = self.get_parameter("queue_depth").value
         if not output:
             raise ConfigurationError("parameter 'output' (bag folder) is empty; set it")
@@ -170,8 +174,10 @@ class Recorder(Node):
             raise ConfigurationError(
                 f"parameter 'stamp_source' = {self._stamp_source!r}: allowed {STAMP_SOURCES}"
             )
-        if not self._patterns or not all(self._patterns):
-            raise ConfigurationError(f"parameter 'topics' = {self._patterns!r}: empty pattern")
+        if not patterns or not all(patterns):
+            raise ConfigurationError(f"parameter 'topics' = {patterns!r}: empty pattern")
+        # relative patterns match the names the node's relative topics resolve to
+        self._patterns = [topics.absolute(p, self.get_namespace()) for p in patterns]
         self._bag = BagWriter(output, storage=storage)
         self._recorded: dict[str, Any] = {}
         self._drained = DrainedGroup()
@@ -186,10 +192,12 @@ class Recorder(Node):
             if not entry:
                 continue
             topic, sep, msgtype = entry.partition(":")
-            if not sep or not topic.startswith("/") or msgtype.count("/") != 2:
-                raise ConfigurationError(
-                    f"parameter 'topic_types' entry {entry!r}: expected '/topic:pkg/msg/Type'"
-                )
+            try:
+                if not sep or not topic or msgtype.count("/") != 2:
+                    raise ValueError("expected 'topic:pkg/msg/Type'")
+                topic = self.resolve_topic_name(topic)
+            except Exception as exc:  # rclpy raises its own name errors
+                raise ConfigurationError(f"parameter 'topic_types' entry {entry!r}: {exc}") from exc
             self._subscribe(topic, msgtype)
         self._discover()
         self.get_logger().info(f"recording {self._patterns} to {output} ({storage})")
@@ -268,7 +276,7 @@ class Recorder(Node):
     def _publish_status(self) -> None:
         status = DiagnosticStatus(
             level=DiagnosticStatus.OK,
-            name="recorder",
+            name=topics.diagnostic_name("recorder", self.get_namespace()),
             message=f"{sum(self._bag.counts.values())} messages written to {self._bag.path}",
             hardware_id=str(self._bag.path),
             values=[KeyValue(key=t, value=str(n)) for t, n in sorted(self._bag.counts.items())],

@@ -13,7 +13,10 @@ most) for the commands answering the last measured periods, then exits with stat
 Parameters
 ----------
 bag : str
-    rosbag2 folder holding ``/amb/measurement`` (any bag of this project or ``ros2 bag record``).
+    rosbag2 folder holding ``/amb/measurement`` (any bag of this project or ``ros2 bag record``;
+    recorded under a namespace, ``/rig1/amb/measurement``, too: the one namespace under which the
+    bag holds the measurement stream, :func:`amb_common.topics.bag_namespace`). The bridge
+    publishes on its own namespace's ``amb/measurement``, whatever the bag's was.
 time_scale : float
     Simulated s per wall s (1.0 = as recorded).
 command_log : str
@@ -60,7 +63,9 @@ class ReplayBridge(Node):
             raise ConfigurationError(f"parameter 'bag' = {bag!r}: not a rosbag2 folder")
         self._samples = self._load(Path(bag))
         if not self._samples:
-            raise ConfigurationError(f"parameter 'bag' = {bag!r}: no /amb/measurement messages")
+            raise ConfigurationError(
+                f"parameter 'bag' = {bag!r}: no {topics.MEASUREMENT} messages (in any namespace)"
+            )
         spr = self._samples[0][1].samples_per_rev
         self._pub = self.create_publisher(Measurement, topics.MEASUREMENT, stream_qos(spr))
         self.create_subscription(ControlCommand, topics.COMMAND, self._on_command, COMMAND_QOS)
@@ -84,7 +89,12 @@ class ReplayBridge(Node):
     def _load(bag: Path) -> list[tuple[float, Measurement]]:
         out = []
         with Reader(bag) as reader:
-            conns = [c for c in reader.connections if c.topic == topics.MEASUREMENT]
+            try:
+                ns = topics.bag_namespace(c.topic for c in reader.connections)
+            except ValueError as exc:
+                raise ConfigurationError(f"parameter 'bag' = {str(bag)!r}: {exc}") from exc
+            wanted = topics.absolute(topics.MEASUREMENT, ns)
+            conns = [c for c in reader.connections if c.topic == wanted]
             for _conn, _t, raw in reader.messages(connections=conns):
                 msg = deserialize_message(bytes(raw), Measurement)
                 out.append((stamp_seconds(msg.header.stamp), msg))

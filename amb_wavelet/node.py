@@ -242,7 +242,7 @@ class WaveletFilterbankNode(Node):
         }
         status = DiagnosticStatus(
             level=level,
-            name="wavelet_filterbank",
+            name=topics.diagnostic_name("wavelet_filterbank", self.get_namespace()),
             message=self._last_reason or "ok",
             values=[KeyValue(key=k, value=str(v)) for k, v in values.items()],
         )

@@ -137,7 +137,7 @@ def main() -> int:
 
     with AnyReader([bag]) as reader:
         counts = {c.topic: c.msgcount for c in reader.connections}
-    in_bag = counts.get(topics.MEASUREMENT, 0)
+    in_bag = counts.get(topics.absolute(topics.MEASUREMENT), 0)
     print(f"soak: {args.hz:g} Hz, {args.spr} samples/rev, lockstep, controller {args.controller}")
     print(
         f"simulated {sim_time:.1f} s in {wall:.1f} s wall (real-time factor {sim_time / wall:.2f})"

@@ -11,6 +11,12 @@ launch ends when ``plant_sim`` has finished its scenario.
         model_file:=/path/model.npz start_mode:=active bag:=/tmp/run1
 
 To drive a real rig, leave out plant_sim (``with_plant:=false``) and start your I/O bridge.
+
+``namespace:=/rig1`` starts every node in ``/rig1``: the topic names are relative, so the
+system's topics become ``/rig1/amb/...`` and a second system in another namespace runs beside it
+without crosstalk. Every node gets a namespace (``/`` by default), so that launch_ros writes the
+per-run parameters under the node's fully qualified name and they win over the params file's
+``/**/<node>`` sections (under ``/**`` they would lose to them).
 """
 
 from launch.actions import DeclareLaunchArgument, OpaqueFunction, RegisterEventHandler, Shutdown
@@ -21,6 +27,7 @@ from launch_ros.substitutions import FindPackageShare
 
 from amb_apps.system import NODES, run_parameters
 from amb_common.paths import scenario_file
+from amb_common.topics import namespace
 from launch import LaunchDescription
 
 PACKAGE = "amb_wavelet_control"
@@ -38,6 +45,7 @@ ARGUMENTS = (
     ("bag", "amb_bag", "recorder output folder (must not exist)"),
     ("mode", "lockstep", "plant_sim.mode: lockstep | realtime"),
     ("with_plant", "true", "start plant_sim (false: your I/O bridge publishes the rig)"),
+    ("namespace", "/", "namespace of every node (/rig1: topics /rig1/amb/...; default /)"),
 )  # fmt: skip
 
 
@@ -48,6 +56,7 @@ def _nodes(context) -> list:
         [FindPackageShare(PACKAGE), "config", "amb_params.yaml"]
     )
     with_plant = value["with_plant"].lower() in ("true", "1", "yes")
+    ns = namespace(value["namespace"])
     names = NODES if with_plant else tuple(n for n in NODES if n != "plant_sim")
     overrides = run_parameters(
         scenario_file(value["scenario"]),
@@ -64,6 +73,7 @@ def _nodes(context) -> list:
             package=PACKAGE,
             executable=name,
             name=name,
+            namespace=ns,
             parameters=[params, overrides[name]],
             output="screen",
         )

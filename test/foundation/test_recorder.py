@@ -109,3 +109,87 @@ def test_recorder_refuses_an_existing_output_folder(node_process, tmp_path) -> N
     recorder = node_process("recorder", params={"output": str(tmp_path)})
     assert recorder.wait(30) == 2
     assert "'output'" in recorder.log() and "exists" in recorder.log()
+
+
+def _measurement(n: int, spr: int = 16) -> Measurement:
+    m = Measurement(sample_index=n, samples_per_rev=spr, rotor_speed=2 * np.pi * 20.0)
+    m.header.stamp.sec, m.header.stamp.nanosec = divmod(1_000_000_000 + n * 3_125_000, 10**9)
+    m.displacement = [1e-6 * (n + c) for c in range(8)]
+    return m
+
+
+def test_recorder_in_a_namespace_records_the_resolved_names(ros, node_process, tmp_path) -> None:
+    """Started in /rig_a, the recorder's default patterns (``amb/*``, ``/diagnostics``) and its
+    relative ``topic_types`` resolve there: the bag holds ``/rig_a/amb/...``, not the root
+    system's ``/amb/...``, and ``read_bag`` reads it back under the namespace it finds."""
+    from amb_msgs.msg import ControllerStatus
+
+    from amb_tools.bag_read import read_bag
+
+    bag = tmp_path / "bag"
+    recorder = node_process(
+        "recorder",
+        params={
+            "output": str(bag),
+            "status_period": 0.2,
+            "stamp_source": "header",
+            "topic_types": ["amb/control/status:amb_msgs/msg/ControllerStatus"],
+        },
+        extra_args=["-r", "__ns:=/rig_a"],
+    )
+    node = ros.node("amb_test_publisher")
+    ours = {
+        "/rig_a/amb/measurement": node.create_publisher(Measurement, "/rig_a/amb/measurement", QOS),
+        "/rig_a/amb/control/status": node.create_publisher(
+            ControllerStatus, "/rig_a/amb/control/status", QOS
+        ),
+    }
+    other = node.create_publisher(Measurement, "/amb/measurement", QOS)  # a system at the root
+    counts: dict[str, int] = {}
+
+    def on_diagnostics(msg: DiagnosticArray) -> None:
+        for status in msg.status:
+            if status.name == "rig_a/recorder":
+                counts.update({kv.key: int(kv.value) for kv in status.values})
+
+    node.create_subscription(DiagnosticArray, "/diagnostics", on_diagnostics, 10)
+    subscribed = ros.spin_until(
+        lambda: all(p.get_subscription_count() > 0 for p in ours.values()), timeout=30.0
+    )
+    assert subscribed, f"recorder did not subscribe; its log:\n{recorder.log()}"
+    # the root system's stream is seen in the graph but not recorded: wait for a discovery scan
+    ros.spin_until(lambda: node.count_publishers("/amb/measurement") > 0, timeout=10.0)
+    ros.spin_for(0.5)
+    assert other.get_subscription_count() == 0, recorder.log()
+    for n in range(N):
+        ours["/rig_a/amb/measurement"].publish(_measurement(n))
+        other.publish(_measurement(1000 + n))
+    status = ControllerStatus(controller="transient", mode=ControllerStatus.MODE_ACTIVE)
+    status.delay_periods, status.commands_sent = 2, N // 16
+    ours["/rig_a/amb/control/status"].publish(status)
+    expected = {"/rig_a/amb/measurement": N, "/rig_a/amb/control/status": 1}
+    written = ros.spin_until(
+        lambda: all(counts.get(t) == n for t, n in expected.items()), timeout=30.0
+    )
+    assert written, f"recorder counts {counts}; its log:\n{recorder.log()}"
+    assert recorder.stop(signal.SIGINT) == 0, recorder.log()
+    assert "recording ['/rig_a/amb/*', '/diagnostics']" in recorder.log()
+
+    with Reader(bag) as reader:
+        in_bag = {c.topic for c in reader.connections}
+    assert {"/rig_a/amb/measurement", "/rig_a/amb/control/status"} <= in_bag
+    assert not any(t.startswith("/amb/") for t in in_bag), in_bag
+
+    data = read_bag(bag)
+    assert data.namespace == "/rig_a"
+    assert data.counts["/rig_a/amb/measurement"] == N
+    assert data.measurements.sample_index.tolist() == list(range(N))
+    assert data.controller["controller"] == "transient" and data.controller["commands_sent"] == 2
+    assert data.missing == [
+        "/rig_a/amb/wavelet/coefficients",
+        "/rig_a/amb/control/command",
+        "/rig_a/amb/fault/events",
+    ]
+    assert read_bag(bag, namespace="/rig_a").counts == data.counts
+    # under another namespace the bag holds none of the streams
+    assert read_bag(bag, namespace="/").measurements is None

@@ -3,9 +3,10 @@
 1. The amb-sim bag is replayed (its CDR bytes, in bag order) over DDS into the ``recorder``
    node with receive-time stamps, as ``ros2 bag record`` writes them: the report of that bag
    gives the same metrics as the report of the original.
-2. (slow) ``amb-run``: the nodes as processes, recorded by the recorder; its report gives the
-   metrics ``amb-sim`` computes in memory for the same scenario (the two runs are identical,
-   ``test/system/test_lockstep_determinism.py``).
+2. (slow) ``amb-run``: the nodes as processes in a namespace (``--namespace /rig_b``), recorded
+   by the recorder; the bag holds ``/rig_b/amb/...`` and its report gives the metrics ``amb-sim``
+   computes in memory for the same scenario (the two runs are identical,
+   ``test/system/test_lockstep_determinism.py``, which runs amb-run at the root namespace).
 """
 
 from __future__ import annotations
@@ -116,10 +117,16 @@ def test_report_of_an_amb_run_bag_equals_amb_sim_metrics(tmp_path, ros_domain_id
     assert sim.returncode == 0, sim.stderr
     run = subprocess.run(
         [sys.executable, "-m", "amb_apps.run_cli", "--scenario", str(scenario),
-         "--out", str(tmp_path / "run"), "--controller", "none", "--without", "fault_monitor"],
+         "--out", str(tmp_path / "run"), "--controller", "none", "--without", "fault_monitor",
+         "--namespace", "/rig_b"],
         capture_output=True, text=True, timeout=300,
     )  # fmt: skip
     assert run.returncode == 0, run.stdout + run.stderr
+    assert "in namespace /rig_b" in run.stdout
+    with Reader(tmp_path / "run" / "bag") as reader:
+        recorded = {c.topic for c in reader.connections}
+    assert "/rig_b/amb/measurement" in recorded
+    assert not any(t.startswith("/amb/") for t in recorded), recorded
     out = tmp_path / "report"
     code = report_cli.main(
         [str(tmp_path / "run" / "bag"), "--scenario", str(scenario), "--out", str(out)]
@@ -128,6 +135,9 @@ def test_report_of_an_amb_run_bag_equals_amb_sim_metrics(tmp_path, ros_domain_id
     ours = json.loads((out / "run" / "metrics.json").read_text())
     ref = json.loads((tmp_path / "sim" / "metrics.json").read_text())
     assert "/diagnostics" not in ours["bag_counts"]  # recorded, but not an /amb topic
+    # the system's topics, under the run's namespace
+    ours["bag_counts"] = {t.removeprefix("/rig_b"): n for t, n in ours["bag_counts"].items()}
+    ours["missing_topics"] = [t.removeprefix("/rig_b") for t in ours["missing_topics"]]
     for key, value in ref.items():
         if key in NOT_IN_BAG or key in ("contact_source", "bag", "scenario"):
             continue

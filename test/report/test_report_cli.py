@@ -19,11 +19,15 @@ from rosbags.rosbag2 import Reader
 
 from amb_apps import report_cli
 from amb_apps.report_metrics import NOT_IN_BAG, bag_metrics, choose_fault_time
-from amb_common.topics import COEFFICIENTS, MEASUREMENT
+from amb_common import topics
 from amb_tools.bag_read import read_bag
 from amb_tools.bag_writer import BagWriter
 
 pytestmark = pytest.mark.slow  # command lines writing figures
+
+#: The streams' names in amb-sim's bags (the root namespace).
+MEASUREMENT = topics.absolute(topics.MEASUREMENT)
+COEFFICIENTS = topics.absolute(topics.COEFFICIENTS)
 
 FIGURES = ("displacement", "coefficients_1x", "forces", "orbits", "fault_timeline")
 LABELS = ("PID only", "PID + wavelet")
@@ -137,14 +141,16 @@ def test_fault_time_comes_from_the_first_fault_event_without_a_scenario(sim_wave
     assert (fault.time, fault.source) == (2.0, "scenario")
 
 
-def _copy_topics(src: Path, dst: Path, keep: set[str]) -> None:
+def _copy_topics(src: Path, dst: Path, keep: set[str] | None = None, prefix: str = "") -> None:
+    """Copy the topics ``keep`` (None: all) of bag ``src`` to ``dst``, each renamed
+    ``prefix + topic`` (``/rig1``: the bag of a system run in namespace ``/rig1``)."""
     with Reader(src) as reader, BagWriter(dst) as writer:
         for conn in reader.connections:
-            if conn.topic in keep:
-                writer.add_topic(conn.topic, conn.msgtype)
+            if keep is None or conn.topic in keep:
+                writer.add_topic(prefix + conn.topic, conn.msgtype)
         for conn, t_ns, raw in reader.messages():
-            if conn.topic in keep:
-                writer.write_raw(conn.topic, t_ns, raw)
+            if keep is None or conn.topic in keep:
+                writer.write_raw(prefix + conn.topic, t_ns, raw)
 
 
 def test_bag_without_coefficients_reports_what_is_there(sim_wavelet, scenario, tmp_path):
@@ -210,3 +216,49 @@ def test_bag_with_commands_only_gives_the_applied_wavelet_force(sim_wavelet, sce
         assert peak == ref["bearings"][b]["peak_wavelet_force"] and peak > 1.0
         assert m["bearings"][b]["peak_total_force"] is None
     assert (tmp_path / "rep" / "forces.png").is_file()
+
+
+def test_bag_of_a_system_in_a_namespace_reports_the_same(
+    sim_wavelet, sim_pid, scenario, tmp_path, capsys
+):
+    """The bag of a system run in ``/rig1`` (``/rig1/amb/...``) gives amb-sim's metrics; in a bag
+    holding two systems, ``--namespace`` says which one to report."""
+    bag = tmp_path / "rig1"
+    _copy_topics(sim_wavelet / "bag", bag, prefix="/rig1")
+    data = read_bag(bag)
+    assert data.namespace == "/rig1" and data.missing == []
+    out = tmp_path / "rep"
+    assert report_cli.main([str(bag), "--scenario", str(scenario), "--out", str(out)]) == 0
+    ours = json.loads((out / "rig1" / "metrics.json").read_text())
+    assert set(ours["bag_counts"]) == {topics.absolute(t, "/rig1") for t in topics.STREAM_TYPES}
+    ref = json.loads((sim_wavelet / "metrics.json").read_text())
+    _assert_same_metrics(_at_the_root(ours, "/rig1", sim_wavelet / "bag"), ref)
+    for name in FIGURES:
+        assert (out / f"{name}.png").is_file(), name
+
+    both = tmp_path / "two_rigs"
+    with BagWriter(both) as writer:
+        for src, prefix in ((sim_wavelet / "bag", "/rig1"), (sim_pid / "bag", "/rig2")):
+            with Reader(src) as reader:
+                for conn in reader.connections:
+                    writer.add_topic(prefix + conn.topic, conn.msgtype)
+                for conn, t_ns, raw in reader.messages():
+                    writer.write_raw(prefix + conn.topic, t_ns, raw)
+    code = report_cli.main([str(both), "--out", str(tmp_path / "ambiguous")])
+    assert code == 2
+    assert "2 namespaces ['/rig1', '/rig2']" in capsys.readouterr().err
+    out = tmp_path / "rep2"
+    args = [str(both), "--namespace", "/rig2", "--scenario", str(scenario), "--out", str(out)]
+    assert report_cli.main(args) == 0
+    ours = json.loads((out / "two_rigs" / "metrics.json").read_text())
+    assert ours["missing_topics"] == ["/rig2/amb/fault/events"]  # PID only: no fault monitor
+    ref = json.loads((sim_pid / "metrics.json").read_text())
+    _assert_same_metrics(_at_the_root(ours, "/rig2", sim_pid / "bag"), ref)
+
+
+def _at_the_root(metrics: dict, ns: str, bag: Path) -> dict:
+    """The metrics of a copy of ``bag`` under namespace ``ns``, as if read from ``bag``."""
+    out = dict(metrics, bag=str(bag))
+    out["bag_counts"] = {t.removeprefix(ns): n for t, n in metrics["bag_counts"].items()}
+    out["missing_topics"] = [t.removeprefix(ns) for t in metrics["missing_topics"]]
+    return out

@@ -47,6 +47,11 @@ def test_launch_builds_its_nodes_with_run_parameters() -> None:
         for a in n.names
     }
     assert {"NODES", "run_parameters"} <= imported
+    # every node gets the namespace (so launch_ros keys the run's parameters by its full name)
+    (node,) = [
+        c for c in ast.walk(tree) if isinstance(c, ast.Call) and getattr(c.func, "id", "") == "Node"
+    ]
+    assert "namespace" in {k.arg for k in node.keywords}
 
 
 def test_every_launch_argument_has_a_description() -> None:
@@ -57,9 +62,9 @@ def test_every_launch_argument_has_a_description() -> None:
     else:
         pytest.fail("no ARGUMENTS table in the launch file")
     names = [a[0] for a in arguments]
-    assert {"scenario", "controller", "start_mode", "model_file", "params", "bag", "mode"} <= set(
-        names
-    )
+    assert {
+        "scenario", "controller", "start_mode", "model_file", "params", "bag", "mode", "namespace"
+    } <= set(names)  # fmt: skip
     for name, default, description in arguments:
         assert isinstance(default, str) and len(description) > 10, name
 
