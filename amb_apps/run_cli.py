@@ -62,7 +62,7 @@ import yaml
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.executors import SingleThreadedExecutor
 
-from amb_apps.system import NODE_MODULES, NODES, run_parameters, run_params_document
+from amb_apps.system import COMPOSED, NODE_MODULES, NODES, run_parameters, run_params_document
 from amb_common import topics
 from amb_common.paths import config_file, scenario_file
 from amb_plant_sim.errors import ScenarioError
@@ -84,6 +84,8 @@ DRAINED = {
 #: loaded machine takes to catch up (docs/results.md#drain; the first measurement:
 #: docs/history.md, "amb-run"), so that only a stuck node reaches it.
 DRAIN_TIMEOUT = 300.0
+#: The executable of ``--composed``: the filterbank, fault monitor and controller in one process.
+STACK = "wavelet_stack"
 
 
 @dataclass
@@ -96,6 +98,11 @@ class NodeRun:
     proc: subprocess.Popen | None = None
     extra: dict = field(default_factory=dict)
     nice: int = 0
+    #: The nodes the process hosts (``wavelet_stack``: several; default: the one named).
+    hosts: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        self.hosts = self.hosts or (self.name,)
 
     def start(self, env: dict) -> None:
         """Start the process (``nice`` added to its niceness), output to its log file."""
@@ -161,6 +168,12 @@ def build_parser() -> argparse.ArgumentParser:
         default=[],
         metavar="NODE.PARAM:=VALUE",
         help="parameter override for one node (repeatable)",
+    )
+    p.add_argument(
+        "--composed",
+        action="store_true",
+        help="run the filterbank, fault monitor and controller in one process (wavelet_stack: "
+        "the streams handed over in process, not over DDS)",
     )
     p.add_argument(
         "--namespace",
@@ -322,6 +335,7 @@ def run(args: argparse.Namespace) -> int:
         if node not in NODES or not value.lstrip("-").isdigit():
             raise SystemExit(f"amb-run: --nice {item!r}: expected NODE=N with NODE in {NODES}")
         nice[node] = int(value)
+    hosted = [n for n in COMPOSED if n in names] if args.composed else []
     runs = [
         NodeRun(
             n,
@@ -330,7 +344,19 @@ def run(args: argparse.Namespace) -> int:
             nice=nice.get(n, 0),
         )
         for n in names
+        if n not in hosted
     ]
+    if hosted:
+        without = [a for n in COMPOSED if n not in hosted for a in ("--without", n)]
+        runs.insert(
+            1,
+            NodeRun(
+                STACK,
+                [*executable(STACK), *without, "--ros-args", *ros_args],
+                out / "logs" / f"{STACK}.log",
+                hosts=tuple(hosted),
+            ),
+        )
     env = dict(os.environ)
     env["PYTHONUNBUFFERED"] = "1"
     if not args.quiet:
@@ -348,7 +374,7 @@ def run(args: argparse.Namespace) -> int:
                 r.start(env)
         # the plant starts last, once every stream has all its subscribers (the recorder
         # subscribes to a topic only when it has seen its publisher): nothing is lost at start
-        expected = _expected_subscribers(names)
+        expected = _expected_subscribers(names, composed=bool(hosted))
         if not progress.wait_for_graph(expected, timeout=120.0):
             print(
                 f"[amb-run] not every subscription was up after 120 s: {progress.graph(expected)} "
@@ -442,12 +468,13 @@ def _drain(progress: _Progress, runs: list[NodeRun], timeout: float, quiet: bool
         return 1
     last = int(plant["sample_index"]) - 1
     targets = {
-        (r.name, key): last if key == "last_sample" or last % 2 else last - 1
+        (n, key): last if key == "last_sample" or last % 2 else last - 1
         for r in runs
-        if r.name in DRAINED
-        for key in DRAINED[r.name]
+        for n in r.hosts
+        if n in DRAINED
+        for key in DRAINED[n]
     }
-    procs = {r.name: r.proc for r in runs}
+    procs = {n: r.proc for r in runs for n in r.hosts}
     start = time.monotonic()
     last_print = -math.inf
     first = True
@@ -491,8 +518,12 @@ def _drain(progress: _Progress, runs: list[NodeRun], timeout: float, quiet: bool
         progress.spin(0.2)
 
 
-def _expected_subscribers(names: list[str]) -> dict[str, int]:
-    """Subscribers each stream must have before the plant's first sample."""
+def _expected_subscribers(names: list[str], composed: bool = False) -> dict[str, int]:
+    """Subscribers each stream must have before the plant's first sample.
+
+    Composed (``wavelet_stack``), the stack's nodes share one DDS reader of the measurements
+    and read the coefficients in process (:mod:`amb_tools.local_bus`).
+    """
     has = set(names)
     recorder = int("recorder" in has)
     consumers = {
@@ -509,6 +540,10 @@ def _expected_subscribers(names: list[str]) -> dict[str, int]:
         topics.STATUS: "wavelet_controller",
         topics.FAULT_EVENTS: "fault_monitor",
     }
+    if composed:
+        consumers[topics.MEASUREMENT] = {STACK} if has & set(COMPOSED) else set()
+        consumers[topics.COEFFICIENTS] = set()
+        has.add(STACK)
     # the recorder subscribes every stream at start (topic_types), so it counts on each
     return {
         topic: len(nodes & has) + recorder

@@ -15,13 +15,19 @@ The separate processes stay available (``amb-run`` and the launch file start eit
 part still runs alone. What composition gives up: a crash of one part's process takes the
 three down together, and the three share one core's worth of Python (one GIL).
 
-    ros2 run amb_wavelet_control wavelet_stack --ros-args --params-file config/amb_params.yaml
+    ros2 run amb_wavelet_control wavelet_stack [--without NODE] \
+        --ros-args --params-file config/amb_params.yaml
 """
 
 from __future__ import annotations
 
+import argparse
+import sys
 from collections.abc import Sequence
 
+from rclpy.utilities import remove_ros_args
+
+from amb_apps.system import COMPOSED
 from amb_common import topics
 from amb_controller.node import WaveletControllerNode
 from amb_fault_monitor.node import FaultMonitorNode
@@ -29,23 +35,43 @@ from amb_tools.local_bus import LocalBus
 from amb_tools.node_main import run_nodes
 from amb_wavelet.node import WaveletFilterbankNode
 
-__all__ = ["COMPOSED", "main"]
+__all__ = ["FACTORIES", "main"]
 
-#: The nodes the stack composes, in creation order (the filterbank first: it publishes the
-#: coefficients the others read, and it reads each measurement before they do).
-COMPOSED = ("wavelet_filterbank", "fault_monitor", "wavelet_controller")
+
+#: Each composed node's class; created in the order of ``COMPOSED`` (the filterbank first: it
+#: publishes the coefficients the others read, and it reads each measurement before they do).
+FACTORIES = {
+    "wavelet_filterbank": WaveletFilterbankNode,
+    "fault_monitor": FaultMonitorNode,
+    "wavelet_controller": WaveletControllerNode,
+}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """Command line (before ``--ros-args``)."""
+    p = argparse.ArgumentParser(
+        prog="wavelet_stack",
+        description="The filterbank, fault monitor and controller composed in one process.",
+    )
+    p.add_argument(
+        "--without",
+        action="append",
+        default=[],
+        choices=["fault_monitor", "wavelet_controller"],
+        help="do not compose this node (repeatable)",
+    )
+    return p
 
 
 def main(args: Sequence[str] | None = None) -> int:
     """Entry point of the ``wavelet_stack`` executable."""
+    argv = list(sys.argv if args is None else args)
+    own = build_parser().parse_args(remove_ros_args(argv)[1:])
     bus = LocalBus(local_topics=(topics.COEFFICIENTS,))
+    composed = [n for n in COMPOSED if n not in own.without]
     return run_nodes(
-        [
-            lambda: WaveletFilterbankNode(bus),
-            lambda: FaultMonitorNode(bus),
-            lambda: WaveletControllerNode(bus),
-        ],
-        args,
+        [lambda cls=FACTORIES[n]: cls(bus) for n in composed],
+        argv,
         process_name="wavelet_stack",
     )
 

@@ -37,6 +37,7 @@ from amb_common import topics
 from amb_plant_sim.scenario import load_scenario
 
 __all__ = [
+    "COMPOSED",
     "NODES",
     "NODE_MODULES",
     "node_name",
@@ -54,7 +55,10 @@ NODE_MODULES = {
     "fault_monitor": "amb_fault_monitor.node",
     "wavelet_controller": "amb_controller.node",
     "plant_sim": "amb_plant_sim.node",
+    "wavelet_stack": "amb_apps.stack",  # the three above composed in one process
 }
+#: The nodes ``wavelet_stack`` composes (``amb-run --composed``, the launch file's composed:=true).
+COMPOSED = ("wavelet_filterbank", "fault_monitor", "wavelet_controller")
 
 
 def run_parameters(

@@ -17,7 +17,7 @@ and the machine's 1-minute load average at its end, then the median over the run
 depend on whatever else the machine is doing: read them as ratios to the target, and compare
 runs made under the same load.
 
-    python bench/pipeline.py [--duration 8] [--cases 11:64,67:32] [--repeat 3]
+    python bench/pipeline.py [--duration 8] [--cases 11:64,67:32] [--repeat 3] [--composed]
 """
 
 from __future__ import annotations
@@ -79,24 +79,35 @@ def run_mode(
     out: Path,
     env: dict | None = None,
     extra: list[str] | tuple[str, ...] = (),
+    run_args: list[str] | tuple[str, ...] = (),
 ) -> Path:
-    """``amb-run`` the four nodes and the recorder in ``mode``; return the run folder."""
+    """``amb-run`` the four nodes and the recorder in ``mode``; return the run folder.
+
+    ``extra``: more ``--set`` items; ``run_args``: more amb-run arguments (``--composed``).
+    """
     sets = [f"wavelet_controller.model_file:={model}", "wavelet_controller.start_mode:=active",
             f"plant_sim.mode:={mode}", *extra]  # fmt: skip
     _run([sys.executable, "-m", "amb_apps.run_cli", "--scenario", str(scenario),
           "--out", str(out), "--controller", "transient", "--quiet",
-          *[a for s in sets for a in ("--set", s)]], env=env)  # fmt: skip
+          *[a for s in sets for a in ("--set", s)], *run_args], env=env)  # fmt: skip
     return out
 
 
-def case(hz: float, spr: int, duration: float, work: Path, repeat: int = 1) -> list[dict]:
+def case(
+    hz: float,
+    spr: int,
+    duration: float,
+    work: Path,
+    repeat: int = 1,
+    run_args: list[str] | tuple[str, ...] = (),
+) -> list[dict]:
     """Run one speed/sampling case ``repeat`` times; return the plant's numbers of each run."""
     scenario, model = prepare(hz, spr, duration, work)
     runs = []
     for i in range(repeat):
         result = {"hz": hz, "samples_per_rev": spr, "fs": hz * spr}
         for mode in ("lockstep", "realtime"):
-            out = run_mode(scenario, model, mode, work / f"{mode}_{hz:g}_{i}")
+            out = run_mode(scenario, model, mode, work / f"{mode}_{hz:g}_{i}", run_args=run_args)
             log = (out / "logs" / "plant_sim.log").read_text()
             m = COMPLETE.search(log)
             if m is None:
@@ -126,13 +137,18 @@ def main() -> None:
     ap.add_argument("--duration", type=float, default=8.0, help="simulated s per run")
     ap.add_argument("--cases", default="11:64,67:32", help="speed_hz:samples_per_rev,...")
     ap.add_argument("--repeat", type=int, default=1, help="runs per case (median printed)")
+    ap.add_argument(
+        "--composed", action="store_true", help="filterbank, monitor, controller in one process"
+    )
     args = ap.parse_args()
+    run_args = ["--composed"] if args.composed else []
+    print(f"deployment: {'composed (wavelet_stack)' if args.composed else 'one process per node'}")
     cases = [tuple(c.split(":")) for c in args.cases.split(",")]
     print(f"{'case / run':>16} {'lockstep RTF':>13} {'rt p50 ms':>10} {'p99 ms':>8} "
           f"{'p99/period':>11} {'missing':>8} {'late':>5} {'load':>6}")  # fmt: skip
     with tempfile.TemporaryDirectory() as tmp:
         for hz, spr in cases:
-            runs = case(float(hz), int(spr), args.duration, Path(tmp), args.repeat)
+            runs = case(float(hz), int(spr), args.duration, Path(tmp), args.repeat, run_args)
             for i, r in enumerate(runs):
                 print(_row(f"{hz} Hz x {spr} #{i + 1}", r), flush=True)
             if len(runs) > 1:

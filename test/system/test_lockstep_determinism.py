@@ -1,7 +1,8 @@
 """The nodes over DDS (amb-run) and the in-process runner (amb-sim) give the same run.
 
-Same scenario, same controller and model: the bag of the four processes exchanging real
-messages and the bag of the in-process lock-step loop carry identical measurements, wavelet
+Same scenario, same controller and model: the bag of the processes exchanging real messages
+(each node its own process, or the filterbank and controller composed in ``wavelet_stack``,
+handing the streams over in process) and the bag of the in-process lock-step loop carry identical measurements, wavelet
 coefficients and commands (compared field by field after deserialisation: the raw CDR may differ
 in trailing alignment padding between rclpy's serialiser and Fast DDS).
 """
@@ -40,7 +41,9 @@ def _cli(args: list[str]) -> subprocess.CompletedProcess:
     return subprocess.run(args, capture_output=True, text=True, timeout=600)
 
 
-def test_amb_run_and_amb_sim_bags_are_identical(tmp_path, ros_domain_id) -> None:
+@pytest.mark.parametrize("composed", [False, True], ids=["processes", "composed"])
+def test_amb_run_and_amb_sim_bags_are_identical(tmp_path, ros_domain_id, composed) -> None:
+    """Separate processes, and the filterbank and controller composed in ``wavelet_stack``."""
     scenario = tmp_path / "scenario.yaml"
     scenario.write_text(yaml.safe_dump(SCENARIO))
     sim = _cli(
@@ -59,9 +62,12 @@ def test_amb_run_and_amb_sim_bags_are_identical(tmp_path, ros_domain_id) -> None
             "--without", "fault_monitor",
             "--set", f"wavelet_controller.model_file:={model}",
             "--set", "wavelet_controller.start_mode:=active",
+            *(["--composed"] if composed else []),
         ]
     )  # fmt: skip
     assert run.returncode == 0, run.stdout + run.stderr
+    logs = sorted(p.name for p in (tmp_path / "run" / "logs").iterdir())
+    assert ("wavelet_stack.log" in logs) == composed, logs
     a = _messages(tmp_path / "sim" / "bag")
     b = _messages(tmp_path / "run" / "bag")
     n_periods = round(
