@@ -11,6 +11,8 @@ launch ends when ``plant_sim`` has finished its scenario.
         model_file:=/path/model.npz start_mode:=active bag:=/tmp/run1
 
 To drive a real rig, leave out plant_sim (``with_plant:=false``) and start your I/O bridge.
+``composed:=true`` runs the filterbank, fault monitor and controller in one process
+(``wavelet_stack``, :mod:`amb_apps.stack`), as ``amb-run --composed`` does.
 
 ``namespace:=/rig1`` starts every node in ``/rig1``: the topic names are relative, so the
 system's topics become ``/rig1/amb/...`` and a second system in another namespace runs beside it
@@ -19,13 +21,17 @@ per-run parameters under the node's fully qualified name and they win over the p
 ``/**/<node>`` sections (under ``/**`` they would lose to them).
 """
 
+import os
+import tempfile
+
+import yaml
 from launch.actions import DeclareLaunchArgument, OpaqueFunction, RegisterEventHandler, Shutdown
 from launch.event_handlers import OnProcessExit
 from launch.substitutions import LaunchConfiguration, PathJoinSubstitution
 from launch_ros.actions import Node
 from launch_ros.substitutions import FindPackageShare
 
-from amb_apps.system import NODES, run_parameters
+from amb_apps.system import COMPOSED, NODES, run_parameters, run_params_document
 from amb_common.paths import scenario_file
 from amb_common.topics import namespace
 from launch import LaunchDescription
@@ -46,6 +52,8 @@ ARGUMENTS = (
     ("mode", "lockstep", "plant_sim.mode: lockstep | realtime"),
     ("with_plant", "true", "start plant_sim (false: your I/O bridge publishes the rig)"),
     ("namespace", "/", "namespace of every node (/rig1: topics /rig1/amb/...; default /)"),
+    ("composed", "false",
+     "true: the filterbank, fault monitor and controller in one process (wavelet_stack)"),
 )  # fmt: skip
 
 
@@ -68,8 +76,10 @@ def _nodes(context) -> list:
         mode=value["mode"],
         bag=value["bag"],
     )
-    actions = [
-        Node(
+    composed = value["composed"].lower() in ("true", "1", "yes")
+    hosted = [n for n in COMPOSED if n in names] if composed else []
+    actions = {
+        name: Node(
             package=PACKAGE,
             executable=name,
             name=name,
@@ -78,15 +88,27 @@ def _nodes(context) -> list:
             output="screen",
         )
         for name in names
-    ]
-    if with_plant:
-        plant = actions[names.index("plant_sim")]
-        actions.append(
-            RegisterEventHandler(
-                OnProcessExit(target_action=plant, on_exit=[Shutdown(reason="scenario complete")])
-            )
+        if name not in hosted
+    }
+    if hosted:
+        # One process, several nodes: no name remap (it would rename all three); the run's
+        # parameters go in a params file keyed by each node's full name, as amb-run writes it.
+        fd, run_file = tempfile.mkstemp(prefix="amb_stack_", suffix=".yaml")
+        with os.fdopen(fd, "w") as f:
+            yaml.safe_dump(run_params_document({n: overrides[n] for n in hosted}, ns), f)
+        actions["wavelet_stack"] = Node(
+            package=PACKAGE,
+            executable="wavelet_stack",
+            namespace=ns,
+            parameters=[params, run_file],
+            output="screen",
         )
-    return actions
+    if with_plant:
+        plant = actions["plant_sim"]
+        actions["on_plant_exit"] = RegisterEventHandler(
+            OnProcessExit(target_action=plant, on_exit=[Shutdown(reason="scenario complete")])
+        )
+    return list(actions.values())
 
 
 def generate_launch_description() -> LaunchDescription:

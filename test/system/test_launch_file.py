@@ -48,10 +48,16 @@ def test_launch_builds_its_nodes_with_run_parameters() -> None:
     }
     assert {"NODES", "run_parameters"} <= imported
     # every node gets the namespace (so launch_ros keys the run's parameters by its full name)
-    (node,) = [
+    nodes = [
         c for c in ast.walk(tree) if isinstance(c, ast.Call) and getattr(c.func, "id", "") == "Node"
     ]
-    assert "namespace" in {k.arg for k in node.keywords}
+    assert len(nodes) == 2  # one per node; wavelet_stack for composed:=true
+    assert all("namespace" in {k.arg for k in node.keywords} for node in nodes)
+    executables = {
+        k.value.value for n in nodes for k in n.keywords if k.arg == "executable"
+        if isinstance(k.value, ast.Constant)
+    }  # fmt: skip
+    assert executables == {"wavelet_stack"}  # the other is the loop variable `name`
 
 
 def test_every_launch_argument_has_a_description() -> None:
