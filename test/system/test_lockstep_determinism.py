@@ -3,8 +3,9 @@
 Same scenario, same controller and model: the bag of the processes exchanging real messages
 (each node its own process, or the filterbank and controller composed in ``wavelet_stack``,
 handing the streams over in process) and the bag of the in-process lock-step loop carry
-identical measurements, wavelet coefficients and commands (compared field by field after deserialisation: the raw CDR may differ
-in trailing alignment padding between rclpy's serialiser and Fast DDS).
+identical measurements, wavelet coefficients and commands (compared field by field after
+deserialisation: the raw CDR may differ in trailing alignment padding between rclpy's serialiser
+and Fast DDS).
 """
 
 from __future__ import annotations
