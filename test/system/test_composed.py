@@ -1,0 +1,64 @@
+"""The fault monitor composed in ``wavelet_stack`` decides as it does in its own process.
+
+``amb-run`` twice on a mass loss at the first critical speed (PID only), once with a process per
+node and once ``--composed`` (filterbank, monitor and controller in one process, the streams
+handed over in process): the fault events in the two bags carry the same type, plane and sample
+indices (onset, first crossing, decision), and every node reported the plant's last sample
+(amb-run's drain). The controller and filterbank of the composed process are compared with
+amb-sim bit for bit in ``test_lockstep_determinism``.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+import yaml
+from rosbags.rosbag2 import Reader
+from scenarios import first_critical_mass_loss
+
+from amb_tools.bag_types import typestore
+
+pytestmark = [pytest.mark.ros, pytest.mark.slow]
+
+SCENARIO = first_critical_mass_loss(8.0, 3.0, name="composed")  # calibrated by 1.7 s
+
+
+def _events(bag: Path) -> list[tuple]:
+    store = typestore()
+    out = []
+    with Reader(bag) as reader:
+        for conn, _t, raw in reader.messages():
+            if conn.topic == "/amb/fault/events":
+                e = store.deserialize_cdr(raw, conn.msgtype)
+                out.append(
+                    (e.fault_type, e.plane, e.onset_sample_index, e.detection_sample_index,
+                     e.header.stamp.sec, e.header.stamp.nanosec)
+                )  # fmt: skip
+    return out
+
+
+def _run(scenario: Path, out: Path, *extra: str) -> str:
+    run = subprocess.run(
+        [sys.executable, "-m", "amb_apps.run_cli", "--scenario", str(scenario),
+         "--out", str(out), "--controller", "none", *extra],
+        capture_output=True, text=True, timeout=900,
+    )  # fmt: skip
+    logs = "\n".join(f"--- {p.name}\n{p.read_text()[-3000:]}" for p in (out / "logs").glob("*"))
+    assert run.returncode == 0, run.stdout + run.stderr + logs
+    assert "drained" in run.stdout, run.stdout
+    return run.stdout
+
+
+def test_composed_fault_monitor_gives_the_same_events(tmp_path, ros_domain_id) -> None:
+    scenario = tmp_path / "scenario.yaml"
+    scenario.write_text(yaml.safe_dump(SCENARIO))
+    _run(scenario, tmp_path / "processes")
+    _run(scenario, tmp_path / "composed", "--composed")
+    assert (tmp_path / "composed" / "logs" / "wavelet_stack.log").is_file()
+    separate = _events(tmp_path / "processes" / "bag")
+    composed = _events(tmp_path / "composed" / "bag")
+    assert separate, "the monitor found no fault in the mass loss"
+    assert composed == separate
