@@ -19,7 +19,8 @@ from dataclasses import dataclass, fields
 
 from rcl_interfaces.msg import ParameterDescriptor
 
-from amb_controller.config import ControllerConfig, param, parameter_fields
+from amb_common.config_fields import param, parameter_fields
+from amb_controller.config import ControllerConfig
 from amb_tools.node_main import ConfigurationError, descriptor
 
 START_MODES = ("off", "active", "identify")
@@ -91,7 +92,7 @@ def parameter_value(name: str, value):
 
 
 def parameter_descriptor(f: dataclasses.Field) -> ParameterDescriptor:
-    """The ROS descriptor of a :func:`~amb_controller.config.param` field.
+    """The ROS descriptor of a :func:`~amb_common.config_fields.param` field.
 
     Its description (with the ROS form of inf, empty and mapping values, and the allowed
     values), read-only unless settable at run time, the range rclpy enforces (if any) and the
