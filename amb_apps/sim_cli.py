@@ -37,9 +37,10 @@ from amb_apps.closed_loop import (
     run_closed_loop,
 )
 from amb_apps.plant_models import harmonic_model, influence_by_trials
+from amb_common.config_fields import default_of
 from amb_common.rig import load_rig
 from amb_controller.baselines import BaselineSettings
-from amb_controller.config import CONTROLLERS, ControllerConfig, default_of
+from amb_controller.config import CONTROLLERS, ControllerConfig
 from amb_controller.metrics import compute_metrics, inner_summary
 from amb_controller.model_file import WaveletModel
 from amb_plant_sim.scenario import load_scenario, resolve_samples_per_rev

@@ -3,8 +3,9 @@ Configuration of the wavelet controller: :class:`ControllerConfig`, one home for
 
 Every field carries its default, a description with its unit, the allowed range (the text the
 validation names in its refusal) and whether it may change while the controller runs
-(:func:`param`, ``dataclasses.field`` metadata). The ``wavelet_controller`` node declares its
-ROS parameters from these fields (:func:`parameter_fields`), ``amb-sim`` and the experiments
+(:func:`~amb_common.config_fields.param`, ``dataclasses.field`` metadata). The
+``wavelet_controller`` node declares its ROS parameters from these fields
+(:func:`~amb_common.config_fields.parameter_fields`), ``amb-sim`` and the experiments
 build the same dataclass, and :meth:`ControllerConfig._validate` refuses an invalid value with
 the field's name, the value and the allowed range, whichever of them set it.
 """
@@ -12,11 +13,12 @@ the field's name, the value and the allowed range, whichever of them set it.
 from __future__ import annotations
 
 import math
-from dataclasses import MISSING, Field, asdict, dataclass, field, fields
+from dataclasses import asdict, dataclass, fields
 
 import numpy as np
 import pywt
 
+from amb_common.config_fields import param
 from amb_common.names import N_AXES, SENSOR_NAMES
 from amb_common.topics import DELAY_PERIODS
 from amb_controller.basis import QUADRATURES
@@ -29,9 +31,6 @@ __all__ = [
     "RESPONSES",
     "ConfigError",
     "ControllerConfig",
-    "default_of",
-    "param",
-    "parameter_fields",
 ]
 
 CONTROLLERS = ("none", "proportional", "moderated", "transient", "synchronous", "harmonic")
@@ -39,57 +38,6 @@ CONTROLLERS = ("none", "proportional", "moderated", "transient", "synchronous", 
 BASELINE_CONTROLLERS = ("synchronous", "harmonic")
 RESPONSES = ("exponential", "linear", "series")
 FAULT_ACTIONS = ("hold", "off", "ignore")
-
-
-def param(
-    default=MISSING,
-    *,
-    description: str,
-    allowed: str = "",
-    runtime: bool = False,
-    parameter: bool = True,
-    default_factory=MISSING,
-    ints: tuple[int, int] | None = None,
-    floats: tuple[float, float] | None = None,
-):
-    """A dataclass field with its description, allowed range and run-time flag as metadata.
-
-    Parameters
-    ----------
-    default, default_factory
-        As for ``dataclasses.field``.
-    description : str
-        What the field is, with its unit.
-    allowed : str
-        The allowed values, as the validation's refusal names them ('' = any of its type).
-    runtime : bool
-        May change while running (applied at a period boundary); else read-only.
-    parameter : bool
-        Declared as a ROS parameter by the node (``frames``, fixed, is not).
-    ints, floats : tuple, optional
-        Inclusive ``(low, high)`` range the ROS parameter descriptor enforces itself. The
-        controller's fields have none: their ranges are checked by :class:`ControllerConfig`,
-        whose refusal names the range (and a run-time refusal says why, see the node).
-    """
-    metadata = {
-        "description": description,
-        "allowed": allowed,
-        "runtime": runtime,
-        "parameter": parameter,
-        "ints": ints,
-        "floats": floats,
-    }
-    return field(default=default, default_factory=default_factory, metadata=metadata)
-
-
-def default_of(f: Field):
-    """The default value of a dataclass field (calling its ``default_factory`` if it has one)."""
-    return f.default_factory() if f.default is MISSING else f.default
-
-
-def parameter_fields(cls) -> list[Field]:
-    """The fields of a dataclass built with :func:`param` that are ROS parameters, in order."""
-    return [f for f in fields(cls) if f.metadata.get("parameter", False)]
 
 
 class ConfigError(ControllerValueError):
@@ -111,7 +59,9 @@ class ControllerConfig:
     Plain configuration of :class:`~amb_controller.pipeline.ControllerPipeline`.
 
     The node's ROS parameters: each field's description, unit and allowed range are its
-    :func:`param` metadata. Validated on construction (:class:`ConfigError`).
+    :func:`~amb_common.config_fields.param` metadata. Validated on construction
+    (:class:`ConfigError`): no field has an ``ints``/``floats`` range for the ROS descriptor to
+    enforce, the refusal names the range (and a run-time refusal says why, see the node).
     """
 
     wavelet: str = param(

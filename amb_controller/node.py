@@ -94,10 +94,11 @@ from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 
 from amb_common import topics
+from amb_common.config_fields import default_of, parameter_fields
 from amb_common.errors import RigError
 from amb_common.paths import config_file
 from amb_common.rig import load_rig
-from amb_controller.config import ControllerConfig, default_of, parameter_fields
+from amb_controller.config import ControllerConfig
 from amb_controller.errors import ControllerValueError
 from amb_controller.node_params import (
     PARAMETERS,

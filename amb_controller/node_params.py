@@ -19,8 +19,9 @@ from dataclasses import dataclass, fields
 
 from rcl_interfaces.msg import ParameterDescriptor
 
-from amb_controller.config import ControllerConfig, param, parameter_fields
-from amb_tools.node_main import ConfigurationError, descriptor
+from amb_common.config_fields import param, parameter_fields
+from amb_controller.config import ControllerConfig
+from amb_tools.node_main import ConfigurationError, field_descriptor
 
 START_MODES = ("off", "active", "identify")
 
@@ -91,24 +92,11 @@ def parameter_value(name: str, value):
 
 
 def parameter_descriptor(f: dataclasses.Field) -> ParameterDescriptor:
-    """The ROS descriptor of a :func:`~amb_controller.config.param` field.
+    """The ROS descriptor of a field (:func:`amb_tools.node_main.field_descriptor`).
 
-    Its description (with the ROS form of inf, empty and mapping values, and the allowed
-    values), read-only unless settable at run time, the range rclpy enforces (if any) and the
-    allowed values also as ``additional_constraints`` (``ros2 param describe`` shows both).
+    With the ROS form of inf, empty and mapping values (:data:`ROS_FORMS`) in its description.
     """
-    meta = f.metadata
-    description = meta["description"]
-    if f.name in ROS_FORMS:
-        description += f" ({ROS_FORMS[f.name]})"
-    if meta["allowed"]:
-        description += f"; allowed: {meta['allowed']}"
-    out = descriptor(
-        description, read_only=not meta["runtime"], ints=meta["ints"], floats=meta["floats"]
-    )
-    if meta["allowed"]:
-        out.additional_constraints = meta["allowed"]
-    return out
+    return field_descriptor(f, ROS_FORMS.get(f.name, ""))
 
 
 def config_from_parameters(values: dict) -> dict:

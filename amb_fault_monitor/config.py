@@ -8,12 +8,20 @@ the contact bursts in :mod:`amb_fault_monitor.bursts`, the control transients in
 :mod:`amb_fault_monitor.control_transients`, the stuck channels in
 :mod:`amb_fault_monitor.dead_channels` and the classification in
 :mod:`amb_fault_monitor.classifier`.
+
+The fields the ``fault_monitor`` node declares as ROS parameters carry their default, a
+description with its unit, the range the ROS descriptor enforces and whether they may change at
+run time (:func:`~amb_common.config_fields.param` metadata, one home for each): the node declares
+them from :func:`~amb_common.config_fields.parameter_fields` and builds :class:`MonitorConfig`
+from them by name. The other fields are not ROS parameters (set in code, or per scenario by
+``amb-fault-eval``).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
+from amb_common.config_fields import param
 from amb_fault_monitor.errors import FaultMonitorError
 
 __all__ = ["FRAMES", "MonitorConfig", "with_levels"]
@@ -26,24 +34,22 @@ class MonitorConfig:
     """
     Parameters of :class:`FaultMonitor` (all times in revolutions of the rotor).
 
+    The ROS parameters' description, unit, range and run-time flag are their
+    :func:`~amb_common.config_fields.param` metadata; the notes below add where each acts.
+    Validated on construction (:class:`~amb_fault_monitor.errors.FaultMonitorError`).
+
     Attributes
     ----------
     samples_per_rev : int
-        Samples per revolution (power of two >= 4).
+        Power of two >= 4 (no default: the monitor must be told its stream's).
     levels : tuple of int
-        Detail levels used; empty = every level received.
-    frames : tuple of str
-        ``"fixed"`` and/or ``"rotating"``.
-    calibration_revs : float
-        Length of the healthy calibration window.
+        Empty = every level received.
     settle_ratio : float
         Stationarity test of the calibration window: the median feature of its first half may
         exceed that of its second half by at most this factor (per level and frame, planes
         pooled), or the window slides on by one revolution (a start-up transient still decaying).
-    k : float
-        Robust standard deviations of the threshold (see ``calibration``).
-    threshold_floor : float
-        m, smallest threshold (noise-free signals).
+    k, threshold_floor
+        The thresholds (:mod:`amb_fault_monitor.calibration`); the floor for noise-free signals.
     confirm_ratio, confirm_features, confirm_revs
         Detection confirmation (:mod:`amb_fault_monitor.monitor`, step 2).
     quiet_revs, decision_revs, max_tail_revs
@@ -104,20 +110,40 @@ class MonitorConfig:
         step.
     """
 
-    samples_per_rev: int
-    levels: tuple[int, ...] = ()
-    frames: tuple[str, ...] = FRAMES
-    calibration_revs: float = 16.0
+    samples_per_rev: int = param(
+        description="samples per revolution of the coefficient stream, power of two",
+        ints=(4, 4096),
+    )
+    levels: tuple[int, ...] = param((), description="detail levels used, 1..log2(spr)+2")
+    frames: tuple[str, ...] = param(FRAMES, description="fixed, rotating")
+    calibration_revs: float = param(
+        16.0, description="healthy calibration window, revolutions", floats=(1.0, 1e4)
+    )
     settle_ratio: float = 2.0
-    k: float = 8.0
-    threshold_floor: float = 2.0e-8
+    k: float = param(
+        8.0, description="robust standard deviations of the thresholds", floats=(1.0, 100.0)
+    )
+    threshold_floor: float = param(2.0e-8, description="smallest threshold, m", floats=(0.0, 1e-3))
     confirm_ratio: float = 3.0
     confirm_features: int = 2
     confirm_revs: float = 1.0
-    quiet_revs: float = 2.0
-    decision_revs: float = 16.0
+    quiet_revs: float = param(
+        2.0,
+        description="hold-off: quiet revolutions that end an episode",
+        floats=(0.25, 1e3),
+    )
+    decision_revs: float = param(
+        16.0,
+        description="longest wait from alarm to decision, revolutions",
+        floats=(0.5, 1e3),
+    )
     max_tail_revs: float = 200.0
-    decision_max_revs: float = 32.0
+    decision_max_revs: float = param(
+        32.0,
+        description="longest wait while the 1 x level still moves far from its reference, "
+        "revolutions (>= decision_revs)",
+        floats=(0.5, 1e3),
+    )
     rearm_revs: float = 16.0
     isolation: float = 0.9
     base_coherence: float = 0.8
@@ -129,10 +155,21 @@ class MonitorConfig:
     settle_spread: float = 0.25
     burst_gap_revs: float = 0.5
     tail_rise: float = 1.7
-    tail_rise_median: float = 3.0
+    tail_rise_median: float = param(
+        3.0,
+        description="contact burst: finest-level ratio (or its change) over its median since "
+        "the episode began",
+        floats=(1.0, 100.0),
+    )
     dead_fraction: float = 0.02
     dead_revs: float = 1.0
-    control_step: float = 2.0
+    control_step: float = param(
+        2.0,
+        description="control step: change of the applied wavelet force on an axis from one "
+        "revolution to the next, N",
+        floats=(1e-3, 1e5),
+        runtime=True,
+    )
     control_window_revs: float = 1.0
 
     def __post_init__(self) -> None:

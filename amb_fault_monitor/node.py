@@ -61,8 +61,10 @@ range, trip levels computable) and refuses it with a reason naming the parameter
 the range (the old values stay); the post-set callback applies it. At start-up an out-of-range
 or mistyped value, an unknown frame, a level the filterbank cannot publish, a missing or
 malformed rig file or event log stop the node with exit status 2 and the same kind of message
-(:class:`amb_tools.node_main.ConfigurationError`). The floating-point parameters (default,
-description, range, settable or not) are the table of :mod:`amb_fault_monitor.node_params`.
+(:class:`amb_tools.node_main.ConfigurationError`). The monitor's parameters are the parameter
+fields of :class:`~amb_fault_monitor.config.MonitorConfig`, the node's own those of
+:class:`~amb_fault_monitor.node_params.NodeSettings`: each field holds its default, description,
+range and whether it may change at run time (:mod:`amb_fault_monitor.node_params`).
 """
 
 from __future__ import annotations
@@ -96,7 +98,15 @@ from amb_fault_monitor.config import MonitorConfig
 from amb_fault_monitor.errors import FaultMonitorError, RecordError
 from amb_fault_monitor.event_log import EventLog
 from amb_fault_monitor.monitor import FaultMonitor
-from amb_fault_monitor.node_params import FLOATS, RUNTIME, check_runtime_value
+from amb_fault_monitor.node_params import (
+    MONITOR_PARAMETERS,
+    MONITOR_RUNTIME,
+    NODE_PARAMETERS,
+    RUNTIME,
+    check_runtime_value,
+    parameter_descriptor,
+    parameter_value,
+)
 from amb_fault_monitor.trips import SynchronousAmplitude, TripMonitor, clearance_levels
 from amb_tools.cdr import (
     CoefficientsView,
@@ -112,7 +122,7 @@ from amb_tools.conversions import (
     stamp_seconds,
 )
 from amb_tools.local_bus import LocalBus, stream_subscription
-from amb_tools.node_main import ConfigurationError, descriptor, run_node
+from amb_tools.node_main import ConfigurationError, run_node
 from amb_tools.streams import stream_qos
 from amb_tools.validation import SampleSequencer, check_measurement
 from amb_wavelet.levels import revolution_level
@@ -133,24 +143,8 @@ class FaultMonitorNode(Node):
 
     def __init__(self, bus: LocalBus | None = None) -> None:
         super().__init__("fault_monitor")
-        self._declare(
-            "samples_per_rev",
-            32,
-            descriptor(
-                "samples per revolution of the coefficient stream, power of two", ints=(4, 4096)
-            ),
-        )
-        self._declare(
-            "levels", [0], descriptor("detail levels used ([0] = all received), 1..log2(spr)+2")
-        )
-        self._declare("frames", ["fixed", "rotating"], descriptor("fixed, rotating"))
-        for name, (default, desc, lo, hi, settable) in FLOATS.items():
-            self._declare(name, default, descriptor(desc, not settable, floats=(lo, hi)))
-        self._declare("event_log", "", descriptor("JSON-lines event log path ('' = off)"))
-        self._declare("rig", "", descriptor("rig file for the clearances ('' = config/rig.yaml)"))
-        self._declare(
-            "blackbox_dir", "", descriptor("folder of the per-event black-box bags ('' = off)")
-        )
+        for f in (*MONITOR_PARAMETERS, *NODE_PARAMETERS):
+            self._declare(f.name, parameter_value(f), parameter_descriptor(f))
         p = self.get_parameter
         self._spr = p("samples_per_rev").value
         levels = self._levels(list(p("levels").value))
@@ -160,20 +154,10 @@ class FaultMonitorNode(Node):
                 f"parameter 'frames' = {list(frames)}: expected a non-empty subset of "
                 f"{list(FRAME.values())}"
             )
+        values = {f.name: p(f.name).value for f in MONITOR_PARAMETERS}
+        values.update(levels=levels, frames=frames)
         try:
-            config = MonitorConfig(
-                self._spr,
-                levels=levels,
-                frames=frames,
-                calibration_revs=p("calibration_revs").value,
-                k=p("k").value,
-                threshold_floor=p("threshold_floor").value,
-                decision_revs=p("decision_revs").value,
-                quiet_revs=p("quiet_revs").value,
-                decision_max_revs=p("decision_max_revs").value,
-                tail_rise_median=p("tail_rise_median").value,
-                control_step=p("control_step").value,
-            )
+            config = MonitorConfig(**values)
         except FaultMonitorError as exc:
             raise ConfigurationError(f"fault_monitor parameters: {exc}") from exc
         log_path = p("event_log").value
@@ -312,9 +296,9 @@ class FaultMonitorNode(Node):
             self._trip_1x.set_level(self._level(p("trip_1x").value, "1x"))
         if "trip_hysteresis" in names:
             self._trip.hysteresis = self._trip_1x.hysteresis = p("trip_hysteresis").value
-        if "control_step" in names:
-            config = replace(self._monitor.config, control_step=p("control_step").value)
-            self._monitor.config = config
+        changed = {name: p(name).value for name in MONITOR_RUNTIME if name in names}
+        if changed:
+            self._monitor.config = replace(self._monitor.config, **changed)
         if "status_period" in names:
             self._status_timer.cancel()
             self._status_timer = self.create_timer(p("status_period").value, self._publish_status)

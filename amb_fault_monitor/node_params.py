@@ -1,72 +1,116 @@
 """
-The floating-point ROS parameters of the ``fault_monitor`` node and the check of a change.
+The ROS parameters of the ``fault_monitor`` node and the check of a run-time change.
 
-:data:`FLOATS` is the one table the node declares them from (default, description with unit,
-range, settable at run time); :data:`RUNTIME` names those the on-set callback accepts, and
-:func:`check_runtime_value` gives the reason it refuses a value (the node's module notes,
-"Parameters").
+The node declares one ROS parameter per field of :class:`~amb_fault_monitor.config.MonitorConfig`
+that is a parameter (:func:`~amb_common.config_fields.parameter_fields`: default, description
+with unit, range and run-time flag are the field's) and one per field of :class:`NodeSettings`,
+its own settings (trip levels, status period, files, black box), each with the descriptor
+:func:`parameter_descriptor` builds from the field. :func:`parameter_value` gives the ROS form of
+a field's default (a ROS parameter cannot hold an empty list); the node maps the values back
+onto ``MonitorConfig`` by field name. :data:`RUNTIME` names the parameters the on-set callback
+accepts, and :func:`check_runtime_value` gives the reason it refuses a value (the node's module
+notes, "Parameters").
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
+from dataclasses import dataclass
 
-#: Floating-point parameters: name -> (default, description with unit, lowest, highest,
-#: settable at run time). The one table for the declaration and both validations.
-FLOATS: dict[str, tuple[float, str, float, float, bool]] = {
-    "calibration_revs": (16.0, "healthy calibration window, revolutions", 1.0, 1e4, False),
-    "k": (8.0, "robust standard deviations of the thresholds", 1.0, 100.0, False),
-    "threshold_floor": (2.0e-8, "smallest threshold, m", 0.0, 1e-3, False),
-    "decision_revs": (16.0, "longest wait from alarm to decision, revolutions", 0.5, 1e3, False),
-    "decision_max_revs": (
-        32.0,
-        "longest wait while the 1 x level still moves far from its reference, revolutions "
-        "(>= decision_revs)",
+from rcl_interfaces.msg import ParameterDescriptor
+
+from amb_common.config_fields import default_of, param, parameter_fields
+from amb_fault_monitor.config import MonitorConfig
+from amb_tools.node_main import field_descriptor
+
+#: The node's ``samples_per_rev`` when no params file sets it (``MonitorConfig`` has no default:
+#: a monitor must be told its stream's).
+SAMPLES_PER_REV = 32
+
+
+@dataclass(frozen=True)
+class NodeSettings:
+    """The node's own parameters, beside the monitor's (:class:`MonitorConfig`)."""
+
+    trip_displacement: float = param(
+        0.0,
+        description="radial trip level, m (0 = from the rig clearances)",
+        floats=(0.0, 0.1),
+        runtime=True,
+    )
+    trip_displacement_fraction: float = param(
+        2.0 / 3.0,
+        description="default radial trip level as a share of the nearest clearance",
+        floats=(0.01, 1.0),
+        runtime=True,
+    )
+    trip_1x: float = param(
+        0.0,
+        description="1 x orbit semi-major axis trip level, m (0 = from the rig)",
+        floats=(0.0, 0.1),
+        runtime=True,
+    )
+    trip_1x_fraction: float = param(
         0.5,
-        1e3,
-        False,
-    ),
-    "quiet_revs": (2.0, "hold-off: quiet revolutions that end an episode", 0.25, 1e3, False),
-    "tail_rise_median": (
-        3.0,
-        "contact burst: finest-level ratio (or its change) over its median since the episode "
-        "began",
+        description="default 1 x trip level as a share of the nearest clearance",
+        floats=(0.01, 1.0),
+        runtime=True,
+    )
+    trip_hysteresis: float = param(
+        0.1, description="trip clears below level * (1 - this)", floats=(0.0, 0.99), runtime=True
+    )
+    status_period: float = param(
         1.0,
-        100.0,
-        False,
-    ),
-    "control_step": (
-        2.0,
-        "control step: change of the applied wavelet force on an axis from one revolution to "
-        "the next, N",
-        1e-3,
-        1e5,
-        True,
-    ),
-    "trip_displacement": (
-        0.0, "radial trip level, m (0 = from the rig clearances)", 0.0, 0.1, True,
-    ),
-    "trip_displacement_fraction": (
-        2.0 / 3.0, "default radial trip level as a share of the nearest clearance", 0.01, 1.0, True,
-    ),
-    "trip_1x": (
-        0.0, "1 x orbit semi-major axis trip level, m (0 = from the rig)", 0.0, 0.1, True,
-    ),
-    "trip_1x_fraction": (
-        0.5, "default 1 x trip level as a share of the nearest clearance", 0.01, 1.0, True,
-    ),
-    "trip_hysteresis": (0.1, "trip clears below level * (1 - this)", 0.0, 0.99, True),
-    "status_period": (1.0, "period of the /diagnostics report, s (wall clock)", 0.05, 60.0, True),
-    "blackbox_pre_s": (2.0, "black box: seconds kept before an event", 0.0, 600.0, False),
-    "blackbox_post_s": (1.0, "black box: seconds recorded after an event", 0.0, 600.0, False),
-}  # fmt: skip
+        description="period of the /diagnostics report, s (wall clock)",
+        floats=(0.05, 60.0),
+        runtime=True,
+    )
+    blackbox_pre_s: float = param(
+        2.0, description="black box: seconds kept before an event", floats=(0.0, 600.0)
+    )
+    blackbox_post_s: float = param(
+        1.0, description="black box: seconds recorded after an event", floats=(0.0, 600.0)
+    )
+    event_log: str = param("", description="JSON-lines event log path ('' = off)")
+    rig: str = param("", description="rig file for the clearances ('' = config/rig.yaml)")
+    blackbox_dir: str = param("", description="folder of the per-event black-box bags ('' = off)")
+
+
+#: The monitor's ROS parameters: the parameter fields of MonitorConfig, in order.
+MONITOR_PARAMETERS = tuple(parameter_fields(MonitorConfig))
+#: The node's own: the fields of NodeSettings, in order.
+NODE_PARAMETERS = tuple(parameter_fields(NodeSettings))
+#: How a ROS parameter carries the values it cannot hold (an empty list).
+ROS_FORMS = {"levels": "[0] = all received"}
+_RUNTIME_FIELDS = {
+    f.name: f for f in (*MONITOR_PARAMETERS, *NODE_PARAMETERS) if f.metadata["runtime"]
+}
 #: Parameters the on-set callback accepts (all others are read-only).
-RUNTIME = tuple(name for name, spec in FLOATS.items() if spec[4])
+RUNTIME = tuple(_RUNTIME_FIELDS)
+#: Of those, the MonitorConfig fields (applied to the running monitor's configuration).
+MONITOR_RUNTIME = tuple(f.name for f in MONITOR_PARAMETERS if f.metadata["runtime"])
+
+
+def parameter_value(f: dataclasses.Field):
+    """The ROS parameter default of a field: its default in ROS form (``levels`` () is [0])."""
+    if f.name == "samples_per_rev":
+        return SAMPLES_PER_REV
+    value = default_of(f)
+    if f.name == "levels" and not value:
+        return [0]
+    return list(value) if isinstance(value, tuple) else value
+
+
+def parameter_descriptor(f: dataclasses.Field) -> ParameterDescriptor:
+    """The ROS descriptor of a field (:func:`amb_tools.node_main.field_descriptor`)."""
+    return field_descriptor(f, ROS_FORMS.get(f.name, ""))
 
 
 def check_runtime_value(name: str, value: object) -> str | None:
     """Return why a run-time value of parameter ``name`` is refused, or None if it is valid."""
-    _default, desc, lo, hi, _settable = FLOATS[name]
+    meta = _RUNTIME_FIELDS[name].metadata
+    lo, hi = meta["floats"]
     if not (isinstance(value, float) and math.isfinite(value) and lo <= value <= hi):
-        return f"parameter '{name}' = {value!r}: expected {lo:g}..{hi:g} ({desc})"
+        return f"parameter '{name}' = {value!r}: expected {lo:g}..{hi:g} ({meta['description']})"
     return None

@@ -38,6 +38,7 @@ import threading
 import time
 import traceback
 from collections.abc import Callable, Sequence
+from dataclasses import Field
 from pathlib import Path
 from types import FrameType
 
@@ -81,6 +82,26 @@ def descriptor(
             FloatingPointRange(from_value=floats[0], to_value=floats[1])
         ]
     return ParameterDescriptor(description=description, read_only=read_only, **ranges)
+
+
+def field_descriptor(f: Field, ros_form: str = "") -> ParameterDescriptor:
+    """The ROS descriptor of a :func:`~amb_common.config_fields.param` dataclass field.
+
+    Its description (with ``ros_form``, how the ROS parameter carries a value it cannot hold,
+    e.g. inf or an empty list, and the allowed values), read-only unless settable at run time,
+    the range rclpy enforces (if any) and the allowed values also as ``additional_constraints``
+    (``ros2 param describe`` shows both).
+    """
+    meta = f.metadata
+    text = meta["description"]
+    if ros_form:
+        text += f" ({ros_form})"
+    if meta["allowed"]:
+        text += f"; allowed: {meta['allowed']}"
+    out = descriptor(text, read_only=not meta["runtime"], ints=meta["ints"], floats=meta["floats"])
+    if meta["allowed"]:
+        out.additional_constraints = meta["allowed"]
+    return out
 
 
 def make_executor(choice: str | None = None):

@@ -83,13 +83,17 @@ def test_the_nodes_are_installed_console_scripts() -> None:
 
 
 def _declared(name: str) -> set[str] | None:
-    """The controller's parameters as it declares them (from its config classes); None: read
-    the other nodes' sources."""
-    if name != "wavelet_controller":
-        return None
-    from amb_controller.node_params import PARAMETERS, NodeSettings
+    """The controller's and the fault monitor's parameters as they declare them (from their
+    config classes); None: read the other nodes' sources."""
+    if name == "wavelet_controller":
+        from amb_controller.node_params import PARAMETERS, NodeSettings
 
-    return {*PARAMETERS, *(f.name for f in fields(NodeSettings))}
+        return {*PARAMETERS, *(f.name for f in fields(NodeSettings))}
+    if name == "fault_monitor":
+        from amb_fault_monitor.node_params import MONITOR_PARAMETERS, NODE_PARAMETERS
+
+        return {f.name for f in (*MONITOR_PARAMETERS, *NODE_PARAMETERS)}
+    return None
 
 
 def test_run_parameters_are_declared_by_the_nodes() -> None:
