@@ -552,7 +552,7 @@ def _expected_subscribers(names: list[str], composed: bool = False) -> dict[str,
         topics.FAULT_EVENTS: "fault_monitor",
     }
     if composed:
-        consumers[topics.MEASUREMENT] = {STACK} if has & set(COMPOSED) else set()
+        consumers[topics.MEASUREMENT] = {STACK}  # composed: the stack hosts at least one
         consumers[topics.COEFFICIENTS] = set()
         has.add(STACK)
     # the recorder subscribes every stream at start (topic_types), so it counts on each

@@ -41,7 +41,6 @@ class _Topic:
     readers: list[RawCallback] = field(default_factory=list)
     local: bool = False  # published by a composed node (else: one DDS reader feeds the readers)
     dds_reader: object | None = None
-    delivered: int = 0
 
 
 class LocalBus:
@@ -111,14 +110,8 @@ class LocalBus:
         return StreamPublisher(node.create_publisher(msg_type, resolved, qos), topic, self)
 
     def _deliver(self, topic: _Topic, raw: bytes) -> None:
-        topic.delivered += 1
         for reader in topic.readers:
             reader(raw)
-
-    def delivered(self, name: str, node: Node) -> int:
-        """Messages of ``name`` handed to the composed readers so far."""
-        topic = self._topics.get(node.resolve_topic_name(name))
-        return 0 if topic is None else topic.delivered
 
 
 class StreamPublisher:
