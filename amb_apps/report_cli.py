@@ -29,9 +29,13 @@ import re
 import sys
 from pathlib import Path
 
-import numpy as np
-
-from amb_apps.report_metrics import bag_metrics, choose_fault_time, inner_summary, scenario_fault
+from amb_apps.report_metrics import (
+    bag_metrics,
+    choose_fault_time,
+    inner_summary,
+    json_default,
+    scenario_fault,
+)
 from amb_tools.bag_read import read_bag
 
 
@@ -275,7 +279,7 @@ def make_report(
         folder = out / slug(label, taken)
         folder.mkdir(exist_ok=True)
         path = folder / "metrics.json"
-        path.write_text(json.dumps(m, indent=2, default=_json_default))
+        path.write_text(json.dumps(m, indent=2, default=json_default))
         known = fault.source in ("user", "scenario", "first_fault_event")
         runs.append(rf.Run(label, data, fault.time if known else None, fault.source))
         all_metrics.append(m)
@@ -294,14 +298,6 @@ def make_report(
     return dict(zip(labels, all_metrics, strict=True))
 
 
-def _json_default(value):
-    if isinstance(value, np.generic):
-        return value.item()
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    return str(value)
-
-
 def main(argv: list[str] | None = None) -> int:
     """Entry point of ``amb-report``."""
     args = build_parser().parse_args(argv)
@@ -316,7 +312,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"amb-report: {exc}", file=sys.stderr)
         return 2
     if args.json:
-        print(json.dumps(result, indent=2, default=_json_default))
+        print(json.dumps(result, indent=2, default=json_default))
     else:
         for label, m in result.items():
             s = inner_summary(m)

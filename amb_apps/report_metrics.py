@@ -286,3 +286,12 @@ def inner_summary(metrics: dict) -> dict:
         "peak_wavelet_force": largest_force("peak_wavelet_force"),
         "peak_total_force": largest_force("peak_total_force"),
     }
+
+
+def json_default(value):
+    """``json.dumps`` default for metrics documents: numpy scalars and arrays, else ``str``."""
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    return str(value)

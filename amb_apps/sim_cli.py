@@ -37,6 +37,7 @@ from amb_apps.closed_loop import (
     run_closed_loop,
 )
 from amb_apps.plant_models import harmonic_model, influence_by_trials
+from amb_apps.report_metrics import json_default
 from amb_common.config_fields import default_of
 from amb_common.rig import load_rig
 from amb_controller.baselines import BaselineSettings
@@ -220,16 +221,8 @@ def run(args) -> dict:
             "wall_time": time.perf_counter() - t0,
         }
     )
-    (out / "metrics.json").write_text(json.dumps(metrics, indent=2, default=_json_default))
+    (out / "metrics.json").write_text(json.dumps(metrics, indent=2, default=json_default))
     return metrics
-
-
-def _json_default(value):
-    if isinstance(value, np.generic):
-        return value.item()
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    return str(value)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -241,7 +234,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"amb-sim: {exc}", file=sys.stderr)
         return 2
     if args.json:
-        print(json.dumps(metrics, indent=2, default=_json_default))
+        print(json.dumps(metrics, indent=2, default=json_default))
     else:
         s = inner_summary(metrics)
         print(
