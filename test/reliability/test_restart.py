@@ -29,13 +29,14 @@ from reliability_helpers import fe_model_file
 from scenarios import SAMPLES_PER_REV, first_critical_mass_loss
 
 from amb_common.rig import load_rig
+from amb_tools.cdr import read_measurement
 from amb_tools.streams import stream_qos
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
 SPR = SAMPLES_PER_REV
 # room for the new process to start while the plant runs on its watchdog
-SCENARIO = first_critical_mass_loss(20.0)
+SCENARIO = first_critical_mass_loss(30.0)
 LIMIT = 0.5e-3  # m, thesis section 8.5.1
 KILL_TIME = 3.0  # simulated s: 1.5 s after the mass loss
 
@@ -54,13 +55,13 @@ def test_controller_killed_and_restarted_mid_run(ros, node_process, tmp_path) ->
         "start_mode": "active",
     }
     node = ros.node("amb_test_restart_observer")
-    samples: list[Measurement] = []
+    raw_samples: list[bytes] = []  # read after the run: the observer must keep up with the plant
     statuses: list[ControllerStatus] = []
     # The observer (rclpy objects per sample, in the test process) can lag the plant under load:
     # a deep queue keeps every sample (1024 lost 338 of 6208 in a loaded fresh-clone CI run).
     qos = stream_qos(SPR)
     qos.depth = 1 << 16
-    node.create_subscription(Measurement, "/amb/measurement", samples.append, qos)
+    node.create_subscription(Measurement, "/amb/measurement", raw_samples.append, qos, raw=True)
     status_sub = node.create_subscription(
         ControllerStatus, "/amb/control/status", statuses.append, 100
     )
@@ -77,7 +78,10 @@ def test_controller_killed_and_restarted_mid_run(ros, node_process, tmp_path) ->
     # own statuses (one per period, stamped with the period's simulated time), not by the
     # observer's sample count: under load the observer's deep measurement queue lags the
     # lock-step plant by many revolutions, and a kill timed by it once came so late that the
-    # plant finished the scenario before the new controller had started.
+    # plant finished the scenario before the new controller had started. The observer takes the
+    # measurements as raw CDR (read after the run) so that it, and the statuses it reads, keep
+    # up with the plant; a kill timed by statuses that lagged came 14 s late in a fresh-clone
+    # run of the 20 s scenario, which is now 30 s long.
     assert ros.spin_until_progress(
         lambda: any(stamp_s(s) >= KILL_TIME for s in statuses), lambda: len(statuses)
     ), first.log() + plant.log()
@@ -94,12 +98,13 @@ def test_controller_killed_and_restarted_mid_run(ros, node_process, tmp_path) ->
         ),
         120.0,
     ), second.log()
-    assert ros.spin_until_progress(lambda: plant.returncode is not None, lambda: len(samples)), (
-        plant.log()
-    )
+    assert ros.spin_until_progress(
+        lambda: plant.returncode is not None, lambda: len(raw_samples)
+    ), plant.log()
     assert plant.returncode == 0, plant.log()
     ros.spin_for(0.5)
 
+    samples = [read_measurement(r) for r in raw_samples]
     x = np.array([m.displacement for m in samples])
     # The plant ran the whole scenario. The observer is outside the loop: when the test process
     # is held longer than the plant's writer history (1024 samples) it loses the oldest ones
