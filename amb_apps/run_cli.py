@@ -67,6 +67,7 @@ from amb_apps.system import COMPOSED, NODE_MODULES, NODES, run_parameters, run_p
 from amb_common import topics
 from amb_common.paths import config_file, scenario_file
 from amb_plant_sim.errors import ScenarioError
+from amb_tools.streams import MATCHED_KEY
 
 INSTALL_LIB = Path(__file__).resolve().parent.parent / "install" / "amb_wavelet_control" / "lib"
 #: Nice value added to the nodes that are not on the control loop's chain.
@@ -89,6 +90,14 @@ DRAIN_TIMEOUT = 300.0
 PLANT_COMPLETE = re.compile(r"complete at t = [\d.]+ s \((?P<samples>\d+) samples\)")
 #: The executable of ``--composed``: the filterbank, fault monitor and controller in one process.
 STACK = "wavelet_stack"
+#: The node publishing each stream (composed or not: each node reports under its own name).
+PUBLISHERS = {
+    topics.MEASUREMENT: "plant_sim",
+    topics.COEFFICIENTS: "wavelet_filterbank",
+    topics.COMMAND: "wavelet_controller",
+    topics.STATUS: "wavelet_controller",
+    topics.FAULT_EVENTS: "fault_monitor",
+}
 
 
 @dataclass
@@ -264,15 +273,37 @@ class _Progress:
             self.executor.spin_once(timeout_sec=0.05)
 
     def graph(self, names: dict[str, int]) -> dict[str, int]:
-        """Subscribers of each topic now."""
+        """Subscribers of each topic now, as this process's participant sees them."""
         return {t: self.node.count_subscribers(t) for t in names}
 
-    def wait_for_graph(self, expected: dict[str, int], timeout: float) -> bool:
-        """Spin until every topic has its expected subscribers; False on timeout."""
+    def matched(self, names: dict[str, int], started: set[str]) -> dict[str, int | None]:
+        """Subscriptions matched by the publisher of each topic, as it last reported them.
+
+        The publisher's own count (:func:`amb_tools.streams.matched_subscribers`), for the
+        topics whose publisher is in ``started``; None before its first report.
+        """
+        out: dict[str, int | None] = {}
+        for t in names:
+            if PUBLISHERS[t] in started:
+                status = self.statuses.get(topics.diagnostic_name(PUBLISHERS[t], self.namespace))
+                value = (status or {}).get(MATCHED_KEY + topics.absolute(t, self.namespace))
+                out[t] = int(value) if value is not None else None
+        return out
+
+    def wait_for_graph(self, expected: dict[str, int], started: set[str], timeout: float) -> bool:
+        """Spin until every topic has its expected subscribers; False on timeout.
+
+        Seen by this process's participant and, for the topics published by a node in
+        ``started``, matched by the publisher itself: only then does the first message reach
+        every reader (the plant, started afterwards, waits for its own matches).
+        """
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
             counts = self.graph(expected)
-            if all(counts[t] >= n for t, n in expected.items()):
+            matched = self.matched(expected, started)
+            if all(counts[t] >= n for t, n in expected.items()) and all(
+                m is not None and m >= expected[t] for t, m in matched.items()
+            ):
                 return True
             self.spin(0.1)
         return False
@@ -378,10 +409,12 @@ def run(args: argparse.Namespace) -> int:
         # the plant starts last, once every stream has all its subscribers (the recorder
         # subscribes to a topic only when it has seen its publisher): nothing is lost at start
         expected = _expected_subscribers(names, composed=bool(hosted))
-        if not progress.wait_for_graph(expected, timeout=120.0):
+        started = set(names) - {"plant_sim"}
+        if not progress.wait_for_graph(expected, started, timeout=120.0):
             print(
-                f"[amb-run] not every subscription was up after 120 s: {progress.graph(expected)} "
-                f"of {expected}; starting anyway",
+                f"[amb-run] not every subscription was up after 120 s: {progress.graph(expected)}"
+                f" (matched by their publishers: {progress.matched(expected, started)}) of "
+                f"{expected}; starting anyway",
                 file=sys.stderr,
             )
         plant.start(env)
@@ -544,13 +577,6 @@ def _expected_subscribers(names: list[str], composed: bool = False) -> dict[str,
         topics.STATUS: set(),
         topics.FAULT_EVENTS: {"wavelet_controller"},
     }
-    publishers = {
-        topics.MEASUREMENT: "plant_sim",
-        topics.COEFFICIENTS: "wavelet_filterbank",
-        topics.COMMAND: "wavelet_controller",
-        topics.STATUS: "wavelet_controller",
-        topics.FAULT_EVENTS: "fault_monitor",
-    }
     if composed:
         consumers[topics.MEASUREMENT] = {STACK}  # composed: the stack hosts at least one
         consumers[topics.COEFFICIENTS] = set()
@@ -559,7 +585,7 @@ def _expected_subscribers(names: list[str], composed: bool = False) -> dict[str,
     return {
         topic: len(nodes & has) + recorder
         for topic, nodes in consumers.items()
-        if publishers[topic] in has
+        if PUBLISHERS[topic] in has
     }
 
 

@@ -122,7 +122,13 @@ from amb_tools.conversions import (
 )
 from amb_tools.local_bus import LocalBus, stream_subscription
 from amb_tools.node_main import ConfigurationError, run_node
-from amb_tools.streams import COMMAND_QOS, FRAME_CODES, QUAD_CODES, stream_qos
+from amb_tools.streams import (
+    COMMAND_QOS,
+    FRAME_CODES,
+    QUAD_CODES,
+    matched_subscribers,
+    stream_qos,
+)
 from amb_tools.validation import SampleSequencer, check_measurement
 from amb_wavelet.frontend import FRAMES, QUADRATURES, ChannelFrontEnd
 from amb_wavelet.messages import coefficient_records
@@ -460,6 +466,7 @@ class WaveletControllerNode(Node):
             "inputs_rejected": status["inputs_rejected"],
             **self.counts,
             **{f"samples_{k}": v for k, v in seq.items()},
+            **matched_subscribers(self._cmd_pub, self._status_pub),
         }
         array = DiagnosticArray(
             status=[

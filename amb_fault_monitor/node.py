@@ -123,7 +123,7 @@ from amb_tools.conversions import (
 )
 from amb_tools.local_bus import LocalBus, stream_subscription
 from amb_tools.node_main import ConfigurationError, run_node
-from amb_tools.streams import stream_qos
+from amb_tools.streams import matched_subscribers, stream_qos
 from amb_tools.validation import SampleSequencer, check_measurement
 from amb_wavelet.levels import revolution_level
 
@@ -507,6 +507,7 @@ class FaultMonitorNode(Node):
             **{f"samples_{k}": v for k, v in self._meas_seq.counts.items()},
             **{f"coefficients_{k}": v for k, v in self._coef_seq.counts.items()},
             "callback_errors": getattr(self, "callback_errors", 0),
+            **matched_subscribers(self._pub),
         }
         problems = (
             any(self.counts.values())

@@ -85,7 +85,7 @@ from amb_plant_sim.scenario import load_scenario, resolve_samples_per_rev
 from amb_plant_sim.simulator import MeasurementBlock, PlantSimulator
 from amb_tools.conversions import MessageError, measurement_bytes, stamp, stamp_seconds
 from amb_tools.node_main import ConfigurationError, descriptor, run_node
-from amb_tools.streams import COMMAND_QOS, stream_qos
+from amb_tools.streams import COMMAND_QOS, matched_subscribers, stream_qos
 from amb_tools.validation import check_command
 
 MODES = ("lockstep", "realtime")
@@ -551,6 +551,7 @@ class PlantSimNode(Node):
             "controller_lost": self._controller_lost,
             "callback_errors": getattr(self, "callback_errors", 0),
             **self.counts,
+            **matched_subscribers(self._meas_pub),
         }
         status = DiagnosticStatus(
             level=level,

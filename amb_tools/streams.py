@@ -10,10 +10,19 @@ A coefficient set names its frame and quadrature by the codes of ``CoefficientSe
 
 from __future__ import annotations
 
+from typing import Any
+
 from amb_msgs.msg import CoefficientSet
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-__all__ = ["COMMAND_QOS", "FRAME_CODES", "QUAD_CODES", "stream_qos"]
+__all__ = [
+    "COMMAND_QOS",
+    "FRAME_CODES",
+    "MATCHED_KEY",
+    "QUAD_CODES",
+    "matched_subscribers",
+    "stream_qos",
+]
 
 #: ``CoefficientSet.frame`` of each frame name of :mod:`amb_wavelet.frontend`.
 FRAME_CODES = {"fixed": CoefficientSet.FRAME_FIXED, "rotating": CoefficientSet.FRAME_ROTATING}
@@ -46,3 +55,30 @@ def stream_qos(samples_per_period: int) -> QoSProfile:
         depth=max(1024, 8 * samples_per_period),
         reliability=ReliabilityPolicy.RELIABLE,
     )
+
+
+#: Diagnostics key of a publisher's matched subscriptions: ``MATCHED_KEY + resolved topic``.
+MATCHED_KEY = "subscribers "
+
+
+def matched_subscribers(*publishers: Any) -> dict[str, int]:
+    """
+    Subscriptions each publisher has matched, keyed ``MATCHED_KEY + topic`` for diagnostics.
+
+    The count is the writer's own (``rmw_publisher_count_matched_subscriptions``): a message
+    published once a reader is counted here reaches it (reliable, kept in the writer's history
+    until acknowledged). A count seen by any other participant (``count_subscribers``, the
+    graph) does not say that: under load, discovery between two node processes was seen to
+    take seconds, and everything published meanwhile was lost to the late reader. ``amb-run``
+    waits on these counts before it starts the plant.
+
+    Parameters
+    ----------
+    *publishers
+        ``rclpy`` publishers, or :class:`amb_tools.local_bus.StreamPublisher` (its DDS side).
+    """
+    out = {}
+    for pub in publishers:
+        dds = getattr(pub, "dds", pub)
+        out[MATCHED_KEY + dds.topic_name] = dds.get_subscription_count()
+    return out

@@ -41,7 +41,7 @@ from amb_tools.cdr import MeasurementView, read_measurement
 from amb_tools.conversions import MessageError, stamp_seconds
 from amb_tools.local_bus import LocalBus, stream_publisher, stream_subscription
 from amb_tools.node_main import ConfigurationError, descriptor, run_node
-from amb_tools.streams import FRAME_CODES, QUAD_CODES, stream_qos
+from amb_tools.streams import FRAME_CODES, QUAD_CODES, matched_subscribers, stream_qos
 from amb_tools.validation import SampleSequencer, check_measurement
 from amb_wavelet.analysis import AnalysisFilterbank
 from amb_wavelet.errors import LevelError, WaveletNameError
@@ -239,6 +239,7 @@ class WaveletFilterbankNode(Node):
             "callback_errors": getattr(self, "callback_errors", 0),
             "wavelet": self._wavelet,
             "levels": self._levels,
+            **matched_subscribers(self._pub),
         }
         status = DiagnosticStatus(
             level=level,
