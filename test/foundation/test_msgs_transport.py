@@ -50,8 +50,9 @@ def test_every_type_round_trips_through_another_process(ros, node_process) -> No
         subs[name] = node.create_subscription(
             cls, f"/amb_test/out/{name}", received[name].append, QOS
         )
-    # matched both ways: the relay's reader to our writer, our reader to the relay's writer (a
-    # publisher seen in the graph may not be matched yet; what it sends before is lost)
+    # our writers matched to the relay's readers (their own count: what we send before is lost)
+    # and the relay seen by our readers; the relay holds what it receives until its own writer
+    # has matched our reader (support/relay.py)
     discovered = ros.spin_until(
         lambda: (
             all(p.get_subscription_count() > 0 for p in pubs.values())
