@@ -24,7 +24,10 @@ Run modes (ARCHITECTURE.md, "Time")
     counted late. This is how a rig behaves: each period is simulated when it starts (its
     wavelet force is fixed then) and each of its samples is published at its own instant, from
     a timer at the sample interval, so that the last sample of a period leaves at the period's
-    end and the command latency (``latency_summary``) is measured from there.
+    end and the command latency (``latency_summary``) is measured from there. The effective
+    control delay is reported as well (``control_summary``): the fraction of the periods that
+    could have a command which ran with one, and, for each command, its arrival minus the wall
+    time its period started (negative: in time; the lead a rig has left).
 
 A command is rejected (counted, reported, never applied) if its period has already started
 (``late``), if it is malformed (:func:`amb_tools.validation.check_command`: sizes, indices,
@@ -174,6 +177,11 @@ class PlantSimNode(Node):
         self._commands: dict[int, np.ndarray] = {}
         self._period_end_wall: dict[int, float] = {}
         self._latency: deque[float] = deque(maxlen=100_000)
+        # realtime: wall time each command arrived (period -> s) and each period started;
+        # arrival - period start of each command, s (< 0: in time)
+        self._arrived: dict[int, float] = {}
+        self._period_start_wall: dict[int, float] = {}
+        self._arrival_offset: deque[float] = deque(maxlen=100_000)
         self.counts = dict.fromkeys(
             (
                 "applied",
@@ -267,6 +275,9 @@ class PlantSimNode(Node):
         if k < next_period:
             self.counts["late"] += 1
             reason = f"command for period {k} arrived after it started (now {next_period})"
+            started = self._period_start_wall.get(k)
+            if started is not None:
+                self._arrival_offset.append(time.monotonic() - started)
         else:
             try:
                 f = check_command(msg, self._N)  # (N, 4) N
@@ -305,6 +316,8 @@ class PlantSimNode(Node):
             self.counts["clipped"] += 1
             f = np.clip(f, -self._force_limit, self._force_limit)
         self._commands[k] = f
+        if self._mode == "realtime":
+            self._arrived[k] = time.monotonic()
         if self._controller_lost:
             self._controller_lost = False
             self._resume_from = k
@@ -430,6 +443,13 @@ class PlantSimNode(Node):
         n = min(self._N - n0 % self._N, max(self._remaining(), 1))
         force = self._commands.pop(k, None)
         status = 0
+        if self._mode == "realtime" and n0 % self._N == 0:
+            now = time.monotonic()
+            self._period_start_wall[k] = now
+            self._period_start_wall.pop(k - 64, None)
+            arrived = self._arrived.pop(k, None)
+            if arrived is not None:
+                self._arrival_offset.append(arrived - now)
         if force is None:
             wf = np.zeros((n, N_AXES))
             if k >= self._delay:
@@ -491,6 +511,28 @@ class PlantSimNode(Node):
             "max": float(lat.max()),
         }
 
+    def control_summary(self) -> dict[str, float]:
+        """The effective control delay: periods controlled, command arrival - period start.
+
+        Returns
+        -------
+        dict
+            ``controlled``: fraction of the periods from ``delay_periods`` on that ran with a
+            command (those before cannot have one); realtime only, when commands arrived:
+            ``arrival_p50``, ``arrival_p99``, ``arrival_max``, s, of each command's arrival
+            minus its period's start (negative: before it, applied; positive: late by that).
+        """
+        eligible = -(-self._sim.sample_index // self._N) - self._delay
+        out = {"controlled": self.counts["applied"] / eligible if eligible > 0 else math.nan}
+        if self._arrival_offset:
+            a = np.asarray(self._arrival_offset)
+            out |= {
+                "arrival_p50": float(np.median(a)),
+                "arrival_p99": float(np.quantile(a, 0.99)),
+                "arrival_max": float(a.max()),
+            }
+        return out
+
     def _finish(self) -> None:
         if self.done:
             return
@@ -507,10 +549,17 @@ class PlantSimNode(Node):
             if lat
             else ""
         )
+        ctl = self.control_summary()
+        control = f"; periods controlled {ctl['controlled']:.1%}"
+        if "arrival_p50" in ctl:
+            control += (
+                f", command arrival - period start p50 {ctl['arrival_p50'] * 1e3:+.2f} ms, "
+                f"p99 {ctl['arrival_p99'] * 1e3:+.2f} ms, max {ctl['arrival_max'] * 1e3:+.2f} ms"
+            )
         self.get_logger().info(
             f"scenario {self._scenario.name} complete at t = {self._sim.time:.4f} s "
             f"({self._sim.sample_index} samples) in {wall:.2f} s wall, real-time factor "
-            f"{self._sim.time / wall:.2f}{latency}; commands: "
+            f"{self._sim.time / wall:.2f}{latency}{control}; commands: "
             + ", ".join(f"{k} {v}" for k, v in self.counts.items())
         )
         if self.get_parameter("exit_at_end").value:

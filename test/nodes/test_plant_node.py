@@ -6,6 +6,7 @@ with the same forces: the node must add nothing and lose nothing (bit-for-bit eq
 
 from __future__ import annotations
 
+import re
 import time
 
 import numpy as np
@@ -128,6 +129,7 @@ def test_lockstep_applies_each_command_in_its_period(ros, node_process, tmp_path
     disp = np.array([m.displacement for m in loop.samples])
     np.testing.assert_array_equal(disp, _reference(forces))
     assert "rejected 1" in plant.log()  # the NaN command of period 5
+    assert "periods controlled 100.0%" in plant.log()  # all 8 after the first DELAY
 
 
 @pytest.mark.slow
@@ -168,9 +170,17 @@ def test_realtime_publishes_each_sample_at_its_instant(ros, node_process, tmp_pa
     ahead = (flat.size - 1 - np.arange(flat.size // 2)) / fs  # s between sample i and the last
     took = flat[-1] - flat[: flat.size // 2]
     assert np.any(took > 0.8 * ahead), np.max(took / ahead)
+    applied = 0
     for k in range(10):  # each period ran with its command or, if that was late, none
         wf = np.array([m.wavelet_force for m in loop.samples[k * SPR : (k + 1) * SPR]])
         assert not wf.any() or (k >= DELAY and np.array_equal(wf, _force(k))), k
+        applied += bool(wf.any())
+    # the effective control delay, as the plant reports it, agrees with the forces it applied
+    control = re.search(r"periods controlled ([\d.]+)%(, command arrival - period start)?",
+                        plant.log())  # fmt: skip
+    assert control is not None, plant.log()
+    assert float(control.group(1)) == pytest.approx(100 * applied / (10 - DELAY), abs=0.05)
+    assert applied == 0 or control.group(2) is not None  # each applied command was timed
 
 
 def test_fault_injection_service(ros, node_process, tmp_path) -> None:
