@@ -11,6 +11,7 @@ import pytest
 from amb_msgs.msg import FaultEvent, Measurement
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 
+from amb_common import topics
 from amb_tools.streams import stream_qos
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "fault_monitor"))
@@ -18,6 +19,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "reliability"))
 import late_command
 from reliability_helpers import Diagnostics, get_parameter, set_parameters
 from synthetic import HZ, SPR, make_run
+
+COEFFICIENTS = topics.absolute(topics.COEFFICIENTS)
+EVENTS = topics.absolute(topics.FAULT_EVENTS)
 
 pytestmark = pytest.mark.ros
 
@@ -53,15 +57,18 @@ def test_mass_loss_event_published_and_logged(ros, node_process, tmp_path) -> No
                 diag.update({kv.key: kv.value for kv in s.values})
 
     node.create_subscription(DiagnosticArray, "/diagnostics", on_diag, 10)
-    # the monitor must also be matched to the filterbank's coefficients before samples flow
+    writers = Diagnostics(node)
+    # the filterbank's coefficients and the monitor's events matched to their readers (the
+    # writers' own counts) before samples flow
     assert ros.spin_until(
         lambda: (
             pub.get_subscription_count() >= 2
-            and node.count_subscribers("/amb/wavelet/coefficients") >= 1
+            and writers.matched("wavelet_filterbank", COEFFICIENTS) >= 1
+            and writers.matched("fault_monitor", EVENTS) >= 1
             and "messages" in diag
         ),
         timeout=30.0,
-    ), (fb.log(), fm.log())
+    ), (writers.values, fb.log(), fm.log())
     # the synthetic rotor starts at rest: its start-up transient lasts ~25 revolutions, which
     # the calibration waits out (stationarity test), so the loss comes after 50 revolutions
     xy, angle, idx = make_run(70, mass_loss_rev=50.3)
@@ -101,11 +108,11 @@ def test_control_transient_is_counted_on_diagnostics_not_published(ros, node_pro
     assert ros.spin_until(
         lambda: (
             pub.get_subscription_count() >= 2
-            and node.count_subscribers("/amb/wavelet/coefficients") >= 1
-            and "fault_monitor" in diag.values
+            and diag.matched("wavelet_filterbank", COEFFICIENTS) >= 1
+            and diag.matched("fault_monitor", EVENTS) >= 1
         ),
         timeout=30.0,
-    ), (fb.log(), fm.log())
+    ), (diag.values, fb.log(), fm.log())
     assert get_parameter(ros, node, "fault_monitor", "control_step") == 2.0
     assert get_parameter(ros, node, "fault_monitor", "tail_rise_median") == 3.0
     (refused,) = set_parameters(ros, node, "fault_monitor", {"control_step": 0.0})
@@ -171,14 +178,16 @@ def test_1x_trip_error_and_black_box_bag(ros, node_process, tmp_path) -> None:
             planes[s.name] = (s.level, {kv.key: kv.value for kv in s.values})
 
     node.create_subscription(DiagnosticArray, "/diagnostics", on_diag, 10)
+    writers = Diagnostics(node)
     assert ros.spin_until(
         lambda: (
             pub.get_subscription_count() >= 2
-            and node.count_subscribers("/amb/wavelet/coefficients") >= 1
+            and writers.matched("wavelet_filterbank", COEFFICIENTS) >= 1
+            and writers.matched("fault_monitor", EVENTS) >= 1
             and "fault_monitor" in planes
         ),
         timeout=30.0,
-    ), (fb.log(), fm.log())
+    ), (writers.values, fb.log(), fm.log())
     n_revs, step_rev = 40, 30
     for i in range(n_revs * SPR):
         theta = 2 * math.pi * i / SPR

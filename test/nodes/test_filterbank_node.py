@@ -11,7 +11,7 @@ import pywt
 from amb_msgs.msg import CoefficientSet, Measurement, WaveletCoefficients
 from diagnostic_msgs.msg import DiagnosticArray
 
-from amb_tools.streams import stream_qos
+from amb_tools.streams import MATCHED_KEY, stream_qos
 
 pytestmark = pytest.mark.ros
 
@@ -54,10 +54,11 @@ def _collect(ros, node_process, wavelet: str, samples: list[Measurement], n_expe
     assert ros.spin_until(
         lambda: (
             pub.get_subscription_count() > 0
-            and node.count_publishers("/amb/wavelet/coefficients") > 0
+            # the filterbank's writer has matched our reader (its own count, on /diagnostics)
+            and int(diag.get(MATCHED_KEY + "/amb/wavelet/coefficients", "-1")) > 0
         ),
         timeout=30.0,
-    ), fb.log()
+    ), (diag, fb.log())
     for m in samples:
         pub.publish(m)
     assert ros.spin_until(lambda: diag.get("samples") == str(n_expected), 30.0), (diag, fb.log())

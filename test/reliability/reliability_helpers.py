@@ -31,6 +31,17 @@ class Diagnostics:
     def number(self, name: str, key: str) -> int:
         return int(self.get(name, key, "0"))
 
+    def matched(self, name: str, topic: str) -> int:
+        """Readers node ``name``'s writer of ``topic`` has matched, as it reported (-1: none).
+
+        The writer's own count (``amb_tools.streams.matched_subscribers``): what it publishes
+        from then on reaches them. The graph seen by the test's participant does not say that;
+        under load a writer was seen to match a reader seconds after the test saw both.
+        """
+        from amb_tools.streams import MATCHED_KEY
+
+        return int(self.get(name, MATCHED_KEY + topic, "-1"))
+
 
 def set_parameters(ros, node, target: str, params: dict):
     """Call ``/<target>/set_parameters``; return the list of ``SetParametersResult``."""

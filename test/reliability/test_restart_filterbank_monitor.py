@@ -87,11 +87,18 @@ def test_filterbank_killed_and_restarted_mid_run(ros, node_process, tmp_path) ->
             "start_mode": "active",
         },
     )
-    # statuses and coefficients are matched before the run starts (no message missed)
+    # statuses and coefficients are matched before the run starts (no message missed): by the
+    # writers themselves (the filterbank's: this observer and the controller)
+    writers = Diagnostics(node)
     assert ros.spin_until(
-        lambda: status_sub.get_publisher_count() >= 1 and coef_sub.get_publisher_count() >= 1,
+        lambda: (
+            status_sub.get_publisher_count() >= 1
+            and coef_sub.get_publisher_count() >= 1
+            and writers.matched("wavelet_filterbank", "/amb/wavelet/coefficients") >= 2
+            and writers.matched("wavelet_controller", "/amb/control/status") >= 1
+        ),
         60.0,
-    ), (first.log(), ctrl.log())
+    ), (writers.values, first.log(), ctrl.log())
     plant = node_process(
         "plant_sim",
         params={"scenario_file": str(scenario), "samples_per_rev": SPR,
@@ -181,7 +188,8 @@ def test_fault_monitor_killed_reloads_its_log_and_detects_after_restart(
     assert ros.spin_until(
         lambda: (
             event_sub.get_publisher_count() >= 1
-            and node.count_subscribers("/amb/wavelet/coefficients") >= 1
+            and diag.matched("wavelet_filterbank", "/amb/wavelet/coefficients") >= 1
+            and diag.matched(name, "/amb/fault/events") >= 1
             and diag.get(name, "events_logged") == "1"
         ),
         60.0,
