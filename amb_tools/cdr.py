@@ -11,7 +11,10 @@ in every subscriber: at 67 Hz x 32 samples/rev that was a large part of each nod
 - :func:`measurement_cdr_block` serialises a whole block of samples in a few numpy operations;
 - :func:`coefficients_cdr` serialises the coefficients one sample completed;
 - :func:`read_measurement` and :func:`read_coefficients` read the bytes into light views with
-  the messages' field names (``numpy`` views of the arrays, no copy).
+  the messages' field names (``numpy`` views of the arrays, no copy). The views are read-only
+  by contract (their arrays are): the same ``bytes`` object read again returns the view already
+  made, so the nodes composed on one :class:`~amb_tools.local_bus.LocalBus`, which each read
+  every message the bus hands them, read it once between them.
 
 The layout is the OMG CDR of ROS 2 (XCDR1, little endian: the 4-byte encapsulation header
 ``00 01 00 00``, each primitive aligned to its size counted from the end of that header,
@@ -219,14 +222,46 @@ def measurement_cdr_block(
     return [data[i * size : (i + 1) * size] for i in range(n)]
 
 
+class _LastRead:
+    """The view made from the last ``bytes`` object read (one per reader function)."""
+
+    __slots__ = ("last",)
+
+    def __init__(self) -> None:
+        self.last: tuple = (None, None)  # (bytes, view), replaced whole: threads see a pair
+
+    def get(self, raw: bytes):
+        """The view of ``raw`` if it is the very ``bytes`` object read last (``is``), else None."""
+        last_raw, view = self.last
+        return view if last_raw is raw and isinstance(raw, bytes) else None
+
+    def put(self, raw: bytes, view):
+        """Keep ``view`` as the one of ``raw`` (immutable ``bytes`` only); return it."""
+        self.last = (raw, view) if isinstance(raw, bytes) else (None, None)
+        return view
+
+
+_LAST_MEASUREMENT = _LastRead()
+_LAST_COEFFICIENTS = _LastRead()
+
+
 def read_measurement(raw: bytes) -> MeasurementView:
     """Read a serialised ``Measurement`` (any CDR encapsulation; see the module docstring).
+
+    The same ``bytes`` object read again returns the same (read-only) view.
 
     Raises
     ------
     ValueError
         If the buffer is too short for its own layout.
     """
+    view = _LAST_MEASUREMENT.get(raw)
+    if view is None:
+        view = _LAST_MEASUREMENT.put(raw, _read_measurement(raw))
+    return view
+
+
+def _read_measurement(raw: bytes) -> MeasurementView:
     if raw[:2] != CDR_LE[:2]:
         return _measurement_from_msg(_deserialise(raw, "Measurement"))
     try:
@@ -385,11 +420,20 @@ def _sets_struct(start: int, sizes: tuple[int, ...]) -> struct.Struct:
 def read_coefficients(raw: bytes) -> CoefficientsView:
     """Read a serialised ``WaveletCoefficients`` (any CDR encapsulation; module docstring).
 
+    The same ``bytes`` object read again returns the same (read-only) view.
+
     Raises
     ------
     ValueError
         If the buffer ends before its own counts say.
     """
+    view = _LAST_COEFFICIENTS.get(raw)
+    if view is None:
+        view = _LAST_COEFFICIENTS.put(raw, _read_coefficients(raw))
+    return view
+
+
+def _read_coefficients(raw: bytes) -> CoefficientsView:
     if raw[:2] != CDR_LE[:2]:
         msg = _deserialise(raw, "WaveletCoefficients")
         return CoefficientsView(

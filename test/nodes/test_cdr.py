@@ -138,3 +138,22 @@ def test_garbled_encapsulation_is_refused_with_a_value_error() -> None:
         raw[0:2] = b"\x00\x00"  # big-endian CDR header on a little-endian body
         with pytest.raises(ValueError):
             read(bytes(raw[:12]))
+
+
+def test_one_bytes_object_is_read_once_and_its_view_is_read_only() -> None:
+    """The nodes composed on one bus read the same bytes in turn: one view, never changed."""
+    from amb_msgs.msg import Measurement, WaveletCoefficients
+    from rclpy.serialization import serialize_message
+
+    rng = np.random.default_rng(11)
+    for cls, read in ((Measurement, read_measurement), (WaveletCoefficients, read_coefficients)):
+        raw = serialize_message(random_message(cls, rng))
+        first = read(raw)
+        assert read(raw) is first
+        copy = bytes(bytearray(raw))  # equal bytes, another object: read anew, same content
+        again = read(copy)
+        assert again is not first and diff(to_plain(again), to_plain(first)) == []
+        assert read(raw) is not first  # only the last object is kept
+    view = read_measurement(serialize_message(random_message(Measurement, rng)))
+    with pytest.raises(ValueError, match="read-only"):
+        view.displacement[0] = 1.0
