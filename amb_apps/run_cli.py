@@ -346,6 +346,7 @@ def run(args: argparse.Namespace) -> int:
             tuple(names),
             controller=args.controller or "",
             bag=str((out / "bag").resolve()),
+            hosted=tuple(n for n in COMPOSED if n in names) if args.composed else (),
         )
     except ScenarioError as exc:
         print(f"amb-run: {exc}", file=sys.stderr)

@@ -71,6 +71,7 @@ def run_parameters(
     model_file_out: str = "",
     mode: str = "",
     bag: str = "",
+    hosted: tuple[str, ...] = (),
 ) -> dict[str, dict[str, object]]:
     """
     The parameters a run sets on each node, on top of the params file (module docstring).
@@ -87,6 +88,9 @@ def run_parameters(
         ``plant_sim`` mode (``lockstep`` | ``realtime``); empty: the params file's.
     bag : str
         The recorder's output folder; empty: the params file's.
+    hosted : tuple of str
+        The nodes composed in ``wavelet_stack`` (:data:`COMPOSED`): they read the
+        measurements through one DDS reader, which the plant counts once.
 
     Returns
     -------
@@ -105,7 +109,8 @@ def run_parameters(
             params["samples_per_rev"] = int(spr)
     plant = out["plant_sim"]
     plant["scenario_file"] = str(scenario)
-    plant["wait_for_subscribers"] = len(nodes) - 1
+    # every other node reads the measurements; the composed ones through one reader
+    plant["wait_for_subscribers"] = len(nodes) - 1 - max(len(hosted) - 1, 0)
     if mode:
         plant["mode"] = mode
     if "wavelet_controller" in out:

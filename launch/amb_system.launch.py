@@ -66,6 +66,8 @@ def _nodes(context) -> list:
     with_plant = value["with_plant"].lower() in ("true", "1", "yes")
     ns = namespace(value["namespace"])
     names = NODES if with_plant else tuple(n for n in NODES if n != "plant_sim")
+    composed = value["composed"].lower() in ("true", "1", "yes")
+    hosted = [n for n in COMPOSED if n in names] if composed else []
     overrides = run_parameters(
         scenario_file(value["scenario"]),
         NODES,
@@ -75,9 +77,8 @@ def _nodes(context) -> list:
         model_file_out=value["model_file_out"],
         mode=value["mode"],
         bag=value["bag"],
+        hosted=tuple(hosted),
     )
-    composed = value["composed"].lower() in ("true", "1", "yes")
-    hosted = [n for n in COMPOSED if n in names] if composed else []
     actions = {
         name: Node(
             package=PACKAGE,

@@ -69,6 +69,9 @@ def test_amb_run_and_amb_sim_bags_are_identical(tmp_path, ros_domain_id, compose
     assert run.returncode == 0, run.stdout + run.stderr
     logs = sorted(p.name for p in (tmp_path / "run" / "logs").iterdir())
     assert ("wavelet_stack.log" in logs) == composed, logs
+    plant_log = (tmp_path / "run" / "logs" / "plant_sim.log").read_text()
+    # every measurement reader counted (composed: the stack's one) before the plant starts
+    assert "starting anyway" not in plant_log, plant_log
     a = _messages(tmp_path / "sim" / "bag")
     b = _messages(tmp_path / "run" / "bag")
     n_periods = round(
