@@ -536,8 +536,11 @@ class PlantSimNode(Node):
     def _finish(self) -> None:
         if self.done:
             return
-        self._meas_pub.wait_for_all_acked(Duration(seconds=10.0))
+        # the run's wall time ends with its last sample: the acknowledgements waited for below
+        # can take a reliable writer's heartbeat period (3 s with Fast DDS's defaults; it was
+        # seen in half of the 4 s runs of bench/pipeline_profile.py, halving the reported factor)
         wall = time.monotonic() - self._wall0
+        self._meas_pub.wait_for_all_acked(Duration(seconds=10.0))
         self._publish_status()
         # the last report (done, sample_index) tells amb-run how far the consumers must get
         self._diag_pub.wait_for_all_acked(Duration(seconds=2.0))
