@@ -340,13 +340,14 @@ def run(args: argparse.Namespace) -> int:
         print("amb-run: plant_sim is not available", file=sys.stderr)
         return 2
     set_by_user = _set_overrides(args)
+    hosted = [n for n in COMPOSED if n in names] if args.composed else []
     try:
         run_params = run_parameters(
             scenario,
             tuple(names),
             controller=args.controller or "",
             bag=str((out / "bag").resolve()),
-            hosted=tuple(n for n in COMPOSED if n in names) if args.composed else (),
+            hosted=tuple(hosted),
         )
     except ScenarioError as exc:
         print(f"amb-run: {exc}", file=sys.stderr)
@@ -370,7 +371,6 @@ def run(args: argparse.Namespace) -> int:
         if node not in NODES or not value.lstrip("-").isdigit():
             raise SystemExit(f"amb-run: --nice {item!r}: expected NODE=N with NODE in {NODES}")
         nice[node] = int(value)
-    hosted = [n for n in COMPOSED if n in names] if args.composed else []
     runs = [
         NodeRun(
             n,

@@ -92,10 +92,17 @@ from amb_tools.streams import COMMAND_QOS, matched_subscribers, stream_qos
 from amb_tools.validation import check_command
 
 MODES = ("lockstep", "realtime")
+
 #: Commands may target at most this many periods beyond ``next period + delay_periods``.
 COMMAND_HORIZON_PERIODS = 16
 #: Parameters settable at run time (applied at the next period boundary).
 RUNTIME_PARAMETERS = ("command_timeout", "wavelet_force_limit", "time_scale", "status_period")
+
+
+def _spread(values) -> dict[str, float]:
+    """``p50``, ``p99`` and ``max`` of a non-empty sequence of numbers."""
+    a = np.asarray(values, dtype=float)
+    return {"p50": float(np.median(a)), "p99": float(np.quantile(a, 0.99)), "max": float(a.max())}
 
 
 class PlantSimNode(Node):
@@ -503,13 +510,7 @@ class PlantSimNode(Node):
         """
         if not self._latency:
             return {}
-        lat = np.asarray(self._latency)
-        return {
-            "n": float(lat.size),
-            "p50": float(np.median(lat)),
-            "p99": float(np.quantile(lat, 0.99)),
-            "max": float(lat.max()),
-        }
+        return {"n": float(len(self._latency)), **_spread(self._latency)}
 
     def control_summary(self) -> dict[str, float]:
         """The effective control delay: periods controlled, command arrival - period start.
@@ -525,12 +526,7 @@ class PlantSimNode(Node):
         eligible = -(-self._sim.sample_index // self._N) - self._delay
         out = {"controlled": self.counts["applied"] / eligible if eligible > 0 else math.nan}
         if self._arrival_offset:
-            a = np.asarray(self._arrival_offset)
-            out |= {
-                "arrival_p50": float(np.median(a)),
-                "arrival_p99": float(np.quantile(a, 0.99)),
-                "arrival_max": float(a.max()),
-            }
+            out |= {f"arrival_{k}": v for k, v in _spread(self._arrival_offset).items()}
         return out
 
     def _finish(self) -> None:

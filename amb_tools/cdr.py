@@ -232,8 +232,8 @@ class _LastRead:
 
     def get(self, raw: bytes):
         """The view of ``raw`` if it is the very ``bytes`` object read last (``is``), else None."""
-        last_raw, view = self.last
-        return view if last_raw is raw and isinstance(raw, bytes) else None
+        last_raw, view = self.last  # last_raw: bytes or None (put keeps nothing else)
+        return view if last_raw is raw else None
 
     def put(self, raw: bytes, view):
         """Keep ``view`` as the one of ``raw`` (immutable ``bytes`` only); return it."""

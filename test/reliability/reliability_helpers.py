@@ -9,6 +9,8 @@ from pathlib import Path
 import yaml
 from diagnostic_msgs.msg import DiagnosticArray
 
+from amb_tools.streams import MATCHED_KEY
+
 
 class Diagnostics:
     """Latest ``/diagnostics`` key/values and message per status name."""
@@ -38,8 +40,6 @@ class Diagnostics:
         from then on reaches them. The graph seen by the test's participant does not say that;
         under load a writer was seen to match a reader seconds after the test saw both.
         """
-        from amb_tools.streams import MATCHED_KEY
-
         return int(self.get(name, MATCHED_KEY + topic, "-1"))
 
 
