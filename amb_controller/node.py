@@ -129,6 +129,7 @@ from amb_tools.streams import (
     matched_subscribers,
     stream_qos,
 )
+from amb_tools.throttled_log import ThrottledWarnings
 from amb_tools.validation import SampleSequencer, check_measurement
 from amb_wavelet.frontend import FRAMES, QUADRATURES, ChannelFrontEnd
 from amb_wavelet.messages import coefficient_records
@@ -178,6 +179,7 @@ class WaveletControllerNode(Node):
             0,
         )
         self._last_reason = ""
+        self._warnings = ThrottledWarnings(self.get_logger(), period=5.0)
         self.create_timer(0.05, self._watchdog)
         self._status_timer = self.create_timer(
             self.get_parameter("status_period").value, self._publish_diagnostics
@@ -271,7 +273,7 @@ class WaveletControllerNode(Node):
     def _reject(self, counter: str, reason: str) -> None:
         self.counts[counter] += 1
         self._last_reason = reason
-        self.get_logger().warning(reason, throttle_duration_sec=5.0)
+        self._warnings.warning(counter, reason)
 
     def _on_measurement(self, raw: bytes) -> None:
         try:
@@ -295,7 +297,7 @@ class WaveletControllerNode(Node):
         )
         if self._sequencer.counts != before:
             self._last_reason = self._sequencer.last_reason
-            self.get_logger().warning(self._last_reason, throttle_duration_sec=5.0)
+            self._warnings.warning("sequence", self._last_reason)
         for reset, m in accepted:
             if reset and self._last_processed is not None:
                 # restart or gap: everything queued belongs to the old stream's tail

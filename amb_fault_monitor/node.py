@@ -124,6 +124,7 @@ from amb_tools.conversions import (
 from amb_tools.local_bus import LocalBus, stream_subscription
 from amb_tools.node_main import ConfigurationError, run_node
 from amb_tools.streams import matched_subscribers, stream_qos
+from amb_tools.throttled_log import ThrottledWarnings
 from amb_tools.validation import SampleSequencer, check_measurement
 from amb_wavelet.levels import revolution_level
 
@@ -185,6 +186,7 @@ class FaultMonitorNode(Node):
         self.last_coefficient_sample: int | None = None
         self.counts = dict.fromkeys(("measurements_rejected", "coefficients_rejected"), 0)
         self._last_reason = ""
+        self._warnings = ThrottledWarnings(self.get_logger(), period=5.0)
         self.add_on_set_parameters_callback(self._on_set)
         self.add_post_set_parameters_callback(self._after_set)
         qos = stream_qos(self._spr)
@@ -319,7 +321,7 @@ class FaultMonitorNode(Node):
     def _reject(self, counter: str, reason: str) -> None:
         self.counts[counter] += 1
         self._last_reason = reason
-        self.get_logger().warning(reason, throttle_duration_sec=5.0)
+        self._warnings.warning(counter, reason)
 
     def _sequence(self, seq: SampleSequencer, index: int, item: tuple, omega: float) -> list:
         """Offer a checked (message view, CDR) pair to a sequencer; return the accepted pairs."""
@@ -328,7 +330,7 @@ class FaultMonitorNode(Node):
         if seq.counts != before:
             self._last_reason = seq.last_reason
             if any(seq.counts[k] != before[k] for k in ("stray", "stamp", "repeat")):
-                self.get_logger().warning(self._last_reason, throttle_duration_sec=5.0)
+                self._warnings.warning(f"sequence {id(seq)}", self._last_reason)
         return accepted
 
     def _on_measurement(self, raw: bytes) -> None:
@@ -421,13 +423,13 @@ class FaultMonitorNode(Node):
             f"{info['step_first_sample_index']}; not reported as "
             f"{info['classified_as']}"
         )
-        self.get_logger().warning(self._last_reason, throttle_duration_sec=5.0)
+        self._warnings.warning("control transient", self._last_reason)
 
     def _restart(self, why: str) -> None:
         """Reset the monitor (it calibrates again) and report why."""
         self.restarts += 1
         self._last_reason = f"{why}: monitor reset, calibrating again"
-        self.get_logger().warning(self._last_reason, throttle_duration_sec=5.0)
+        self._warnings.warning("restart", self._last_reason)
         self._monitor.reset()
 
     def _back_date(self, now: Time, now_index: int, index: int) -> Time:

@@ -89,6 +89,7 @@ from amb_plant_sim.simulator import MeasurementBlock, PlantSimulator
 from amb_tools.conversions import MessageError, measurement_bytes, stamp, stamp_seconds
 from amb_tools.node_main import ConfigurationError, descriptor, run_node
 from amb_tools.streams import COMMAND_QOS, matched_subscribers, stream_qos
+from amb_tools.throttled_log import ThrottledWarnings
 from amb_tools.validation import check_command
 
 MODES = ("lockstep", "realtime")
@@ -208,6 +209,7 @@ class PlantSimNode(Node):
         self._pending_parameters: dict[str, float] = {}
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self._last_reason = ""
+        self._warnings = ThrottledWarnings(self.get_logger(), period=2.0)
         self._started = False
         self._startup_deadline = time.monotonic() + self.get_parameter("startup_timeout").value
         self._waiting_since: float | None = None
@@ -317,7 +319,7 @@ class PlantSimNode(Node):
             if k >= next_period:
                 self.counts["rejected"] += 1
             self._last_reason = reason
-            self.get_logger().warning(reason, throttle_duration_sec=2.0)
+            self._warnings.warning("late" if k < next_period else "rejected", reason)
             return
         if np.any(np.abs(f) > self._force_limit):
             self.counts["clipped"] += 1

@@ -42,6 +42,7 @@ from amb_tools.conversions import MessageError, stamp_seconds
 from amb_tools.local_bus import LocalBus, stream_publisher, stream_subscription
 from amb_tools.node_main import ConfigurationError, descriptor, run_node
 from amb_tools.streams import FRAME_CODES, QUAD_CODES, matched_subscribers, stream_qos
+from amb_tools.throttled_log import ThrottledWarnings
 from amb_tools.validation import SampleSequencer, check_measurement
 from amb_wavelet.analysis import AnalysisFilterbank
 from amb_wavelet.errors import LevelError, WaveletNameError
@@ -98,6 +99,7 @@ class WaveletFilterbankNode(Node):
         self.samples = self.published = self.rejected = 0
         self.last_sample: int | None = None  # index of the last sample processed (amb-run drains)
         self._last_reason = ""
+        self._warnings = ThrottledWarnings(self.get_logger(), period=5.0)
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.get_logger().info(
             f"{self._wavelet}, {self._levels} levels, frames {self._frames}, "
@@ -168,7 +170,7 @@ class WaveletFilterbankNode(Node):
     def _reject(self, reason: str) -> None:
         self.rejected += 1
         self._last_reason = reason
-        self.get_logger().warning(reason, throttle_duration_sec=5.0)
+        self._warnings.warning("rejected", reason)
 
     def _on_measurement(self, raw: bytes) -> None:
         try:
@@ -188,7 +190,7 @@ class WaveletFilterbankNode(Node):
         if self._sequencer.counts != before:
             self._last_reason = self._sequencer.last_reason
             if any(self._sequencer.counts[k] != before[k] for k in ("stray", "stamp")):
-                self.get_logger().warning(self._last_reason, throttle_duration_sec=5.0)
+                self._warnings.warning("sequence", self._last_reason)
         for reset, m in accepted:
             self._step(m, reset)
 
