@@ -214,6 +214,7 @@ class PlantSimNode(Node):
         self._startup_deadline = time.monotonic() + self.get_parameter("startup_timeout").value
         self._waiting_since: float | None = None
         self._wall0 = 0.0
+        self.run_window: tuple[float, float] | None = None  # (first, last sample), monotonic s
         self.done = False
         self.get_logger().info(
             f"{self._scenario.name}: {self._sim.omega / (2 * math.pi):.3f} Hz, "
@@ -538,6 +539,7 @@ class PlantSimNode(Node):
         # can take a reliable writer's heartbeat period (3 s with Fast DDS's defaults; it was
         # seen in half of the 4 s runs of bench/pipeline_profile.py, halving the reported factor)
         wall = time.monotonic() - self._wall0
+        self.run_window = (self._wall0, self._wall0 + wall)  # node_main's CPU log (bench/)
         self._meas_pub.wait_for_all_acked(Duration(seconds=10.0))
         self._publish_status()
         # the last report (done, sample_index) tells amb-run how far the consumers must get

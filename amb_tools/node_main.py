@@ -19,8 +19,9 @@ Profiling (opt-in, for ``bench/``): with ``AMB_CPU_LOG=DIR`` in the environment 
 at shutdown, ``DIR/<node name>.cpu.json``: the user and system CPU seconds of the process spent
 while spinning (``os.times()``), the wall seconds spun, and a timeline of (monotonic s, CPU s)
 sampled every 0.1 s by a daemon thread, so that the CPU a node spends per sample can be measured
-over any window of a run (``bench/pipeline_profile.py`` takes the plant's first to last
-sample). ``AMB_PROFILE=DIR`` does the same and also runs the spin loop under :mod:`cProfile`,
+over any window of a run; a node with a ``run_window`` attribute (monotonic s of its first and
+last sample: ``plant_sim``) has it written too, and ``bench/pipeline_profile.py`` takes that
+window. ``AMB_PROFILE=DIR`` does the same and also runs the spin loop under :mod:`cProfile`,
 written to ``DIR/<node name>.prof`` (pstats; the profiler itself inflates the CPU times, and
 with the ``EventsExecutor``, whose callbacks enter Python from C++, waiting time is charged to
 whatever Python frame was current: read the callbacks' own functions). Without either variable
@@ -213,7 +214,8 @@ def run_nodes(
         return 0
     finally:
         if profiler is not None:
-            profiler.dump(process_name or nodes[0].get_name())
+            windows = [w for n in nodes if (w := getattr(n, "run_window", None)) is not None]
+            profiler.dump(process_name or nodes[0].get_name(), windows[0] if windows else None)
         for node in reversed(nodes):
             on_shutdown = getattr(node, "on_shutdown", None)
             if on_shutdown is not None:
@@ -263,7 +265,7 @@ class _Profiler:
             cpu = os.times()
             self._timeline.append((time.monotonic(), cpu.user + cpu.system))
 
-    def dump(self, name: str) -> None:
+    def dump(self, name: str, run_window: tuple[float, float] | None = None) -> None:
         if self.profile is not None:
             self.profile.disable()
         self._stop.set()
@@ -278,4 +280,6 @@ class _Profiler:
             "end_monotonic_s": time.monotonic(),
             "timeline": self._timeline,
         }
+        if run_window is not None:  # a node's own (first, last) sample, monotonic s
+            usage["run_window"] = list(run_window)
         (self.folder / f"{name}.cpu.json").write_text(json.dumps(usage) + "\n")
