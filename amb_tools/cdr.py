@@ -383,7 +383,28 @@ def coefficients_cdr(
         flat += (level, kind, frame, quad, m, first, last, freq, settled, len(values))
         flat += np.asarray(values, dtype=float).tolist()
     out += _sets_struct((len(out) - _ORIGIN) % 8, sizes).pack(*flat)
-    return bytes(out)
+    raw = bytes(out)
+    # the view read_coefficients would parse from these bytes, made from the fields at hand: a
+    # reader composed in this process (amb_tools.local_bus) is handed this very object and
+    # gets the view without parsing it again
+    _LAST_COEFFICIENTS.put(
+        raw,
+        CoefficientsView(
+            header, wavelet, int(samples_per_rev), int(sample_index), int(period_index),
+            int(samples_per_period), [str(n) for n in channel_names],
+            [CoefficientSetView(int(level), int(kind), int(frame), int(quad), int(m), int(first),
+                                int(last), float(freq), bool(settled), _frozen(values))
+             for level, kind, frame, quad, m, first, last, freq, settled, values in sets],
+        ),
+    )  # fmt: skip
+    return raw
+
+
+def _frozen(values) -> np.ndarray:
+    """A read-only float64 copy (a parsed view is read-only, and the caller's array may change)."""
+    out = np.array(values, dtype=np.float64)
+    out.flags.writeable = False
+    return out
 
 
 @lru_cache(maxsize=256)
@@ -420,7 +441,9 @@ def _sets_struct(start: int, sizes: tuple[int, ...]) -> struct.Struct:
 def read_coefficients(raw: bytes) -> CoefficientsView:
     """Read a serialised ``WaveletCoefficients`` (any CDR encapsulation; module docstring).
 
-    The same ``bytes`` object read again returns the same (read-only) view.
+    The same ``bytes`` object read again returns the same (read-only) view, and the ``bytes``
+    that :func:`coefficients_cdr` returned last in this process return the view it made from
+    its fields (the readers composed with the filterbank parse nothing).
 
     Raises
     ------

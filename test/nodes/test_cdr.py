@@ -103,11 +103,32 @@ def test_coefficients_bytes_deserialise_to_the_message_coefficients_msg_builds(w
         if not coefficients:
             continue
         args = (m.header, wavelet, 32, 32, n, m.rotor_speed, coefficients, slots)
-        mine = deserialize_message(coefficients_bytes(*args), WaveletCoefficients)
+        raw = coefficients_bytes(*args)
+        mine = deserialize_message(raw, WaveletCoefficients)
         assert mine == coefficients_msg(*args), n
+        # the view kept at serialisation (for composed readers) is the one the parser reads
+        _assert_same_view(read_coefficients(raw), read_coefficients(bytes(bytearray(raw))))
         published += 1
     assert published == 48  # every odd sample completes a level-1 coefficient
     assert isinstance(msgs[0], Measurement)
+
+
+SET_FIELDS = ("level", "kind", "frame", "quadrature", "translation_index", "first_sample_index",
+              "last_sample_index", "pseudo_frequency", "settled")  # fmt: skip
+
+
+def _assert_same_view(kept, parsed) -> None:
+    assert kept is not parsed
+    for name in ("header", "wavelet", "samples_per_rev", "sample_index", "period_index",
+                 "samples_per_period", "channel_names"):  # fmt: skip
+        assert getattr(kept, name) == getattr(parsed, name), name
+    assert len(kept.sets) == len(parsed.sets)
+    for a, b in zip(kept.sets, parsed.sets, strict=True):
+        for name in SET_FIELDS:
+            assert getattr(a, name) == getattr(b, name), name
+            assert type(getattr(a, name)) is type(getattr(b, name)), name
+        assert a.values.dtype == b.values.dtype and not a.values.flags.writeable
+        np.testing.assert_array_equal(a.values, b.values)  # the same doubles, written and read
 
 
 def test_truncated_buffers_are_refused_with_a_value_error() -> None:
