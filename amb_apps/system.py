@@ -12,6 +12,10 @@ that the two ways of starting the system cannot drift apart (a test of
   agree;
 - the plant's ``scenario_file``, ``mode`` and ``wait_for_subscribers`` (every other node
   started subscribes to ``/amb/measurement``: sample 0 waits for all of them);
+- in ``realtime``, when the scenario names ``samples_per_rev``, ``max_backlog`` on the nodes
+  that read the measurements: :data:`REALTIME_BACKLOG_REVS` revolutions, so that a node thrown
+  behind by an overload drops the oldest samples and catches up (:mod:`amb_tools.backlog`;
+  lock-step keeps every sample);
 - the controller's ``controller``, ``start_mode``, ``model_file``, ``model_file_out`` when
   given;
 - the recorder's ``output`` folder and the streams it subscribes at start
@@ -40,6 +44,7 @@ __all__ = [
     "COMPOSED",
     "NODES",
     "NODE_MODULES",
+    "REALTIME_BACKLOG_REVS",
     "node_name",
     "param_text",
     "run_parameters",
@@ -59,6 +64,10 @@ NODE_MODULES = {
 }
 #: The nodes ``wavelet_stack`` composes (``amb-run --composed``, the launch file's composed:=true).
 COMPOSED = ("wavelet_filterbank", "fault_monitor", "wavelet_controller")
+#: Revolutions of measurements a realtime reader keeps when it is further behind (it drops the
+#: older ones): with the thesis's delay i = 2 a command made from a period more than two
+#: periods old can no longer be in time, so older samples only keep the node behind.
+REALTIME_BACKLOG_REVS = 2
 
 
 def run_parameters(
@@ -113,6 +122,10 @@ def run_parameters(
     plant["wait_for_subscribers"] = len(nodes) - 1 - max(len(hosted) - 1, 0)
     if mode:
         plant["mode"] = mode
+    if mode == "realtime" and spr:
+        for name in COMPOSED:
+            if name in out:
+                out[name]["max_backlog"] = REALTIME_BACKLOG_REVS * int(spr)
     if "wavelet_controller" in out:
         given = {
             "controller": controller,

@@ -113,6 +113,7 @@ from amb_controller.node_params import (
 from amb_controller.pipeline import ControllerPipeline
 from amb_controller.supervisor import Mode
 from amb_controller.synthesis import ForceLimiter
+from amb_tools.backlog import backlog_counts, declare_max_backlog
 from amb_tools.cdr import CoefficientsView, MeasurementView, read_coefficients, read_measurement
 from amb_tools.conversions import (
     MessageError,
@@ -151,10 +152,16 @@ class WaveletControllerNode(Node):
         qos = stream_qos(self._pipe.samples_per_period)
         self._cmd_pub = self.create_publisher(ControlCommand, topics.COMMAND, COMMAND_QOS)
         self._status_pub = self.create_publisher(ControllerStatus, topics.STATUS, 10)
-        stream_subscription(self, bus, Measurement, topics.MEASUREMENT, self._on_measurement, qos)
-        stream_subscription(
-            self, bus, WaveletCoefficients, topics.COEFFICIENTS, self._on_coefficients, qos
-        )
+        backlog = self._max_backlog = declare_max_backlog(self)
+        self._readers = (
+            stream_subscription(
+                self, bus, Measurement, topics.MEASUREMENT, self._on_measurement, qos, backlog
+            ),
+            stream_subscription(
+                self, bus, WaveletCoefficients, topics.COEFFICIENTS, self._on_coefficients, qos,
+                backlog,
+            ),
+        )  # fmt: skip
         self.create_subscription(FaultEvent, topics.FAULT_EVENTS, self._on_fault, 10)
         self.create_service(SetControllerMode, topics.SET_MODE, self._on_set_mode)
         self.create_service(StartIdentification, topics.START_IDENTIFICATION, self._on_identify)
@@ -174,6 +181,7 @@ class WaveletControllerNode(Node):
                 "coefficients_missing",
                 "nonfinite_commands",
                 "stalls",
+                "pending_dropped",
                 "config_changes",
             ),
             0,
@@ -303,6 +311,18 @@ class WaveletControllerNode(Node):
                 # restart or gap: everything queued belongs to the old stream's tail
                 self._drain(force=True)
             self._pending.append((m, now))
+        excess = len(self._pending) - self._max_backlog
+        if self._max_backlog and excess > 0:
+            # realtime and behind: the filterbank's coefficients trail the measurements, so the
+            # backlog sits here, not in the DDS queue; the oldest go (the pipeline sees a gap)
+            for _ in range(excess):
+                self._pending.popleft()
+            self.counts["pending_dropped"] += excess
+            self._warnings.warning(
+                "pending",
+                f"{excess + self._max_backlog} measurements waiting for their coefficients, more "
+                f"than max_backlog = {self._max_backlog}: the oldest {excess} dropped",
+            )
         self._drain()
 
     def _on_coefficients(self, raw: bytes) -> None:
@@ -469,6 +489,7 @@ class WaveletControllerNode(Node):
             **self.counts,
             **{f"samples_{k}": v for k, v in seq.items()},
             **matched_subscribers(self._cmd_pub, self._status_pub),
+            **backlog_counts(*self._readers),
         }
         array = DiagnosticArray(
             status=[

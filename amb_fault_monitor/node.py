@@ -51,6 +51,9 @@ on the monitor's ``/diagnostics`` status (``measurements_rejected``, ``coefficie
 ``samples_*``, ``coefficients_*``), which turns WARN. The monitor is not in the lock-step loop
 and may fall behind on a loaded machine: its subscriptions queue :data:`QUEUE_REVS` revolutions
 of messages, so that it lags rather than loses (a loss would be a gap, and a recalibration).
+In ``realtime`` a lag has a bound, ``max_backlog`` measurements (:mod:`amb_tools.backlog`; 0, the
+default, none): beyond it the oldest are dropped, one counted gap per overload, so that the
+monitor's decisions stay current instead of trailing the rotor by seconds.
 
 Parameters
 ----------
@@ -108,6 +111,7 @@ from amb_fault_monitor.node_params import (
     parameter_value,
 )
 from amb_fault_monitor.trips import SynchronousAmplitude, TripMonitor, clearance_levels
+from amb_tools.backlog import backlog_counts, declare_max_backlog
 from amb_tools.cdr import (
     CoefficientsView,
     MeasurementView,
@@ -197,10 +201,16 @@ class FaultMonitorNode(Node):
             QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE),
         )
         self._diag = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS, 10)
-        stream_subscription(
-            self, bus, WaveletCoefficients, topics.COEFFICIENTS, self._on_coefficients, qos
-        )
-        stream_subscription(self, bus, Measurement, topics.MEASUREMENT, self._on_measurement, qos)
+        backlog = declare_max_backlog(self)
+        self._readers = (
+            stream_subscription(
+                self, bus, WaveletCoefficients, topics.COEFFICIENTS, self._on_coefficients, qos,
+                backlog,
+            ),
+            stream_subscription(
+                self, bus, Measurement, topics.MEASUREMENT, self._on_measurement, qos, backlog
+            ),
+        )  # fmt: skip
         self._status_timer = self.create_timer(p("status_period").value, self._publish_status)
         self.get_logger().info(
             f"{len(self._log.events)} logged events reloaded; contacts per bearing "
@@ -510,6 +520,7 @@ class FaultMonitorNode(Node):
             **{f"coefficients_{k}": v for k, v in self._coef_seq.counts.items()},
             "callback_errors": getattr(self, "callback_errors", 0),
             **matched_subscribers(self._pub),
+            **backlog_counts(*self._readers),
         }
         problems = (
             any(self.counts.values())

@@ -28,6 +28,8 @@ from dataclasses import dataclass, field
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
 
+from amb_tools.backlog import BacklogReader
+
 __all__ = ["LocalBus", "StreamPublisher", "stream_publisher", "stream_subscription"]
 
 RawCallback = Callable[[bytes], None]
@@ -40,7 +42,7 @@ class _Topic:
     msg_type: type
     readers: list[RawCallback] = field(default_factory=list)
     local: bool = False  # published by a composed node (else: one DDS reader feeds the readers)
-    dds_reader: object | None = None
+    dds_reader: BacklogReader | None = None
 
 
 class LocalBus:
@@ -73,8 +75,14 @@ class LocalBus:
         return resolved, topic
 
     def subscribe(
-        self, node: Node, msg_type: type, name: str, callback: RawCallback, qos: QoSProfile
-    ) -> None:
+        self,
+        node: Node,
+        msg_type: type,
+        name: str,
+        callback: RawCallback,
+        qos: QoSProfile,
+        max_backlog: int = 0,
+    ) -> BacklogReader | None:
         """
         Hand every message of topic ``name`` (CDR bytes) to ``callback``.
 
@@ -91,13 +99,23 @@ class LocalBus:
             Called with the raw CDR of each message.
         qos : rclpy.qos.QoSProfile
             QoS of the DDS reader (outside topics), as the node would have used alone.
+        max_backlog : int
+            The DDS reader's catch-up bound (:class:`amb_tools.backlog.BacklogReader`); the
+            first reader of a topic sets it for all.
+
+        Returns
+        -------
+        BacklogReader or None
+            The process's DDS reader of an outside topic (shared); None for a local topic.
         """
         resolved, topic = self._topic(node, msg_type, name)
         topic.readers.append(callback)
         if not topic.local and topic.dds_reader is None:
-            topic.dds_reader = node.create_subscription(
-                msg_type, resolved, lambda raw, t=topic: self._deliver(t, raw), qos, raw=True
-            )
+            topic.dds_reader = BacklogReader(
+                node, msg_type, resolved, lambda raw, t=topic: self._deliver(t, raw), qos,
+                max_backlog,
+            )  # fmt: skip
+        return topic.dds_reader
 
     def publisher(self, node: Node, msg_type: type, name: str, qos: QoSProfile) -> StreamPublisher:
         """A publisher of ``name`` that also hands each message to the composed readers."""
@@ -140,12 +158,16 @@ def stream_subscription(
     name: str,
     callback: RawCallback,
     qos: QoSProfile,
-):
-    """Subscribe ``callback`` (raw CDR) to a stream: from the bus if composed, else from DDS."""
+    max_backlog: int = 0,
+) -> BacklogReader | None:
+    """Subscribe ``callback`` (raw CDR) to a stream: from the bus if composed, else from DDS.
+
+    Returns the DDS reader (:class:`amb_tools.backlog.BacklogReader`, its drop counts; shared
+    by the composed readers of an outside topic), or None for a topic published in-process.
+    """
     if bus is None:
-        return node.create_subscription(msg_type, name, callback, qos, raw=True)
-    bus.subscribe(node, msg_type, name, callback, qos)
-    return None
+        return BacklogReader(node, msg_type, name, callback, qos, max_backlog)
+    return bus.subscribe(node, msg_type, name, callback, qos, max_backlog)
 
 
 def stream_publisher(node: Node, bus: LocalBus | None, msg_type: type, name: str, qos: QoSProfile):

@@ -37,6 +37,7 @@ from rcl_interfaces.msg import (
 from rclpy.node import Node
 
 from amb_common import topics
+from amb_tools.backlog import backlog_counts, declare_max_backlog
 from amb_tools.cdr import MeasurementView, read_measurement
 from amb_tools.conversions import MessageError, stamp_seconds
 from amb_tools.local_bus import LocalBus, stream_publisher, stream_subscription
@@ -92,7 +93,10 @@ class WaveletFilterbankNode(Node):
         qos = stream_qos(self._samples_per_period)
         self._pub = stream_publisher(self, bus, WaveletCoefficients, topics.COEFFICIENTS, qos)
         self._diag = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS, 10)
-        stream_subscription(self, bus, Measurement, topics.MEASUREMENT, self._on_measurement, qos)
+        self._meas_reader = stream_subscription(
+            self, bus, Measurement, topics.MEASUREMENT, self._on_measurement, qos,
+            declare_max_backlog(self),
+        )  # fmt: skip
         self._status_timer = self.create_timer(
             self.get_parameter("status_period").value, self._publish_status
         )
@@ -242,6 +246,7 @@ class WaveletFilterbankNode(Node):
             "wavelet": self._wavelet,
             "levels": self._levels,
             **matched_subscribers(self._pub),
+            **backlog_counts(self._meas_reader),
         }
         status = DiagnosticStatus(
             level=level,

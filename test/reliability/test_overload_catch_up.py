@@ -1,0 +1,127 @@
+"""Realtime overload: the chain is stopped for several periods, then catches up within 2 periods.
+
+The realtime plant (the rig: its samples leave on the wall clock, it never waits) with the real
+filterbank and controller over DDS, as separate processes. Once commands arrive, both consumers
+are stopped (SIGSTOP) for about 11 control periods, as a CPU hog or a stalled process would
+stop them, and let go again. Their measurement queues then hold every sample of the stop, all
+of them too old for any command to be in time. With ``max_backlog`` (amb_tools.backlog) each
+drops the oldest, keeps the newest ``max_backlog`` and catches up: every period that starts 2
+periods or more after the release must run with a command (issue 17: "commands are applied
+again within 2 periods"). Processed in order instead, the backlog of the stop takes several
+periods to work through and the commands stay late meanwhile.
+
+Reference: the plant's own ``STATUS_COMMAND_MISSING`` flag on every sample (set when a period
+starts without its command) and the consumers' ``backlog_dropped`` counts on ``/diagnostics``.
+Times are the plant's: each period starts at its first sample's stamp (the realtime plant's
+clock, wall seconds from its start), and the release is put on that clock by the smallest
+arrival-minus-stamp of the observed samples (a test process held by a loaded machine receives
+samples late, never early).
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import time
+
+import numpy as np
+import pytest
+import yaml
+from amb_msgs.msg import Measurement
+from reliability_helpers import Diagnostics
+
+from amb_tools.conversions import stamp_seconds
+from amb_tools.streams import stream_qos
+
+pytestmark = [pytest.mark.ros, pytest.mark.slow]
+
+SPR = 64
+HZ = 11.0
+PERIOD = 1.0 / HZ  # s, one revolution = one control period
+STOP = 1.0  # s the consumers are stopped: 11 periods
+BACKLOG = 2 * SPR  # samples kept behind the newest after an overload
+
+
+def test_the_chain_catches_up_within_two_periods_after_an_overload(
+    ros, node_process, tmp_path
+) -> None:
+    scenario = tmp_path / "overload.yaml"
+    scenario.write_text(
+        yaml.safe_dump(
+            {
+                "name": "overload",
+                "speed": {"hz": HZ},
+                "duration": 6.0,
+                "samples_per_rev": SPR,
+                "measurement_noise": 1.0e-7,
+                "events": [{"kind": "unbalance", "time": 0.0, "disk": "D1", "me": 1.0e-3}],
+            }
+        )
+    )
+    node = ros.node("amb_test_overload_observer")
+    diagnostics = Diagnostics(node)
+    samples: list[tuple[int, int, float, float]] = []  # (index, status, stamp s, arrival s)
+    qos = stream_qos(SPR)
+    qos.depth = 1 << 16  # the observer keeps every sample even if the test process lags
+    node.create_subscription(
+        Measurement,
+        "/amb/measurement",
+        lambda m: samples.append(
+            (m.sample_index, m.status, stamp_seconds(m.header.stamp), time.monotonic())
+        ),
+        qos,
+    )
+    common = {"samples_per_rev": SPR, "max_backlog": BACKLOG}
+    filterbank = node_process("wavelet_filterbank", params=common)
+    controller = node_process(
+        "wavelet_controller", params={**common, "controller": "transient"}
+    )  # OFF: a zero-force command for every period, in time or not
+    plant = node_process(
+        "plant_sim",
+        params={"scenario_file": str(scenario), "samples_per_rev": SPR, "mode": "realtime",
+                "wait_for_subscribers": 3, "startup_timeout": 60.0},
+    )  # fmt: skip
+    received = lambda: len(samples)  # noqa: E731
+    logs = lambda: "\n".join(p.log()[-3000:] for p in (plant, filterbank, controller))  # noqa: E731
+
+    def controlled_since(first: int) -> bool:
+        flags = [s for i, s, _, _ in samples[first:] if i % SPR == 0]
+        return bool(flags) and not flags[-1] & Measurement.STATUS_COMMAND_MISSING
+
+    # commands arrive in time before the stop (the first periods cannot have one)
+    assert ros.spin_until_progress(lambda: controlled_since(4 * SPR), received, 60.0), logs()
+    stopped = [p.proc.pid for p in (filterbank, controller)]
+    for pid in stopped:
+        os.kill(pid, signal.SIGSTOP)
+    try:
+        ros.spin_for(STOP)
+    finally:
+        for pid in stopped:
+            os.kill(pid, signal.SIGCONT)
+    released = time.monotonic()
+    assert ros.spin_until_progress(lambda: plant.returncode is not None, received, 60.0), logs()
+    assert plant.returncode == 0, logs()
+    ros.spin_for(0.5)  # the last diagnostics
+
+    index, status, stamp, arrival = (np.array(c) for c in zip(*samples, strict=True))
+    assert np.array_equal(index, np.arange(index.size)), "the observer lost samples"
+    starts = index % SPR == 0
+    missing = status[starts] & Measurement.STATUS_COMMAND_MISSING != 0
+    period_start = stamp[starts]  # s, the plant's clock
+    released -= np.min(arrival - stamp)  # on the plant's clock (late by the transport, < 1 ms)
+    during = (period_start > released - STOP + PERIOD) & (period_start < released)
+    assert missing[during].all(), "the stop cost the commands of its periods"
+    after = period_start >= released + 2 * PERIOD
+    assert after.sum() >= 20, "enough periods after the release to judge"
+    late = np.flatnonzero(after & missing)
+    assert late.size == 0, (
+        f"periods without a command 2 periods or more after the release: {late.tolist()} "
+        f"(release in period {int(np.searchsorted(period_start, released)) - 1})\n{logs()}"
+    )
+    # the stop queued ~STOP * fs samples; all but BACKLOG (and what the filterbank had taken
+    # before the stop) were too old to keep
+    dropped = diagnostics.number("wavelet_filterbank", "backlog_dropped")
+    assert dropped >= STOP * HZ * SPR - 2 * BACKLOG, (dropped, logs())
+    # the controller drops from its DDS queues or, while the coefficients trail, its own
+    dropped = diagnostics.number("wavelet_controller", "backlog_dropped")
+    assert dropped + diagnostics.number("wavelet_controller", "pending_dropped") > 0, logs()
