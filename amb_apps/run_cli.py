@@ -346,6 +346,7 @@ def run(args: argparse.Namespace) -> int:
             scenario,
             tuple(names),
             controller=args.controller or "",
+            mode=str(set_by_user["plant_sim"].get("mode", "")),  # realtime: the catch-up bound
             bag=str((out / "bag").resolve()),
             hosted=tuple(hosted),
         )
