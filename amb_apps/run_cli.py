@@ -188,6 +188,14 @@ def build_parser() -> argparse.ArgumentParser:
         "the streams handed over in process, not over DDS)",
     )
     p.add_argument(
+        "--apart",
+        action="append",
+        default=[],
+        choices=["fault_monitor", "wavelet_controller"],
+        help="with --composed: run this node in its own process (repeatable; e.g. the fault "
+        "monitor apart leaves the stack's core to the control path)",
+    )
+    p.add_argument(
         "--namespace",
         default=topics.ROOT_NAMESPACE,
         help="namespace of every node (e.g. /rig1: topics /rig1/amb/...; default /)",
@@ -340,7 +348,10 @@ def run(args: argparse.Namespace) -> int:
         print("amb-run: plant_sim is not available", file=sys.stderr)
         return 2
     set_by_user = _set_overrides(args)
-    hosted = [n for n in COMPOSED if n in names] if args.composed else []
+    if args.apart and not args.composed:
+        print("amb-run: --apart needs --composed", file=sys.stderr)
+        return 2
+    hosted = [n for n in COMPOSED if n in names and n not in args.apart] if args.composed else []
     try:
         run_params = run_parameters(
             scenario,
@@ -410,7 +421,7 @@ def run(args: argparse.Namespace) -> int:
                 r.start(env)
         # the plant starts last, once every stream has all its subscribers (the recorder
         # subscribes to a topic only when it has seen its publisher): nothing is lost at start
-        expected = _expected_subscribers(names, composed=bool(hosted))
+        expected = _expected_subscribers(names, hosted=tuple(hosted))
         started = set(names) - {"plant_sim"}
         if not progress.wait_for_graph(expected, started, timeout=120.0):
             print(
@@ -564,11 +575,12 @@ def _drain(progress: _Progress, runs: list[NodeRun], timeout: float, quiet: bool
         progress.spin(0.2)
 
 
-def _expected_subscribers(names: list[str], composed: bool = False) -> dict[str, int]:
+def _expected_subscribers(names: list[str], hosted: tuple[str, ...] = ()) -> dict[str, int]:
     """Subscribers each stream must have before the plant's first sample.
 
-    Composed (``wavelet_stack``), the stack's nodes share one DDS reader of the measurements
-    and read the coefficients in process (:mod:`amb_tools.local_bus`).
+    The nodes composed in ``wavelet_stack`` (``hosted``, the filterbank among them) share one
+    DDS reader of the measurements and read the coefficients in process
+    (:mod:`amb_tools.local_bus`); a node started apart reads both over DDS.
     """
     has = set(names)
     recorder = int("recorder" in has)
@@ -579,9 +591,9 @@ def _expected_subscribers(names: list[str], composed: bool = False) -> dict[str,
         topics.STATUS: set(),
         topics.FAULT_EVENTS: {"wavelet_controller"},
     }
-    if composed:
-        consumers[topics.MEASUREMENT] = {STACK}  # composed: the stack hosts at least one
-        consumers[topics.COEFFICIENTS] = set()
+    if hosted:
+        consumers[topics.MEASUREMENT] = (consumers[topics.MEASUREMENT] - set(hosted)) | {STACK}
+        consumers[topics.COEFFICIENTS] -= set(hosted)
         has.add(STACK)
     # the recorder subscribes every stream at start (topic_types), so it counts on each
     return {

@@ -19,7 +19,8 @@ and the machine's 1-minute load average at its end, then the median over the run
 depend on whatever else the machine is doing: read them as ratios to the target, and compare
 runs made under the same load.
 
-    python bench/pipeline.py [--duration 8] [--cases 11:64,67:32] [--repeat 3] [--composed]
+    python bench/pipeline.py [--duration 8] [--cases 11:64,67:32] [--repeat 3]
+        [--composed [--apart fault_monitor]] [--nice NODE=N]
 """
 
 from __future__ import annotations
@@ -152,9 +153,18 @@ def main() -> None:
     ap.add_argument(
         "--composed", action="store_true", help="filterbank, monitor, controller in one process"
     )
+    ap.add_argument(
+        "--apart", action="append", default=[], help="with --composed: amb-run --apart NODE"
+    )
+    ap.add_argument("--nice", action="append", default=[], help="amb-run --nice NODE=N")
     args = ap.parse_args()
     run_args = ["--composed"] if args.composed else []
-    print(f"deployment: {'composed (wavelet_stack)' if args.composed else 'one process per node'}")
+    run_args += [a for n in args.apart for a in ("--apart", n)]
+    run_args += [a for n in args.nice for a in ("--nice", n)]
+    apart = f", {', '.join(args.apart)} apart" if args.apart else ""
+    apart += f", nice {' '.join(args.nice)}" if args.nice else ""
+    print(f"deployment: {'composed (wavelet_stack)' if args.composed else 'one process per node'}"
+          f"{apart}")  # fmt: skip
     cases = [tuple(c.split(":")) for c in args.cases.split(",")]
     print(f"{'case / run':>16} {'lockstep RTF':>13} {'rt p50 ms':>10} {'p99 ms':>8} "
           f"{'p99/period':>11} {'controlled':>11} {'arr p99 ms':>11} {'missing':>8} "

@@ -9,7 +9,7 @@ of each node by own time and by cumulative time. cProfile inflates Python-heavy 
 about 2x: read its table for where the time goes, the ``AMB_CPU_LOG`` run for how much.
 
     python bench/pipeline_profile.py [--case 67:32] [--duration 4] [--cprofile] [--top 15]
-        [--keep DIR] [--set NODE.PARAM:=VALUE ...] [--composed] [--without NODE ...]
+        [--keep DIR] [--set NODE.PARAM:=VALUE ...] [--composed [--apart NODE]] [--without NODE ...]
 """
 
 from __future__ import annotations
@@ -54,6 +54,9 @@ def main() -> None:
     ap.add_argument(
         "--without", action="append", default=[], help="amb-run --without NODE (repeatable)"
     )
+    ap.add_argument(
+        "--apart", action="append", default=[], help="amb-run --apart NODE (with --composed)"
+    )
     args = ap.parse_args()
     hz, spr = args.case.split(":")
     work = Path(tempfile.mkdtemp(prefix="amb_profile_"))
@@ -72,7 +75,8 @@ def main() -> None:
             env=env,
             extra=args.set,
             run_args=(["--composed"] if args.composed else [])
-            + [a for n in args.without for a in ("--without", n)],
+            + [a for n in args.without for a in ("--without", n)]
+            + [a for n in args.apart for a in ("--apart", n)],
         )
         log = (out / "logs" / "plant_sim.log").read_text()
         m = COMPLETE.search(log)

@@ -4,8 +4,10 @@
 node and once ``--composed`` (filterbank, monitor and controller in one process, the streams
 handed over in process): the fault events in the two bags carry the same type, plane and sample
 indices (onset, first crossing, decision), and every node reported the plant's last sample
-(amb-run's drain). The controller and filterbank of the composed process are compared with
-amb-sim bit for bit in ``test_lockstep_determinism``.
+(amb-run's drain). A third run composes the filterbank and controller with the monitor apart
+(``--apart fault_monitor``: it reads the stack's coefficients over DDS): the same events. The
+controller and filterbank of the composed process are compared with amb-sim bit for bit in
+``test_lockstep_determinism``.
 """
 
 from __future__ import annotations
@@ -58,7 +60,21 @@ def test_composed_fault_monitor_gives_the_same_events(tmp_path, ros_domain_id) -
     _run(scenario, tmp_path / "processes")
     _run(scenario, tmp_path / "composed", "--composed")
     assert (tmp_path / "composed" / "logs" / "wavelet_stack.log").is_file()
+    _run(scenario, tmp_path / "apart", "--composed", "--apart", "fault_monitor")
+    assert {p.name for p in (tmp_path / "apart" / "logs").glob("*.log")} >= {
+        "wavelet_stack.log", "fault_monitor.log"
+    }  # fmt: skip
     separate = _events(tmp_path / "processes" / "bag")
     composed = _events(tmp_path / "composed" / "bag")
     assert separate, "the monitor found no fault in the mass loss"
     assert composed == separate
+    assert _events(tmp_path / "apart" / "bag") == separate  # the stack's coefficients over DDS
+
+
+def test_apart_needs_composed(tmp_path) -> None:
+    run = subprocess.run(
+        [sys.executable, "-m", "amb_apps.run_cli", "--scenario", "mass_loss_first_critical.yaml",
+         "--out", str(tmp_path / "run"), "--apart", "fault_monitor"],
+        capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert run.returncode == 2 and "--apart needs --composed" in run.stderr, run.stderr
