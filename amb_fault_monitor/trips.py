@@ -64,6 +64,11 @@ def clearance_levels(rig: Any, fraction: float) -> np.ndarray:
     return fraction * rc[nearest]
 
 
+#: No plane (what :meth:`TripMonitor.update` returns when nothing trips or clears).
+_NONE = np.flatnonzero(np.zeros(4, dtype=bool))
+_NONE.flags.writeable = False
+
+
 def _levels(level: float | ArrayLike) -> np.ndarray:
     lv = np.broadcast_to(np.asarray(level, dtype=float), (4,)).copy()
     if np.any(~np.isfinite(lv)) or np.any(lv < 0):
@@ -114,8 +119,11 @@ class TripMonitor:
         r = np.asarray(value, dtype=float)
         self.value = r
         self.peak = np.maximum(self.peak, r)
+        over = r > self.level
+        if not (over.any() or self.tripped.any()):  # the usual sample: nothing can change
+            return _NONE, _NONE
         on = self.level > 0
-        new = (r > self.level) & ~self.tripped & on
+        new = over & ~self.tripped & on
         clear = self.tripped & ((r < self.level * (1.0 - self.hysteresis)) | ~on)
         self.tripped = (self.tripped | new) & ~clear
         return np.flatnonzero(new), np.flatnonzero(clear)
