@@ -63,7 +63,16 @@ import yaml
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.executors import SingleThreadedExecutor
 
-from amb_apps.system import COMPOSED, NODE_MODULES, NODES, run_parameters, run_params_document
+from amb_apps.system import (
+    COMPOSED,
+    NODE_MODULES,
+    NODES,
+    PUBLISHERS,
+    STACK,
+    run_parameters,
+    run_params_document,
+    stream_readers,
+)
 from amb_common import topics
 from amb_common.paths import config_file, scenario_file
 from amb_plant_sim.errors import ScenarioError
@@ -88,16 +97,6 @@ DRAINED = {
 DRAIN_TIMEOUT = 300.0
 #: The plant's completion line in its log (read when its final /diagnostics report was missed).
 PLANT_COMPLETE = re.compile(r"complete at t = [\d.]+ s \((?P<samples>\d+) samples\)")
-#: The executable of ``--composed``: the filterbank, fault monitor and controller in one process.
-STACK = "wavelet_stack"
-#: The node publishing each stream (composed or not: each node reports under its own name).
-PUBLISHERS = {
-    topics.MEASUREMENT: "plant_sim",
-    topics.COEFFICIENTS: "wavelet_filterbank",
-    topics.COMMAND: "wavelet_controller",
-    topics.STATUS: "wavelet_controller",
-    topics.FAULT_EVENTS: "fault_monitor",
-}
 
 
 @dataclass
@@ -421,7 +420,7 @@ def run(args: argparse.Namespace) -> int:
                 r.start(env)
         # the plant starts last, once every stream has all its subscribers (the recorder
         # subscribes to a topic only when it has seen its publisher): nothing is lost at start
-        expected = _expected_subscribers(names, hosted=tuple(hosted))
+        expected = stream_readers(names, hosted=tuple(hosted))
         started = set(names) - {"plant_sim"}
         if not progress.wait_for_graph(expected, started, timeout=120.0):
             print(
@@ -573,34 +572,6 @@ def _drain(progress: _Progress, runs: list[NodeRun], timeout: float, quiet: bool
             last_print = waited
             print(f"[amb-run] draining ({waited:5.1f} s): {shown} of {last}", flush=True)
         progress.spin(0.2)
-
-
-def _expected_subscribers(names: list[str], hosted: tuple[str, ...] = ()) -> dict[str, int]:
-    """Subscribers each stream must have before the plant's first sample.
-
-    The nodes composed in ``wavelet_stack`` (``hosted``, the filterbank among them) share one
-    DDS reader of the measurements and read the coefficients in process
-    (:mod:`amb_tools.local_bus`); a node started apart reads both over DDS.
-    """
-    has = set(names)
-    recorder = int("recorder" in has)
-    consumers = {
-        topics.MEASUREMENT: {"wavelet_filterbank", "fault_monitor", "wavelet_controller"},
-        topics.COEFFICIENTS: {"fault_monitor", "wavelet_controller"},
-        topics.COMMAND: set(),
-        topics.STATUS: set(),
-        topics.FAULT_EVENTS: {"wavelet_controller"},
-    }
-    if hosted:
-        consumers[topics.MEASUREMENT] = (consumers[topics.MEASUREMENT] - set(hosted)) | {STACK}
-        consumers[topics.COEFFICIENTS] -= set(hosted)
-        has.add(STACK)
-    # the recorder subscribes every stream at start (topic_types), so it counts on each
-    return {
-        topic: len(nodes & has) + recorder
-        for topic, nodes in consumers.items()
-        if PUBLISHERS[topic] in has
-    }
 
 
 def _available(name: str) -> bool:

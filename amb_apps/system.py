@@ -44,11 +44,14 @@ __all__ = [
     "COMPOSED",
     "NODES",
     "NODE_MODULES",
+    "PUBLISHERS",
     "REALTIME_BACKLOG_REVS",
+    "STACK",
     "node_name",
     "param_text",
     "run_parameters",
     "run_params_document",
+    "stream_readers",
 ]
 
 #: The nodes of a run, in start order (the plant last: it waits for the others).
@@ -64,6 +67,16 @@ NODE_MODULES = {
 }
 #: The nodes ``wavelet_stack`` composes (``amb-run --composed``, the launch file's composed:=true).
 COMPOSED = ("wavelet_filterbank", "fault_monitor", "wavelet_controller")
+#: The executable composing them.
+STACK = "wavelet_stack"
+#: The node publishing each stream (composed or not: each node reports under its own name).
+PUBLISHERS = {
+    topics.MEASUREMENT: "plant_sim",
+    topics.COEFFICIENTS: "wavelet_filterbank",
+    topics.COMMAND: "wavelet_controller",
+    topics.STATUS: "wavelet_controller",
+    topics.FAULT_EVENTS: "fault_monitor",
+}
 #: Revolutions of measurements a realtime reader keeps when it is further behind (it drops the
 #: older ones). With the thesis's delay i = 2 a command made from a period more than two
 #: periods old is late, but each drop is a gap: the controller resets its filters and the
@@ -122,7 +135,7 @@ def run_parameters(
     plant = out["plant_sim"]
     plant["scenario_file"] = str(scenario)
     # every other node reads the measurements; the composed ones through one reader
-    plant["wait_for_subscribers"] = len(nodes) - 1 - max(len(hosted) - 1, 0)
+    plant["wait_for_subscribers"] = stream_readers(nodes, hosted)[topics.MEASUREMENT]
     if mode:
         plant["mode"] = mode
     if mode == "realtime" and spr:
@@ -142,6 +155,45 @@ def run_parameters(
             out["recorder"]["output"] = bag
         out["recorder"]["topic_types"] = [f"{t}:{m}" for t, m in topics.STREAM_TYPES.items()]
     return out
+
+
+def stream_readers(names, hosted: tuple[str, ...] = ()) -> dict[str, int]:
+    """
+    DDS readers each stream has once the nodes ``names`` are up (the plant waits for its count).
+
+    Parameters
+    ----------
+    names : iterable of str
+        The nodes started (of :data:`NODES`).
+    hosted : tuple of str
+        Those composed in ``wavelet_stack`` (the filterbank among them): they share one DDS
+        reader of the measurements and read the coefficients in process
+        (:mod:`amb_tools.local_bus`); a node started apart reads both over DDS.
+
+    Returns
+    -------
+    dict
+        Topic -> readers, for the streams whose publisher is started; the recorder subscribes
+        every stream at start (``topic_types``), so it counts on each.
+    """
+    has = set(names)
+    recorder = int("recorder" in has)
+    consumers = {
+        topics.MEASUREMENT: {"wavelet_filterbank", "fault_monitor", "wavelet_controller"},
+        topics.COEFFICIENTS: {"fault_monitor", "wavelet_controller"},
+        topics.COMMAND: set(),
+        topics.STATUS: set(),
+        topics.FAULT_EVENTS: {"wavelet_controller"},
+    }
+    if hosted:
+        consumers[topics.MEASUREMENT] = (consumers[topics.MEASUREMENT] - set(hosted)) | {STACK}
+        consumers[topics.COEFFICIENTS] -= set(hosted)
+        has.add(STACK)
+    return {
+        topic: len(nodes & has) + recorder
+        for topic, nodes in consumers.items()
+        if PUBLISHERS[topic] in has
+    }
 
 
 def node_name(node: str, namespace: str = topics.ROOT_NAMESPACE) -> str:

@@ -17,7 +17,8 @@ from pathlib import Path
 
 import pytest
 
-from amb_apps.system import NODES, run_parameters
+from amb_apps.system import NODES, run_parameters, stream_readers
+from amb_common import topics
 from amb_common.paths import scenario_file
 from amb_plant_sim.errors import ScenarioError
 from amb_tools.backlog import MAX_BACKLOG
@@ -148,3 +149,18 @@ def test_a_bad_scenario_is_refused_with_its_name(tmp_path: Path) -> None:
     bad.write_text("speed: {hz: 20.0}\nduration: 1.0\nsamples_per_rev: 24\n")
     with pytest.raises(ScenarioError, match="power of two"):
         run_parameters(bad)
+
+
+def test_stream_readers_count_a_composed_stack_once_and_a_node_apart_on_its_own() -> None:
+    coefficients, measurements = topics.COEFFICIENTS, topics.MEASUREMENT
+    alone = stream_readers(NODES)
+    assert (alone[measurements], alone[coefficients]) == (4, 3)  # 3 nodes + the recorder
+    stack = ("wavelet_filterbank", "fault_monitor", "wavelet_controller")
+    composed = stream_readers(NODES, stack)
+    assert (composed[measurements], composed[coefficients]) == (2, 1)  # stack, recorder
+    apart = stream_readers(NODES, ("wavelet_filterbank", "wavelet_controller"))
+    assert (apart[measurements], apart[coefficients]) == (3, 2)  # + the monitor's own readers
+    path = scenario_file("contact_misalignment_second_bending.yaml")
+    for hosted, counts in ((stack, composed), (stack[::2], apart)):
+        plant = run_parameters(path, hosted=hosted)["plant_sim"]
+        assert plant["wait_for_subscribers"] == counts[measurements]
