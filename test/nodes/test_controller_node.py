@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 from amb_msgs.msg import ControlCommand, ControllerStatus, Measurement
@@ -11,6 +14,9 @@ from amb_tools.streams import COMMAND_QOS, FRAME_CODES, QUAD_CODES
 from amb_wavelet.analysis import AnalysisFilterbank
 from amb_wavelet.frontend import FRAMES, QUADRATURES, ChannelFrontEnd
 from amb_wavelet.messages import coefficients_msg
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "reliability"))
+from reliability_helpers import Diagnostics
 
 pytestmark = pytest.mark.ros
 
@@ -41,8 +47,20 @@ def _stream(n_periods: int, skip_coefficients_of: int | None = None):
 def _start(node_process, **params):
     return node_process(
         "wavelet_controller",
-        params={"samples_per_rev": SPR, "delay_periods": DELAY, **params},
+        params={"samples_per_rev": SPR, "delay_periods": DELAY, "status_period": 0.2, **params},
     )
+
+
+def _command_reader_matched(ros, node, ctrl) -> None:
+    """Wait until the controller's command writer reports the test's reader matched.
+
+    Its own count (on /diagnostics), not the test's view of the graph: with one core busy a
+    writer matched a reader seconds after the reader saw it, and the first commands were lost.
+    """
+    writers = Diagnostics(node)
+    assert ros.spin_until(
+        lambda: writers.matched("wavelet_controller", "/amb/control/command") >= 1, 30.0
+    ), ctrl.log()
 
 
 def test_one_command_per_period_and_mode_services(ros, node_process) -> None:
@@ -53,6 +71,7 @@ def test_one_command_per_period_and_mode_services(ros, node_process) -> None:
     node.create_subscription(ControlCommand, "/amb/control/command", commands.append, COMMAND_QOS)
     node.create_subscription(ControllerStatus, "/amb/control/status", statuses.append, 10)
     pm, pc = ros.stream_writers(node, SPR, ctrl)
+    _command_reader_matched(ros, node, ctrl)
     n_periods = 6
     lost = 4 * SPR - 1  # the coefficients completing period 3 (its 1x level) are lost
     for m, c in _stream(n_periods, skip_coefficients_of=lost):
@@ -125,6 +144,7 @@ def test_a_slow_filterbank_is_waited_for_while_its_coefficients_keep_coming(
     commands: list[ControlCommand] = []
     node.create_subscription(ControlCommand, "/amb/control/command", commands.append, COMMAND_QOS)
     pm, pc = ros.stream_writers(node, SPR, ctrl)
+    _command_reader_matched(ros, node, ctrl)
     n_periods = 3
     stream = _stream(n_periods)
     for m, _c in stream:
