@@ -93,7 +93,6 @@ from amb_tools.throttled_log import ThrottledWarnings
 from amb_tools.validation import check_command
 
 MODES = ("lockstep", "realtime")
-
 #: Commands may target at most this many periods beyond ``next period + delay_periods``.
 COMMAND_HORIZON_PERIODS = 16
 #: Parameters settable at run time (applied at the next period boundary).
@@ -538,8 +537,8 @@ class PlantSimNode(Node):
         # the run's wall time ends with its last sample: the acknowledgements waited for below
         # can take a reliable writer's heartbeat period (3 s with Fast DDS's defaults; it was
         # seen in half of the 4 s runs of bench/pipeline_profile.py, halving the reported factor)
-        wall = time.monotonic() - self._wall0
-        self.run_window = (self._wall0, self._wall0 + wall)  # node_main's CPU log (bench/)
+        self.run_window = (self._wall0, time.monotonic())  # node_main's CPU log (bench/)
+        wall = self.run_window[1] - self._wall0
         self._meas_pub.wait_for_all_acked(Duration(seconds=10.0))
         self._publish_status()
         # the last report (done, sample_index) tells amb-run how far the consumers must get

@@ -102,14 +102,11 @@ class BacklogReader:
         self.max_backlog = int(max_backlog)
         self.dropped = self.episodes = 0
         self._warnings = ThrottledWarnings(node.get_logger(), period=5.0)
-        self.subscription = node.create_subscription(
-            msg_type, name, self._on_message, qos, raw=True
-        )
+        # without a bound each message goes straight to ``deliver``: no extra call per message
+        callback = self._on_message if self.max_backlog else deliver
+        self.subscription = node.create_subscription(msg_type, name, callback, qos, raw=True)
 
     def _on_message(self, raw: bytes) -> None:
-        if not self.max_backlog:
-            self._deliver(raw)
-            return
         batch = [raw]
         sub = self.subscription
         with sub.handle:  # as rclpy's executors take: every message queued now
