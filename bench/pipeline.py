@@ -13,6 +13,12 @@ For each case (running speed, samples per revolution): a wavelet model from the 
    (median, p99, as a fraction of the control period), the fraction of the periods that ran
    with a command and the p99 of each command's arrival minus its period's start (negative: in
    time).
+3. with ``--hog START:SECONDS``: during each realtime run a CPU hog (``python -c 'while True:
+   pass'``, one core busy) starts START wall s after ``amb-run`` is launched (its start-up
+   takes a few seconds: the window actually hit is printed in run time) and runs SECONDS;
+   from the bag's ``Measurement.status`` (``STATUS_COMMAND_MISSING``) the fraction of periods
+   controlled before, during and after the hog (from 2 periods after it), how many periods
+   after the hog the last uncontrolled one came, and the samples missing from the bag.
 Each case is run ``--repeat`` times (the model is made once); every run is printed with the
 plant's command counts (``missing``: no command by the period's start; ``late``: arrived after)
 and the machine's 1-minute load average at its end, then the median over the runs. Numbers
@@ -20,20 +26,24 @@ depend on whatever else the machine is doing: read them as ratios to the target,
 runs made under the same load.
 
     python bench/pipeline.py [--duration 8] [--cases 11:64,67:32] [--repeat 3]
-        [--composed [--apart fault_monitor]] [--nice NODE=N]
+        [--composed [--apart fault_monitor]] [--nice NODE=N] [--hog START:SECONDS]
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import re
 import statistics
 import subprocess
 import sys
 import tempfile
+import threading
+import time
 from pathlib import Path
 
+import numpy as np
 import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -79,6 +89,40 @@ def prepare(hz: float, spr: int, duration: float, work: Path) -> tuple[Path, Pat
     return scenario, model_dir / "model.npz"
 
 
+class Hog:
+    """One core kept busy from ``start`` s after :meth:`arm` for ``seconds`` (a thread waits).
+
+    ``window``: the monotonic (on, off) times the hog actually ran, once it has.
+    """
+
+    def __init__(self, start: float, seconds: float) -> None:
+        self.start, self.seconds = start, seconds
+        self.window: tuple[float, float] | None = None
+        self._cancel = threading.Event()
+        self._thread: threading.Thread | None = None
+
+    def arm(self) -> None:
+        """Start the countdown (call when the run is launched)."""
+        self._thread = threading.Thread(target=self._run, daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        if self._cancel.wait(self.start):
+            return
+        proc = subprocess.Popen([sys.executable, "-c", "while True: pass"])
+        on = time.monotonic()
+        self._cancel.wait(self.seconds)
+        proc.kill()
+        proc.wait()
+        self.window = (on, time.monotonic())
+
+    def disarm(self) -> None:
+        """Stop the hog (if still running) and wait for its thread."""
+        self._cancel.set()
+        if self._thread is not None:
+            self._thread.join()
+
+
 def run_mode(
     scenario: Path,
     model: Path,
@@ -87,17 +131,67 @@ def run_mode(
     env: dict | None = None,
     extra: list[str] | tuple[str, ...] = (),
     run_args: list[str] | tuple[str, ...] = (),
+    hog: Hog | None = None,
 ) -> Path:
     """``amb-run`` the four nodes and the recorder in ``mode``; return the run folder.
 
-    ``extra``: more ``--set`` items; ``run_args``: more amb-run arguments (``--composed``).
+    ``extra``: more ``--set`` items; ``run_args``: more amb-run arguments (``--composed``);
+    ``hog``: armed when amb-run is launched, disarmed when it ends.
     """
     sets = [f"wavelet_controller.model_file:={model}", "wavelet_controller.start_mode:=active",
             f"plant_sim.mode:={mode}", *extra]  # fmt: skip
-    _run([sys.executable, "-m", "amb_apps.run_cli", "--scenario", str(scenario),
-          "--out", str(out), "--controller", "transient", "--quiet",
-          *[a for s in sets for a in ("--set", s)], *run_args], env=env)  # fmt: skip
+    if hog is not None:
+        hog.arm()
+    try:
+        _run([sys.executable, "-m", "amb_apps.run_cli", "--scenario", str(scenario),
+              "--out", str(out), "--controller", "transient", "--quiet",
+              *[a for s in sets for a in ("--set", s)], *run_args], env=env)  # fmt: skip
+    finally:
+        if hog is not None:
+            hog.disarm()
     return out
+
+
+def hog_windows(out: Path, cpu_log: Path, hog: Hog, spr: int, total: int) -> dict:
+    """Periods controlled before, during and after the hog, from the run's bag.
+
+    A period is controlled when all its samples are in the bag and none carries
+    ``STATUS_COMMAND_MISSING``. The hog's monotonic window is put on the run's time axis with
+    the plant's first sample (``run_window`` of its CPU log; realtime, ``time_scale`` 1).
+    ``total``: the samples the plant produced (the bag's shortfall is counted).
+    """
+    from amb_msgs.msg import Measurement
+
+    from amb_tools.bag_read import read_bag
+
+    meas = read_bag(out / "bag").measurements
+    wall0 = json.loads((cpu_log / "plant_sim.cpu.json").read_text())["run_window"][0]
+    if hog.window is None:
+        return {"lost": total - len(meas.sample_index)}
+    on, off = (t - wall0 for t in hog.window)
+    period = meas.time[spr] - meas.time[0] if len(meas.time) > spr else float("nan")
+    n_periods = total // spr  # whole periods only: a partial last one is never "controlled"
+    k = meas.sample_index[meas.sample_index < n_periods * spr] // spr
+    present = np.bincount(k, minlength=n_periods)
+    flagged = (meas.status[: len(k)] & Measurement.STATUS_COMMAND_MISSING) > 0
+    missing = np.bincount(k, weights=flagged, minlength=n_periods)
+    controlled = (present == spr) & (missing == 0)
+    start = np.arange(n_periods) * period
+    settled = start >= 4 * period  # the first delay_periods have no command by design
+
+    def frac(mask):
+        return float(controlled[mask].mean()) if np.any(mask) else float("nan")
+
+    later = np.flatnonzero(~controlled & (start >= off))
+    return {
+        "hog_on": on,
+        "hog_off": off,
+        "before": frac(settled & (start < on - period)),
+        "during": frac(settled & (start >= on) & (start + period <= off)),
+        "after": frac(start >= off + 2 * period),
+        "recover": float((start[later[-1]] + period - off) / period) if later.size else 0.0,
+        "lost": total - len(meas.sample_index),
+    }
 
 
 def case(
@@ -107,14 +201,23 @@ def case(
     work: Path,
     repeat: int = 1,
     run_args: list[str] | tuple[str, ...] = (),
+    hog: tuple[float, float] | None = None,
 ) -> list[dict]:
-    """Run one speed/sampling case ``repeat`` times; return the plant's numbers of each run."""
+    """Run one speed/sampling case ``repeat`` times; return the plant's numbers of each run.
+
+    ``hog``: (start, seconds) of a CPU hog in each realtime run (:func:`hog_windows`).
+    """
     scenario, model = prepare(hz, spr, duration, work)
     runs = []
     for i in range(repeat):
         result = {"hz": hz, "samples_per_rev": spr, "fs": hz * spr}
         for mode in ("lockstep", "realtime"):
-            out = run_mode(scenario, model, mode, work / f"{mode}_{hz:g}_{i}", run_args=run_args)
+            hogged = Hog(*hog) if hog is not None and mode == "realtime" else None
+            env = dict(os.environ)
+            cpu_log = work / f"cpu_{mode}_{hz:g}_{i}"
+            env["AMB_CPU_LOG"] = str(cpu_log)
+            out = run_mode(scenario, model, mode, work / f"{mode}_{hz:g}_{i}", env=env,
+                           run_args=run_args, hog=hogged)  # fmt: skip
             log = (out / "logs" / "plant_sim.log").read_text()
             m = COMPLETE.search(log)
             if m is None:
@@ -129,6 +232,9 @@ def case(
             result[mode].update(
                 {k: int(v) for k, v in counts.groupdict().items()} if counts else {}
             )
+            if hogged is not None:
+                total = round(hz * spr * duration)
+                result["hog"] = hog_windows(out, cpu_log, hogged, spr, total)
         result["load"] = os.getloadavg()[0]
         runs.append(result)
     return runs
@@ -141,6 +247,17 @@ def _row(label: str, r: dict) -> str:
         f"{rt.get('p99', nan):>8.2f} {rt.get('frac', nan) / 100:>11.1%} "
         f"{rt.get('controlled', nan) / 100:>11.1%} {rt.get('arr99', nan):>+11.2f} "
         f"{rt.get('missing', -1):>8d} {rt.get('late', -1):>5d} {r['load']:>6.1f}"
+    ) + _hog_cells(r.get("hog"))
+
+
+def _hog_cells(h: dict | None) -> str:
+    if h is None:
+        return ""
+    nan = float("nan")
+    return (
+        f" {h.get('hog_on', nan):>5.1f}-{h.get('hog_off', nan):<5.1f} {h.get('before', nan):>7.1%}"
+        f" {h.get('during', nan):>7.1%} {h.get('after', nan):>7.1%} "
+        f"{h.get('recover', nan):>8.1f} {h['lost']:>5d}"
     )
 
 
@@ -157,7 +274,19 @@ def main() -> None:
         "--apart", action="append", default=[], help="with --composed: amb-run --apart NODE"
     )
     ap.add_argument("--nice", action="append", default=[], help="amb-run --nice NODE=N")
+    ap.add_argument(
+        "--hog",
+        help="START:SECONDS: one core busy from START s after each realtime launch, SECONDS long",
+    )
     args = ap.parse_args()
+    hog = None
+    if args.hog:
+        try:
+            hog = tuple(float(v) for v in args.hog.split(":"))
+            if len(hog) != 2 or min(hog) < 0:
+                raise ValueError
+        except ValueError:
+            ap.error(f"--hog {args.hog!r}: expected START:SECONDS, two numbers >= 0")
     run_args = ["--composed"] if args.composed else []
     run_args += [a for n in args.apart for a in ("--apart", n)]
     run_args += [a for n in args.nice for a in ("--nice", n)]
@@ -168,10 +297,12 @@ def main() -> None:
     cases = [tuple(c.split(":")) for c in args.cases.split(",")]
     print(f"{'case / run':>16} {'lockstep RTF':>13} {'rt p50 ms':>10} {'p99 ms':>8} "
           f"{'p99/period':>11} {'controlled':>11} {'arr p99 ms':>11} {'missing':>8} "
-          f"{'late':>5} {'load':>6}")  # fmt: skip
+          f"{'late':>5} {'load':>6}"
+          + (f" {'hog s (run)':>11} {'before':>7} {'during':>7} {'after':>7} {'recover':>8} "
+             f"{'lost':>5}" if hog else ""))  # fmt: skip
     with tempfile.TemporaryDirectory() as tmp:
         for hz, spr in cases:
-            runs = case(float(hz), int(spr), args.duration, Path(tmp), args.repeat, run_args)
+            runs = case(float(hz), int(spr), args.duration, Path(tmp), args.repeat, run_args, hog)
             for i, r in enumerate(runs):
                 print(_row(f"{hz} Hz x {spr} #{i + 1}", r), flush=True)
             if len(runs) > 1:
@@ -183,6 +314,12 @@ def main() -> None:
                     },
                     "load": statistics.median(r["load"] for r in runs),
                 }
+                if hog:
+                    med["hog"] = {
+                        k: statistics.median(r["hog"].get(k, float("nan")) for r in runs)
+                        for k in ("hog_on", "hog_off", "before", "during", "after", "recover")
+                    }
+                    med["hog"]["lost"] = round(statistics.median(r["hog"]["lost"] for r in runs))
                 med["realtime"]["missing"] = round(
                     statistics.median(r["realtime"].get("missing", -1) for r in runs)
                 )
@@ -193,6 +330,7 @@ def main() -> None:
     print(
         "targets (#17): lock-step RTF >= 2 at 67 Hz x 32, >= 3 at 11 Hz x 64; realtime: 0 missing, "
         "0 late, p99 <= 50% of the period"
+        + ("; hog: >= 90% controlled during it, recover <= 2 periods, 0 lost" if hog else "")
     )
 
 
