@@ -183,14 +183,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--composed",
         action="store_true",
-        help="run the filterbank, fault monitor and controller in one process (wavelet_stack: "
-        "the streams handed over in process, not over DDS)",
+        help="run the filterbank, fault monitor, controller and recorder in one process "
+        "(wavelet_stack: the streams handed over in process, not over DDS)",
     )
     p.add_argument(
         "--apart",
         action="append",
         default=[],
-        choices=["fault_monitor", "wavelet_controller"],
+        choices=["fault_monitor", "wavelet_controller", "recorder"],
         help="with --composed: run this node in its own process (repeatable; e.g. the fault "
         "monitor apart leaves the stack's core to the control path)",
     )
@@ -465,8 +465,12 @@ def run(args: argparse.Namespace) -> int:
     finally:
         progress.close()
         codes = {}
-        for r in sorted(runs, key=lambda r: r.name == "recorder"):  # recorder last
-            if r.name == "recorder":
+
+        def records(r: NodeRun) -> bool:
+            return r.name == "recorder" or "recorder" in r.hosts
+
+        for r in sorted(runs, key=records):  # the recorder (or the stack holding it) last
+            if records(r):
                 time.sleep(0.5)
             codes[r.name] = r.stop()
     wall = time.monotonic() - t0

@@ -65,8 +65,11 @@ NODE_MODULES = {
     "plant_sim": "amb_plant_sim.node",
     "wavelet_stack": "amb_apps.stack",  # the three above composed in one process
 }
-#: The nodes ``wavelet_stack`` composes (``amb-run --composed``, the launch file's composed:=true).
-COMPOSED = ("wavelet_filterbank", "fault_monitor", "wavelet_controller")
+#: The nodes ``wavelet_stack`` composes (``amb-run --composed``, the launch file's composed:=true),
+#: in creation order: the recorder last, once the streams it takes in process are on the bus.
+COMPOSED = ("wavelet_filterbank", "fault_monitor", "wavelet_controller", "recorder")
+#: The composed nodes that read the measurements with a catch-up bound (not the recorder).
+SAMPLING = COMPOSED[:3]
 #: The executable composing them.
 STACK = "wavelet_stack"
 #: The node publishing each stream (composed or not: each node reports under its own name).
@@ -139,7 +142,7 @@ def run_parameters(
     if mode:
         plant["mode"] = mode
     if mode == "realtime" and spr:
-        for name in COMPOSED:
+        for name in SAMPLING:
             if name in out:
                 out[name]["max_backlog"] = REALTIME_BACKLOG_REVS * int(spr)
     if "wavelet_controller" in out:
@@ -174,10 +177,12 @@ def stream_readers(names, hosted: tuple[str, ...] = ()) -> dict[str, int]:
     -------
     dict
         Topic -> readers, for the streams whose publisher is started; the recorder subscribes
-        every stream at start (``topic_types``), so it counts on each.
+        every stream at start (``topic_types``), so it counts on each (composed, not on the two
+        it takes in process).
     """
     has = set(names)
     recorder = int("recorder" in has)
+    in_process = (topics.MEASUREMENT, topics.COEFFICIENTS) if "recorder" in hosted else ()
     consumers = {
         topics.MEASUREMENT: {"wavelet_filterbank", "fault_monitor", "wavelet_controller"},
         topics.COEFFICIENTS: {"fault_monitor", "wavelet_controller"},
@@ -190,7 +195,7 @@ def stream_readers(names, hosted: tuple[str, ...] = ()) -> dict[str, int]:
         consumers[topics.COEFFICIENTS] -= set(hosted)
         has.add(STACK)
     return {
-        topic: len(nodes & has) + recorder
+        topic: len(nodes & has) + (recorder if topic not in in_process else 0)
         for topic, nodes in consumers.items()
         if PUBLISHERS[topic] in has
     }

@@ -77,6 +77,9 @@ class BacklogReader:
         QoS of the subscription.
     max_backlog : int
         Messages kept when more are queued; 0: every message is delivered, one per wake.
+    on_dropped : callable, optional
+        Called with the CDR bytes of each message dropped, oldest first, before the kept ones
+        are delivered (a reader that must lose nothing: a composed recorder).
 
     Attributes
     ----------
@@ -94,10 +97,12 @@ class BacklogReader:
         deliver: Callable[[bytes], None],
         qos: QoSProfile,
         max_backlog: int = 0,
+        on_dropped: Callable[[bytes], None] | None = None,
     ) -> None:
         if max_backlog < 0:
             raise ValueError(f"max_backlog = {max_backlog}: must be >= 0 (0 = keep every sample)")
         self._deliver = deliver
+        self._on_dropped = on_dropped
         self._msg_type = msg_type
         self.max_backlog = int(max_backlog)
         self.dropped = self.episodes = 0
@@ -122,6 +127,9 @@ class BacklogReader:
                 f"{self.max_backlog}: the oldest {excess} dropped to catch up "
                 f"({self.dropped} in {self.episodes} overloads so far)",
             )
+            if self._on_dropped is not None:
+                for item in batch[:excess]:
+                    self._on_dropped(item)
             del batch[:excess]
         for item in batch:
             self._deliver(item)

@@ -41,6 +41,7 @@ class _Topic:
 
     msg_type: type
     readers: list[RawCallback] = field(default_factory=list)
+    lossless: list[RawCallback] = field(default_factory=list)  # also get what a catch-up drops
     local: bool = False  # published by a composed node (else: one DDS reader feeds the readers)
     dds_reader: BacklogReader | None = None
 
@@ -82,6 +83,7 @@ class LocalBus:
         callback: RawCallback,
         qos: QoSProfile,
         max_backlog: int = 0,
+        lossless: bool = False,
     ) -> BacklogReader | None:
         """
         Hand every message of topic ``name`` (CDR bytes) to ``callback``.
@@ -102,6 +104,9 @@ class LocalBus:
         max_backlog : int
             The DDS reader's catch-up bound (:class:`amb_tools.backlog.BacklogReader`); the
             first reader of a topic sets it for all.
+        lossless : bool
+            Also hand over, in order, the messages the shared DDS reader drops to catch up
+            (the composed recorder: every sample in the bag while the control nodes skip).
 
         Returns
         -------
@@ -110,12 +115,21 @@ class LocalBus:
         """
         resolved, topic = self._topic(node, msg_type, name)
         topic.readers.append(callback)
+        if lossless:
+            topic.lossless.append(callback)
         if not topic.local and topic.dds_reader is None:
             topic.dds_reader = BacklogReader(
                 node, msg_type, resolved, lambda raw, t=topic: self._deliver(t, raw), qos,
-                max_backlog,
+                max_backlog, lambda raw, t=topic: self._deliver_dropped(t, raw),
             )  # fmt: skip
         return topic.dds_reader
+
+    def carries(self, node: Node, name: str) -> bool:
+        """Whether topic ``name`` (resolved against ``node``) is on the bus already."""
+        resolved = node.resolve_topic_name(name)
+        return resolved in self._topics or any(
+            node.resolve_topic_name(n) == resolved for n in self._local_names
+        )
 
     def publisher(self, node: Node, msg_type: type, name: str, qos: QoSProfile) -> StreamPublisher:
         """A publisher of ``name`` that also hands each message to the composed readers."""
@@ -129,6 +143,10 @@ class LocalBus:
 
     def _deliver(self, topic: _Topic, raw: bytes) -> None:
         for reader in topic.readers:
+            reader(raw)
+
+    def _deliver_dropped(self, topic: _Topic, raw: bytes) -> None:
+        for reader in topic.lossless:
             reader(raw)
 
 

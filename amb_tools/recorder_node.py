@@ -44,6 +44,16 @@ therefore wakes at the timer's rate, not at the message rate: a wake of the
 per message cost the recorder: ``docs/history.md``, "Recorder: one wake per message").
 The receive stamp (``stamp_source: receive``) is the middleware's reception time of each
 message, so that it does not depend on when the queue was drained.
+
+Composed (``wavelet_stack``, a :class:`~amb_tools.local_bus.LocalBus` given): the streams the
+bus carries (the measurements the stack takes from DDS once, the coefficients its filterbank
+publishes) are handed to the recorder in process, every message, including those the control
+nodes skip to catch up after an overload (``lossless``); no DDS reader of its own for them, and
+no subscriber for the stack's coefficient publisher to serve. The other topics are subscribed as
+usual with an ordinary callback (the stack's ``EventsExecutor`` runs callbacks, not wait sets:
+a :class:`DrainedGroup` is not for it), and a thread writes the bag
+(:class:`~amb_tools.bag_writer.QueuedBagWriter`): the control thread only queues. The receive
+stamp is then the node clock at the hand-over.
 """
 
 from __future__ import annotations
@@ -65,7 +75,8 @@ from rclpy.qos import (
 from std_msgs.msg import Header
 
 from amb_common import topics
-from amb_tools.bag_writer import STORAGE_PLUGINS, BagWriter, header_stamp_ns
+from amb_tools.bag_writer import STORAGE_PLUGINS, BagWriter, QueuedBagWriter, header_stamp_ns
+from amb_tools.local_bus import LocalBus
 from amb_tools.node_main import ConfigurationError, descriptor, run_node
 
 STAMP_SOURCES = ("receive", "header")
@@ -110,10 +121,17 @@ def _has_header(msg_class: type) -> bool:
 
 
 class Recorder(Node):
-    """Record matching topics to a rosbag2 (see the module docstring)."""
+    """Record matching topics to a rosbag2 (see the module docstring).
 
-    def __init__(self) -> None:
+    Parameters
+    ----------
+    bus : amb_tools.local_bus.LocalBus, optional
+        The streams of the process it is composed in; None: on its own.
+    """
+
+    def __init__(self, bus: LocalBus | None = None) -> None:
         super().__init__("recorder")
+        self._bus = bus
         d = self.declare_parameter
         d("output", "", descriptor("bag folder to create"))
         d(
@@ -178,7 +196,10 @@ class Recorder(Node):
             raise ConfigurationError(f"parameter 'topics' = {patterns!r}: empty pattern")
         # relative patterns match the names the node's relative topics resolve to
         self._patterns = [topics.absolute(p, self.get_namespace()) for p in patterns]
-        self._bag = BagWriter(output, storage=storage)
+        if bus is None:
+            self._bag = BagWriter(output, storage=storage)
+        else:
+            self._bag = QueuedBagWriter(output, storage=storage)
         self._recorded: dict[str, Any] = {}
         self._drained = DrainedGroup()
         self._readers: list[tuple[Any, Any]] = []  # (subscription, writer of one message)
@@ -187,7 +208,8 @@ class Recorder(Node):
         status_period = self.get_parameter("status_period").value
         if status_period > 0:
             self.create_timer(status_period, self._publish_status)
-        self.create_timer(self.get_parameter("drain_period").value, self.drain)
+        if bus is None:  # composed, the subscriptions have callbacks (module docstring)
+            self.create_timer(self.get_parameter("drain_period").value, self.drain)
         for entry in self.get_parameter("topic_types").value:
             if not entry:
                 continue
@@ -249,13 +271,20 @@ class Recorder(Node):
                 t_ns = clock.now().nanoseconds
             self._bag.write_raw(topic, t_ns, raw)
 
+        if self._bus is not None and self._bus.carries(self, topic):
+            self._bus.subscribe(
+                self, msg_class, topic, lambda raw: write(raw, {}), self._qos_for(topic),
+                lossless=True,
+            )  # fmt: skip
+            self._recorded[topic] = self._bus
+            self.get_logger().info(f"recording {topic} [{msgtype}] (in process)")
+            return
+        if self._bus is None:
+            callback, group = (lambda raw: None), self._drained  # never called: drained
+        else:
+            callback, group = (lambda raw: write(raw, {})), None
         sub = self.create_subscription(
-            msg_class,
-            topic,
-            lambda raw: None,  # never called: the group is drained (DrainedGroup)
-            self._qos_for(topic),
-            callback_group=self._drained,
-            raw=True,
+            msg_class, topic, callback, self._qos_for(topic), callback_group=group, raw=True
         )
         self._recorded[topic] = sub
         self._readers.append((sub, write))
@@ -279,7 +308,7 @@ class Recorder(Node):
             name=topics.diagnostic_name("recorder", self.get_namespace()),
             message=f"{sum(self._bag.counts.values())} messages written to {self._bag.path}",
             hardware_id=str(self._bag.path),
-            values=[KeyValue(key=t, value=str(n)) for t, n in sorted(self._bag.counts.items())],
+            values=[KeyValue(key=t, value=str(n)) for t, n in sorted(self.counts.items())],
         )
         self._diag_pub.publish(
             DiagnosticArray(header=_stamp(self.get_clock().now()), status=[status])
@@ -294,6 +323,11 @@ class Recorder(Node):
         """Write what is still queued, close the bag and log what was written."""
         self.drain()
         self._bag.close()
+        failed = getattr(self._bag, "failed", 0)
+        if failed:
+            self.get_logger().error(
+                f"{failed} messages could not be written to the bag; first: {self._bag.error}"
+            )
         summary = ", ".join(f"{t}: {n}" for t, n in sorted(self._bag.counts.items())) or "nothing"
         self.get_logger().info(f"bag {self._bag.path} closed; messages written: {summary}")
 

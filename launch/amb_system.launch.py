@@ -53,7 +53,8 @@ ARGUMENTS = (
     ("with_plant", "true", "start plant_sim (false: your I/O bridge publishes the rig)"),
     ("namespace", "/", "namespace of every node (/rig1: topics /rig1/amb/...; default /)"),
     ("composed", "false",
-     "true: the filterbank, fault monitor and controller in one process (wavelet_stack)"),
+     "true: the filterbank, fault monitor, controller and recorder in one process "
+     "(wavelet_stack)"),
 )  # fmt: skip
 
 
@@ -92,7 +93,7 @@ def _nodes(context) -> list:
         if name not in hosted
     }
     if hosted:
-        # One process, several nodes: no name remap (it would rename all three); the run's
+        # One process, several nodes: no name remap (it would rename all of them); the run's
         # parameters go in a params file keyed by each node's full name, as amb-run writes it.
         fd, run_file = tempfile.mkstemp(prefix="amb_stack_", suffix=".yaml")
         with os.fdopen(fd, "w") as f:

@@ -6,12 +6,15 @@ handed over in process): the fault events in the two bags carry the same type, p
 indices (onset, first crossing, decision), and every node reported the plant's last sample
 (amb-run's drain). A third run composes the filterbank and controller with the monitor apart
 (``--apart fault_monitor``: it reads the stack's coefficients over DDS): the same events. The
+recorder composed in the stack (taking the two streams in process) writes as many messages of
+each stream topic as the recorder in its own process. The
 controller and filterbank of the composed process are compared with amb-sim bit for bit in
 ``test_lockstep_determinism``.
 """
 
 from __future__ import annotations
 
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -42,6 +45,11 @@ def _events(bag: Path) -> list[tuple]:
     return out
 
 
+def _counts(bag: Path) -> dict[str, int]:
+    with Reader(bag) as reader:
+        return {c.topic: c.msgcount for c in reader.connections if c.topic != "/diagnostics"}
+
+
 def _run(scenario: Path, out: Path, *extra: str) -> str:
     run = subprocess.run(
         [sys.executable, "-m", "amb_apps.run_cli", "--scenario", str(scenario),
@@ -58,7 +66,8 @@ def test_composed_fault_monitor_gives_the_same_events(tmp_path, ros_domain_id) -
     scenario = tmp_path / "scenario.yaml"
     scenario.write_text(yaml.safe_dump(SCENARIO))
     _run(scenario, tmp_path / "processes")
-    _run(scenario, tmp_path / "composed", "--composed")
+    stdout = _run(scenario, tmp_path / "composed", "--composed")
+    last = int(re.search(r"processed the plant's last sample (\d+)", stdout).group(1))
     assert (tmp_path / "composed" / "logs" / "wavelet_stack.log").is_file()
     _run(scenario, tmp_path / "apart", "--composed", "--apart", "fault_monitor")
     assert {p.name for p in (tmp_path / "apart" / "logs").glob("*.log")} >= {
@@ -69,6 +78,9 @@ def test_composed_fault_monitor_gives_the_same_events(tmp_path, ros_domain_id) -
     assert separate, "the monitor found no fault in the mass loss"
     assert composed == separate
     assert _events(tmp_path / "apart" / "bag") == separate  # the stack's coefficients over DDS
+    recorded = _counts(tmp_path / "processes" / "bag")
+    assert recorded["/amb/measurement"] == last + 1  # every sample the plant produced
+    assert _counts(tmp_path / "composed" / "bag") == recorded  # the recorder in the stack
 
 
 def test_apart_needs_composed(tmp_path) -> None:

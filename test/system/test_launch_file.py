@@ -160,7 +160,15 @@ def test_stream_readers_count_a_composed_stack_once_and_a_node_apart_on_its_own(
     assert (composed[measurements], composed[coefficients]) == (2, 1)  # stack, recorder
     apart = stream_readers(NODES, ("wavelet_filterbank", "wavelet_controller"))
     assert (apart[measurements], apart[coefficients]) == (3, 2)  # + the monitor's own readers
+    # the recorder composed too: the two streams in process, the commands over DDS
+    recording = stream_readers(NODES, (*stack, "recorder"))
+    assert (recording[measurements], recording[coefficients]) == (1, 0)
+    assert recording[topics.COMMAND] == alone[topics.COMMAND] == 1
     path = scenario_file("contact_misalignment_second_bending.yaml")
-    for hosted, counts in ((stack, composed), (stack[::2], apart)):
+    for hosted, counts in (
+        (stack, composed),
+        (stack[::2], apart),
+        ((*stack, "recorder"), recording),
+    ):
         plant = run_parameters(path, hosted=hosted)["plant_sim"]
         assert plant["wait_for_subscribers"] == counts[measurements]

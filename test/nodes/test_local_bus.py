@@ -1,0 +1,51 @@
+"""The in-process bus over real DDS: a catch-up drops for the control readers, not the recorder.
+
+A :class:`~amb_tools.local_bus.LocalBus` feeds two readers of an outside topic from one DDS
+reader bounded at 4 messages: a burst of 40 queued measurements (all acknowledged by the reader
+before it spins) reaches the bounded reader as its newest 4, one counted overload, and the
+``lossless`` reader (the composed recorder) as all 40, in order.
+"""
+
+from __future__ import annotations
+
+import pytest
+from amb_msgs.msg import Measurement
+from rclpy.duration import Duration
+from rclpy.serialization import serialize_message
+
+from amb_tools.cdr import read_measurement
+from amb_tools.local_bus import LocalBus
+from amb_tools.streams import stream_qos
+
+pytestmark = pytest.mark.ros
+
+BURST = 40
+BOUND = 4
+
+
+def test_a_catch_up_drop_reaches_the_lossless_reader_in_order(ros) -> None:
+    reader_node = ros.node("amb_test_bus_reader")
+    driver = ros.node("amb_test_bus_driver")
+    qos = stream_qos(16)
+    pub = driver.create_publisher(Measurement, "/amb/measurement", qos)
+    bus = LocalBus()
+    bounded: list[int] = []
+    everything: list[int] = []
+    shared = bus.subscribe(
+        reader_node, Measurement, "/amb/measurement",
+        lambda raw: bounded.append(read_measurement(raw).sample_index), qos, max_backlog=BOUND,
+    )  # fmt: skip
+    again = bus.subscribe(
+        reader_node, Measurement, "/amb/measurement",
+        lambda raw: everything.append(read_measurement(raw).sample_index), qos, lossless=True,
+    )  # fmt: skip
+    assert again is shared  # one DDS reader for the process
+    assert ros.spin_until(lambda: pub.get_subscription_count() == 1, timeout=30.0)
+    for k in range(BURST):
+        pub.publish(serialize_message(Measurement(sample_index=k, samples_per_rev=16)))
+    # every message is in the reader's queue (reliable: acknowledged) before it is taken
+    assert pub.wait_for_all_acked(Duration(seconds=30.0))
+    assert ros.spin_until(lambda: len(everything) >= BURST, timeout=30.0), (bounded, everything)
+    assert everything == list(range(BURST))
+    assert bounded == list(range(BURST - BOUND, BURST))
+    assert (shared.dropped, shared.episodes) == (BURST - BOUND, 1)
