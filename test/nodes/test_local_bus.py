@@ -3,17 +3,18 @@
 A :class:`~amb_tools.local_bus.LocalBus` feeds two readers of an outside topic from one DDS
 reader bounded at 4 messages: a burst of 40 queued measurements (all acknowledged by the reader
 before it spins) reaches the bounded reader as its newest 4, one counted overload, and the
-``lossless`` reader (the composed recorder) as all 40, in order.
+``lossless`` reader (the composed recorder) as all 40, in order. A stream published in
+process reaches its composed readers whole and an outside DDS reader from its match on.
 """
 
 from __future__ import annotations
 
 import pytest
-from amb_msgs.msg import Measurement
+from amb_msgs.msg import Measurement, WaveletCoefficients
 from rclpy.duration import Duration
 from rclpy.serialization import serialize_message
 
-from amb_tools.cdr import read_measurement
+from amb_tools.cdr import read_coefficients, read_measurement
 from amb_tools.local_bus import LocalBus
 from amb_tools.streams import stream_qos
 
@@ -49,3 +50,34 @@ def test_a_catch_up_drop_reaches_the_lossless_reader_in_order(ros) -> None:
     assert everything == list(range(BURST))
     assert bounded == list(range(BURST - BOUND, BURST))
     assert (shared.dropped, shared.episodes) == (BURST - BOUND, 1)
+
+
+def test_a_local_stream_reaches_a_reader_outside_from_its_match_on(ros) -> None:
+    """Published in process with no DDS reader, then with one: it gets the rest, in order."""
+    writer_node = ros.node("amb_test_bus_writer")
+    outside = ros.node("amb_test_bus_outside")
+    qos = stream_qos(16)
+    bus = LocalBus(local_topics=("/amb/wavelet/coefficients",))
+    inside: list[int] = []
+    pub = bus.publisher(writer_node, WaveletCoefficients, "/amb/wavelet/coefficients", qos)
+    bus.subscribe(
+        writer_node, WaveletCoefficients, "/amb/wavelet/coefficients",
+        lambda raw: inside.append(read_coefficients(raw).sample_index), qos,
+    )  # fmt: skip
+
+    def message(k: int) -> bytes:
+        return serialize_message(WaveletCoefficients(sample_index=k))
+
+    for k in range(100):
+        pub.publish(message(k))
+    got: list[int] = []
+    outside.create_subscription(
+        WaveletCoefficients, "/amb/wavelet/coefficients", lambda m: got.append(m.sample_index),
+        qos,
+    )  # fmt: skip
+    assert ros.spin_until(lambda: pub.dds.get_subscription_count() == 1, timeout=30.0)
+    for k in range(100, 300):
+        pub.publish(message(k))
+    assert ros.spin_until(lambda: got and got[-1] == 299, timeout=30.0), got
+    assert inside == list(range(300))  # the composed reader: everything
+    assert got == list(range(100, 300))  # everything after the writer counted it matched
