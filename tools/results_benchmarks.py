@@ -3,8 +3,9 @@ The timing benchmarks of ``docs/results.md``: their commands and their Markdown.
 
 The sections ``msg-arrays`` (``python -m timeit`` on filling a ``float64[]`` message field),
 ``plant-bench`` (``bench/plant_sim.py`` at one OpenBLAS thread and at ``nproc``) and
-``executor`` (``bench/pipeline.py`` with each rclpy executor). ``results_sections.SECTIONS``
-lists them with the others.
+``executor`` (``bench/pipeline.py`` with each rclpy executor) and ``deployment``
+(``bench/pipeline.py`` at the rig's top speed, each way of grouping the nodes in processes).
+``results_sections.SECTIONS`` lists them with the others.
 """
 
 from __future__ import annotations
@@ -137,6 +138,62 @@ def _executor_report(outs: list[Output], work: Path) -> list[str]:
             "rt p50 (ms)",
             "rt p99 (ms)",
             "p99 / period",
+            "missing",
+            "late",
+            "load",
+        ],
+        rows,
+    )
+
+
+#: (label, bench/pipeline.py arguments) of the ``deployment`` section, in the order run.
+DEPLOYMENTS = (
+    ("one process per node", []),
+    ("wavelet_stack, recorder apart", ["--composed", "--apart", "recorder"]),
+    ("wavelet_stack with the recorder", ["--composed"]),
+)
+
+
+def _deployment_commands(work: Path, args) -> list[Command]:
+    argv = [sys.executable, "bench/pipeline.py", "--cases", "67:32", "--duration", "20",
+            "--repeat", "3"]  # fmt: skip
+    return [Command(argv + extra, echo_stdout=True) for _, extra in DEPLOYMENTS]
+
+
+def _deployment_report(outs: list[Output], work: Path) -> list[str]:
+    rows = []
+    for (label, _), out in zip(DEPLOYMENTS, outs, strict=True):
+        for r in parse_pipeline_bench(out.stdout):
+            rows.append(
+                [
+                    label,
+                    r["run"],
+                    f"{r['rtf']:.2f}",
+                    _num(r["controlled"], ".1%"),
+                    _num(r["p99_of_period"], ".0%"),
+                    _num(r["arrival_p99_ms"], "+.1f"),
+                    r["missing"],
+                    r["late"],
+                    f"{r['load']:.1f}",
+                ]
+            )
+    lines = [
+        "The four nodes and the recorder at 67 Hz x 32 samples/rev (`bench/pipeline.py`, 20 s "
+        "simulated per run, 3 runs and their median per deployment, transient control ACTIVE): "
+        "lock-step real-time factor; in `realtime` the share of control periods that ran with "
+        "their command, the p99 command latency as a share of the period, the p99 of a "
+        "command's arrival minus its period's start (negative: in time), commands missing and "
+        "late. `load`: 1-minute load average at the end of each run.",
+        "",
+    ]
+    return lines + table(
+        [
+            "deployment",
+            "run",
+            "lock-step RTF",
+            "controlled",
+            "p99 / period",
+            "arrival p99 (ms)",
             "missing",
             "late",
             "load",

@@ -210,7 +210,10 @@ def parse_fault_eval(text: str) -> dict:
 
 _BENCH_ROW = re.compile(
     r"^\s*(?P<hz>[\d.]+) Hz x (?P<spr>\d+) (?P<run>#\d+|median)\s+(?P<rtf>\S+)\s+(?P<p50>\S+)\s+"
-    r"(?P<p99>\S+)\s+(?P<frac>\S+)%\s+(?P<missing>-?\d+)\s+(?P<late>-?\d+)\s+(?P<load>\S+)\s*$",
+    r"(?P<p99>\S+)\s+(?P<frac>\S+)%\s+(?P<controlled>\S+)%\s+(?P<arr99>\S+)\s+"
+    r"(?P<missing>-?\d+)\s+(?P<late>-?\d+)\s+(?P<load>\S+)"
+    r"(?:\s+(?P<hog_on>[\d.]+)-(?P<hog_off>\S+)\s+(?P<before>\S+)%\s+(?P<during>\S+)%\s+"
+    r"(?P<after>\S+)%\s+(?P<recover>\S+)\s+(?P<lost>-?\d+))?\s*$",
     re.M,
 )
 
@@ -225,14 +228,26 @@ def parse_pipeline_bench(text: str) -> list[dict]:
             "p50_ms": float(m["p50"]),
             "p99_ms": float(m["p99"]),
             "p99_of_period": float(m["frac"]) / 100,
+            "controlled": float(m["controlled"]) / 100,
+            "arrival_p99_ms": float(m["arr99"]),
             "missing": int(m["missing"]),
             "late": int(m["late"]),
             "load": float(m["load"]),
+            **(
+                {
+                    "hog_s": (float(m["hog_on"]), float(m["hog_off"])),
+                    **{k: float(m[k]) / 100 for k in ("before", "during", "after")},
+                    "recover_periods": float(m["recover"]),
+                    "lost": int(m["lost"]),
+                }
+                if m["hog_on"]
+                else {}
+            ),
         }
         for m in _BENCH_ROW.finditer(text)
     ]
     if not rows:
-        raise _fail("executor", "rows '<hz> Hz x <spr> #<run> <rtf> <p50> <p99> <frac>% ...'", text)
+        raise _fail("pipeline", "rows '<hz> Hz x <spr> #<run> <rtf> <p50> <p99> <frac>% ...'", text)
     return rows
 
 

@@ -17,6 +17,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from results_benchmarks import (
+    _deployment_commands,
+    _deployment_report,
     _executor_commands,
     _executor_report,
     _msg_commands,
@@ -396,6 +398,14 @@ SECTIONS = [
         "amb_tools.node_main.make_executor's default",
         _executor_commands,
         _executor_report,
+    ),
+    Section(
+        "deployment",
+        "The node set at 67 Hz x 32: processes, composed, the recorder in the stack",
+        "tens of minutes",
+        "README (amb-run --composed at the rig's top speed), amb_apps.stack",
+        _deployment_commands,
+        _deployment_report,
     ),
     Section(
         "fault-eval",

@@ -61,12 +61,22 @@ ratio 11 Hz / 67 Hz without contact (same run): 1.25
 target >= 20x real time without contact: met
 """
 
-PIPELINE_BENCH = """\
-      case / run  lockstep RTF  rt p50 ms   p99 ms  p99/period  missing  late   load
-   67 Hz x 32 #1          0.67      16.02    25.31        5.4%        0     0    3.2
-   11 Hz x 64 #1          1.41        nan      nan        nan%       -1    -1    3.4
-targets: lock-step RTF >= 1.0 at both speeds; realtime p99 < 10% of the period at 67 Hz
-"""
+PIPELINE_BENCH = "\n".join(
+    [
+        "      case / run  lockstep RTF  rt p50 ms   p99 ms  p99/period  controlled  arr p99 ms "
+        " missing  late   load",
+        "   67 Hz x 32 #1          0.67      16.02    25.31        5.4%       96.5%      +22.66 "
+        "      47    47    3.2",
+        "   11 Hz x 64 #1          1.41        nan      nan        nan%        nan%         nan "
+        "      -1    -1    3.4",
+        "targets (#17): lock-step RTF >= 2 at 67 Hz x 32, >= 3 at 11 Hz x 64; realtime: 0 missing",
+    ]
+)
+
+PIPELINE_HOG = (
+    "   67 Hz x 32 #1          1.11       5.88    17.33      116.1%       11.8%     +158.22     "
+    "1772  1638    2.2   8.3-18.3    25.4%    0.7%   11.5%    784.7     0\n"
+)
 
 RUN_STDOUT = """\
 [amb-run] mass_loss_first_critical: starting plant_sim, wavelet_filterbank, fault_monitor
@@ -216,7 +226,12 @@ def test_pipeline_bench_parser_reads_each_row_including_nan() -> None:
     rows = P.parse_pipeline_bench(PIPELINE_BENCH)
     assert [r["case"] for r in rows] == ["67 Hz x 32", "11 Hz x 64"]
     assert rows[0]["rtf"] == 0.67 and rows[0]["p99_of_period"] == pytest.approx(0.054)
+    assert rows[0]["controlled"] == pytest.approx(0.965) and rows[0]["arrival_p99_ms"] == 22.66
     assert math.isnan(rows[1]["p50_ms"]) and rows[1]["missing"] == -1
+    assert math.isnan(rows[1]["controlled"]) and "hog_s" not in rows[0]
+    (hog,) = P.parse_pipeline_bench(PIPELINE_HOG)
+    assert hog["hog_s"] == (8.3, 18.3) and hog["during"] == pytest.approx(0.007)
+    assert (hog["recover_periods"], hog["lost"], hog["missing"]) == (784.7, 0, 1772)
 
 
 def test_run_parser_reads_the_drain_and_the_plant_line() -> None:
