@@ -31,6 +31,7 @@ nothing changes.
 from __future__ import annotations
 
 import cProfile
+import gc
 import json
 import os
 import signal
@@ -193,6 +194,11 @@ def run_nodes(
         for node in nodes:
             spinner.add_node(node)
             node.callback_errors = 0
+        # What exists now (modules, models, discretisations) lives as long as the process. A
+        # full collection scanning it paused wavelet_stack for 28-64 ms at 67 Hz x 32 (four
+        # control periods: a run of late commands); frozen, the collector leaves it out.
+        gc.collect()
+        gc.freeze()
         profiler = _Profiler.from_environment()
         if profiler is not None:
             profiler.start()
