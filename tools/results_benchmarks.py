@@ -151,6 +151,10 @@ DEPLOYMENTS = (
     ("one process per node", []),
     ("wavelet_stack, recorder apart", ["--composed", "--apart", "recorder"]),
     ("wavelet_stack with the recorder", ["--composed"]),
+    (
+        "wavelet_stack with the recorder, monitor apart (nice 5)",
+        ["--composed", "--apart", "fault_monitor", "--nice", "fault_monitor=5"],
+    ),
 )
 
 
