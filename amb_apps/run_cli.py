@@ -26,7 +26,8 @@ machine and ROS domain, does not cross-talk with this one; the bag then holds
 nodes name their reports with their namespace (``rig1/plant_sim``), and the progress and the
 drain read only this run's.
 
-Scheduling: the recorder, off the control loop, runs with a higher nice value
+Scheduling: the recorder, off the control loop, runs with a higher nice value in its own
+process (``--composed`` hosts it in ``wavelet_stack``, where a thread writes the bag)
 (:data:`NICENESS`, ``--nice NODE=N`` to change, e.g. ``--nice fault_monitor=5`` as well: it
 then lags, and the end of the run waits for it to drain),
 so that when the CPU is short the plant, filterbank and controller, whose chain sets the
