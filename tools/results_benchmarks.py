@@ -105,23 +105,21 @@ def _executor_commands(work: Path, args) -> list[Command]:
     return [Command(argv, env={"AMB_EXECUTOR": e}, echo_stdout=True) for e in ("events", "single")]
 
 
+def _cells(r: dict, columns: tuple[tuple[str, str], ...]) -> list:
+    """A row's cells: ``(key, format)`` per column (format "": the value as it is)."""
+    return [_num(r[key], fmt) if fmt else r[key] for key, fmt in columns]
+
+
 def _executor_report(outs: list[Output], work: Path) -> list[str]:
-    rows = []
-    for executor, out in zip(("events", "single"), outs, strict=True):
-        for r in parse_pipeline_bench(out.stdout):
-            rows.append(
-                [
-                    f"{r['case']} {r['run']}",
-                    executor,
-                    f"{r['rtf']:.2f}",
-                    _num(r["p50_ms"], ".2f"),
-                    _num(r["p99_ms"], ".2f"),
-                    _num(r["p99_of_period"], ".1%"),
-                    r["missing"],
-                    r["late"],
-                    f"{r['load']:.1f}",
-                ]
-            )
+    columns = (
+        ("rtf", ".2f"), ("p50_ms", ".2f"), ("p99_ms", ".2f"), ("p99_of_period", ".1%"),
+        ("missing", ""), ("late", ""), ("load", ".1f"),
+    )  # fmt: skip
+    rows = [
+        [f"{r['case']} {r['run']}", executor, *_cells(r, columns)]
+        for executor, out in zip(("events", "single"), outs, strict=True)
+        for r in parse_pipeline_bench(out.stdout)
+    ]
     lines = [
         "The four nodes and the recorder over DDS (`bench/pipeline.py`, 4 s simulated per run), "
         "with rclpy's `EventsExecutor` (`AMB_EXECUTOR=events`, the default) and the "
@@ -165,22 +163,15 @@ def _deployment_commands(work: Path, args) -> list[Command]:
 
 
 def _deployment_report(outs: list[Output], work: Path) -> list[str]:
-    rows = []
-    for (label, _), out in zip(DEPLOYMENTS, outs, strict=True):
-        for r in parse_pipeline_bench(out.stdout):
-            rows.append(
-                [
-                    label,
-                    r["run"],
-                    f"{r['rtf']:.2f}",
-                    _num(r["controlled"], ".1%"),
-                    _num(r["p99_of_period"], ".0%"),
-                    _num(r["arrival_p99_ms"], "+.1f"),
-                    r["missing"],
-                    r["late"],
-                    f"{r['load']:.1f}",
-                ]
-            )
+    columns = (
+        ("rtf", ".2f"), ("controlled", ".1%"), ("p99_of_period", ".0%"),
+        ("arrival_p99_ms", "+.1f"), ("missing", ""), ("late", ""), ("load", ".1f"),
+    )  # fmt: skip
+    rows = [
+        [label, r["run"], *_cells(r, columns)]
+        for (label, _), out in zip(DEPLOYMENTS, outs, strict=True)
+        for r in parse_pipeline_bench(out.stdout)
+    ]
     lines = [
         "The four nodes and the recorder at 67 Hz x 32 samples/rev (`bench/pipeline.py`, 20 s "
         "simulated per run, 3 runs and their median per deployment, transient control ACTIVE): "
