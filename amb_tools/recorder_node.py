@@ -306,7 +306,7 @@ class Recorder(Node):
         status = DiagnosticStatus(
             level=DiagnosticStatus.OK,
             name=topics.diagnostic_name("recorder", self.get_namespace()),
-            message=f"{sum(self._bag.counts.values())} messages written to {self._bag.path}",
+            message=f"{sum(self.counts.values())} messages written to {self._bag.path}",
             hardware_id=str(self._bag.path),
             values=[KeyValue(key=t, value=str(n)) for t, n in sorted(self.counts.items())],
         )
@@ -316,7 +316,7 @@ class Recorder(Node):
 
     @property
     def counts(self) -> dict[str, int]:
-        """Messages written so far, per topic."""
+        """Messages written so far, per topic (a copy: composed, a thread writes them)."""
         return dict(self._bag.counts)
 
     def on_shutdown(self) -> None:
