@@ -63,7 +63,7 @@ NODE_MODULES = {
     "fault_monitor": "amb_fault_monitor.node",
     "wavelet_controller": "amb_controller.node",
     "plant_sim": "amb_plant_sim.node",
-    "wavelet_stack": "amb_apps.stack",  # the three above composed in one process
+    "wavelet_stack": "amb_apps.stack",  # the other nodes but the plant composed in one process
 }
 #: The nodes ``wavelet_stack`` composes (``amb-run --composed``, the launch file's composed:=true),
 #: in creation order: the recorder last, once the streams it takes in process are on the bus.

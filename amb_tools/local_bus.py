@@ -8,8 +8,9 @@ controller and the fault monitor. A :class:`LocalBus` shared by nodes created in
 (``wavelet_stack``, :mod:`amb_apps.stack`) carries the streams as raw CDR bytes:
 
 - a topic published by one of the composed nodes (the filterbank's coefficients) is still
-  published on DDS for every outside reader (the recorder, tools, another host) and handed, in
-  the publisher's call, to the composed readers, which create no DDS reader of their own;
+  published on DDS for every outside reader (a recorder or tool in another process, another
+  host) and handed, in the publisher's call, to the composed readers, which create no DDS
+  reader of their own;
 - a topic published outside (the plant's or the bridge's measurements) is taken from DDS by one
   raw reader for the whole process, and each message is handed to every composed reader.
 
