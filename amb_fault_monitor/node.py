@@ -333,14 +333,19 @@ class FaultMonitorNode(Node):
         self._last_reason = reason
         self._warnings.warning(counter, reason)
 
-    def _sequence(self, seq: SampleSequencer, index: int, item: tuple, omega: float) -> list:
-        """Offer a checked (message view, CDR) pair to a sequencer; return the accepted pairs."""
+    def _sequence(
+        self, stream: str, seq: SampleSequencer, index: int, item: tuple, omega: float
+    ) -> list:
+        """Offer a checked (message view, CDR) pair to a stream's sequencer; return accepted pairs.
+
+        ``stream`` names it for the warnings (throttled per stream).
+        """
         before = dict(seq.counts)
         accepted = seq.push(index, stamp_seconds(item[0].header.stamp), omega, item)
         if seq.counts != before:
             self._last_reason = seq.last_reason
             if any(seq.counts[k] != before[k] for k in ("stray", "stamp", "repeat")):
-                self._warnings.warning(f"sequence {id(seq)}", self._last_reason)
+                self._warnings.warning(f"sequence {stream}", self._last_reason)
         return accepted
 
     def _on_measurement(self, raw: bytes) -> None:
@@ -355,8 +360,9 @@ class FaultMonitorNode(Node):
             self._reject("measurements_rejected", f"sample {msg.sample_index}: {exc}; dropped")
             return
         for reset, (m, r) in self._sequence(
-            self._meas_seq, int(msg.sample_index), (msg, raw), float(msg.rotor_speed)
-        ):
+            "measurements", self._meas_seq, int(msg.sample_index), (msg, raw),
+            float(msg.rotor_speed),
+        ):  # fmt: skip
             if reset:
                 self._sync_amp.reset()  # the 1 x window must not straddle a discontinuity
             self._measurement(m, r)
@@ -402,7 +408,7 @@ class FaultMonitorNode(Node):
             return
         omega = self._omega if self._omega > 0 else UNKNOWN_OMEGA
         for reset, (m, r) in self._sequence(
-            self._coef_seq, int(msg.sample_index) // 2, (msg, raw), omega
+            "coefficients", self._coef_seq, int(msg.sample_index) // 2, (msg, raw), omega
         ):
             self._coefficients(m, r, reset)
 
