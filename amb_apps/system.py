@@ -69,7 +69,7 @@ NODE_MODULES = {
 #: in creation order: the recorder last, once the streams it takes in process are on the bus.
 COMPOSED = ("wavelet_filterbank", "fault_monitor", "wavelet_controller", "recorder")
 #: The composed nodes that read the measurements with a catch-up bound (not the recorder).
-SAMPLING = COMPOSED[:3]
+SAMPLING = tuple(n for n in COMPOSED if n != "recorder")
 #: The executable composing them.
 STACK = "wavelet_stack"
 #: The node publishing each stream (composed or not: each node reports under its own name).

@@ -63,11 +63,15 @@ class LocalBus:
         self._local_names = tuple(local_topics)
         self._topics: dict[str, _Topic] = {}
 
+    def _declared_local(self, node: Node, resolved: str) -> bool:
+        """Whether ``resolved`` is one of the local topics (their names resolved by ``node``)."""
+        return any(node.resolve_topic_name(n) == resolved for n in self._local_names)
+
     def _topic(self, node: Node, msg_type: type, name: str) -> tuple[str, _Topic]:
         resolved = node.resolve_topic_name(name)
         topic = self._topics.get(resolved)
         if topic is None:
-            local = any(node.resolve_topic_name(n) == resolved for n in self._local_names)
+            local = self._declared_local(node, resolved)
             topic = self._topics[resolved] = _Topic(msg_type, local=local)
         elif topic.msg_type is not msg_type:
             raise TypeError(
@@ -128,9 +132,7 @@ class LocalBus:
     def carries(self, node: Node, name: str) -> bool:
         """Whether topic ``name`` (resolved against ``node``) is on the bus already."""
         resolved = node.resolve_topic_name(name)
-        return resolved in self._topics or any(
-            node.resolve_topic_name(n) == resolved for n in self._local_names
-        )
+        return resolved in self._topics or self._declared_local(node, resolved)
 
     def publisher(self, node: Node, msg_type: type, name: str, qos: QoSProfile) -> StreamPublisher:
         """A publisher of ``name`` that also hands each message to the composed readers."""
