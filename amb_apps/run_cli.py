@@ -26,14 +26,13 @@ machine and ROS domain, does not cross-talk with this one; the bag then holds
 nodes name their reports with their namespace (``rig1/plant_sim``), and the progress and the
 drain read only this run's.
 
-Scheduling: the recorder, off the control loop, runs with a higher nice value in its own
-process (``--composed`` hosts it in ``wavelet_stack``, where a thread writes the bag)
-(:data:`NICENESS`, ``--nice NODE=N`` to change, e.g. ``--nice fault_monitor=5`` as well: it
-then lags, and the end of the run waits for it to drain),
-so that when the CPU is short the plant, filterbank and controller, whose chain sets the
-lock-step pace and the command latency, are served first; the others catch up from their
-queues (reliable, thousands of messages deep). ``bench/pipeline.py`` measures that pace and
-latency.
+Scheduling: the recorder, off the control loop, runs in its own process with a higher nice
+value (:data:`NICENESS`, ``--nice NODE=N`` to change, e.g. ``--nice fault_monitor=5`` as well:
+it then lags, and the end of the run waits for it to drain; with ``--composed`` the recorder is
+in ``wavelet_stack`` and a thread of it writes the bag), so that when the CPU is short the
+plant, filterbank and controller, whose chain sets the lock-step pace and the command latency,
+are served first; the others catch up from their queues (reliable, thousands of messages
+deep). ``bench/pipeline.py`` measures that pace and latency.
 
 Examples
 --------
