@@ -33,7 +33,10 @@ from amb_tools.streams import stream_qos
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
 SPR = SAMPLES_PER_REV
-SCENARIO = first_critical_mass_loss(12.0, name="starved_controller")
+# 16 s: after the 4 s starvation the controller works off its backlog at its own pace while the
+# plant runs on at the real-time pace; in 12 s an idle fresh-clone run once caught up only at
+# the last period (31 % of the periods controlled, against 66-67 % in three other runs)
+SCENARIO = first_critical_mass_loss(16.0, name="starved_controller")
 
 
 def test_a_starved_controller_does_not_wind_up(ros, node_process, tmp_path) -> None:
