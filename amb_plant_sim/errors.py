@@ -13,3 +13,7 @@ class ScenarioError(ValueError):
 
 class SimulationError(ValueError):
     """An invalid call to the simulator (wrong shapes, wrong state)."""
+
+
+class BoundExceededError(SimulationError):
+    """A constrained output leaves its bound before any added force can act on it."""
