@@ -18,6 +18,7 @@ NODES = {
 }
 TOOLS = {
     "amb-acceptability": "amb_apps.acceptability:main",
+    "amb-bound": "amb_apps.bound_cli:main",
     "amb-compare": "amb_apps.compare_cli:main",
     "amb-fault-eval": "amb_apps.eval_cli:main",
     "amb-modal": "amb_plant_sim.modal_cli:main",
