@@ -13,7 +13,10 @@ Controllers (all at the same per-axis force limit, the rig's bearing capacity un
   0.75, 5th-order inverse of the FE-route model, delay i = 1 and the thesis's i = 2;
 * ``harmonic_i1``: sampled-harmonic transient control (Keogh et al. 2002), same w, v, order;
 * ``synchronous_i1``: adaptive influence-coefficient control (Burrows & Sahinkaya 1983,
-  Knospe et al. 1995), T identified by trial injections, gain a = 0.5, 2-period window.
+  Knospe et al. 1995), T identified by trial injections, gain a = 0.5, 2-period window;
+* ``limit_i1`` / ``limit_i2``: not a controller but the best response any controller with
+  that delay could give (``amb-bound``, :mod:`amb_plant_sim.control_limit`); every row's
+  ``peak_to_limit`` is its peak over the limit at its own delay (``--no-limit``: skipped).
 
 Scenarios: 430 g cm mass loss at the model's first and second critical speeds, 150 N step
 synchronous force at the third, and the figure-5.27 case-2 mass loss that leads to contacts
@@ -83,6 +86,9 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument(
         "--multilevel", action="store_true", help="add 1x+2x+4x coupled and per-level rows"
     )
+    ap.add_argument(
+        "--no-limit", action="store_true", help="skip the limit_i1 / limit_i2 rows (amb-bound)"
+    )
     ap.add_argument("--quiet", action="store_true", help="no progress on stderr")
     return ap
 
@@ -100,7 +106,9 @@ def main(argv: list[str] | None = None) -> int:
     try:
         matrix = Matrix(scenario_dir, args.samples_per_rev, args.force_limit, args.quick)
         t0 = time.perf_counter()
-        result = comparison(matrix, progress=progress, multilevel=args.multilevel)
+        result = comparison(
+            matrix, progress=progress, multilevel=args.multilevel, limits=not args.no_limit
+        )
         if args.robustness:
             result["robustness"] = robustness(matrix, progress)
     except (ValueError, TypeError, FileNotFoundError) as exc:
@@ -114,6 +122,7 @@ def main(argv: list[str] | None = None) -> int:
         "speeds_hz": speeds,
         "force_limit": matrix.force_limit,
         "table": result["table"],
+        "limits_unavailable": result["limits_unavailable"],
         "robustness": result.get("robustness"),
         "timing": timing,
         "wall_time": time.perf_counter() - t0,

@@ -56,7 +56,8 @@ def verdict(table: dict, force_limit: float) -> list[str]:
         lines += ["", f"### {key}", ""]
         names = [n for n in ("wavelet_i1", *BASELINE_ROWS) if n in rows]
         forces = ", ".join(f"{n} {rows[n]['peak_force']:.0f} N" for n in names)
-        binding = max(rows[n]["peak_force"] for n in rows) >= 0.99 * force_limit
+        controlled = [n for n in rows if not n.startswith("limit_")]
+        binding = max(rows[n]["peak_force"] for n in controlled) >= 0.99 * force_limit
         limit_text = (
             "the limit was reached, it bounds the result."
             if binding
@@ -65,6 +66,17 @@ def verdict(table: dict, force_limit: float) -> list[str]:
         lines.append(
             f"- Force limit {force_limit:.0f} N per axis; peak forces {forces}: {limit_text}"
         )
+        if "limit_i1" in rows:
+            ratios = ", ".join(
+                f"{n} {rows[n]['peak_to_limit']:.2f}"
+                for n in names
+                if rows[n].get("peak_to_limit") is not None
+            )
+            lines.append(
+                f"- The best any controller with i = 1 could do (limit_i1): "
+                f"{rows['limit_i1']['peak'] * 1e6:.1f} um; peak / limit: {ratios} "
+                "(issue 18 target: <= 1.5 with i = 1)."
+            )
         for b in BASELINE_ROWS:
             if b not in rows:
                 continue
@@ -177,16 +189,18 @@ def markdown(result: dict, timing: dict, speeds: dict, force_limit: float | None
         "Inner sensors (x2, y2, x3, y3). peak: largest |x| after the fault; revs to 10 %: "
         "revolutions until the per-revolution peak stays below 10 % of it; attenuation: "
         "steady 1 x vs PID only; forces: added (wavelet / baseline) force, same per-axis "
-        "limit for all; contacts: simulator truth."
+        "limit for all; contacts: simulator truth. limit_i1 / limit_i2: the best response any "
+        "controller with delay 1 / 2 could give (amb-bound: clairvoyant force, replayed "
+        "noise-free); peak / limit: a row's peak over the limit at its own delay (PID: i = 1)."
     )
     for key, rows in result["table"].items():
         lines += ["", f"## {key} ({speeds[key]:.2f} Hz)", ""]
         lines.append(
             "| controller | peak um | revs to 10 % | revs to 10 % (1x) | steady 1x um | "
             "attenuation dB | peak force N | RMS force N | contacts | residual after 1x um | "
-            "model radius |"
+            "model radius | peak / limit |"
         )
-        lines.append("|---|---|---|---|---|---|---|---|---|---|---|")
+        lines.append("|---|---|---|---|---|---|---|---|---|---|---|---|")
         for name, m in rows.items():
             radius = m.get("model_radius")
             lines.append(
@@ -195,8 +209,11 @@ def markdown(result: dict, timing: dict, speeds: dict, force_limit: float | None
                 f"{_fmt(m['steady_1x'], 1e6, 2)} | {_fmt(m['attenuation_db'], 1, 1)} | "
                 f"{m['peak_force']:.0f} | {m['rms_force']:.1f} | {m['contacts']} | "
                 f"{m.get('residual_um', float('nan')):.2f} | "
-                f"{'-' if radius is None else f'{radius:.3f}'} |"
+                f"{'-' if radius is None else f'{radius:.3f}'} | "
+                f"{'-' if m.get('peak_to_limit') is None else f'{m["peak_to_limit"]:.2f}'} |"
             )
+        for name, why in result.get("limits_unavailable", {}).get(key, {}).items():
+            lines.append(f"\nNo {name} row: {why}.")
         lines += _notes(key, rows)
     if force_limit is not None:
         lines += verdict(result["table"], force_limit)

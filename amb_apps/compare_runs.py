@@ -22,6 +22,14 @@ Metrics (per run; inner sensors x2, y2, x3, y3 unless said)
   counts a 1 x still decaying in a short ``--quick`` run).
 * ``model_radius``: exact closed-loop spectral radius of the row's eq.-8.10 controller on
   its own FE model (:func:`model_radius`), before the run; >= 1 predicts divergence.
+* ``peak_to_limit``: ``peak`` over the ``limit_i<delay>`` row's peak of the same scenario
+  at the row's own delay (``None`` where no limit exists).
+
+Rows ``limit_i1`` / ``limit_i2`` (:func:`run_limit`): the best response any controller with
+that delay could give (:mod:`amb_plant_sim.control_limit`, ``amb-bound``), replayed on the
+simulated rig noise-free for the whole run (its periodic tail continued) and measured with
+the same metrics. Where the rotor reaches a clearance before any force can act (the contact
+case), there is no such row and the reason is kept in ``limits_unavailable``.
 """
 
 from __future__ import annotations
@@ -32,7 +40,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from amb_apps.closed_loop import run_closed_loop
+from amb_apps.closed_loop import FAULT_KINDS, RunResult, run_closed_loop
 from amb_apps.compare_cases import (
     CONTROLLERS,
     HOLD_RAMP_PERIODS,
@@ -55,6 +63,8 @@ from amb_controller.stability import closed_loop, spectral_radius
 from amb_controller.supervisor import Mode
 from amb_controller.synthesis import ForceLimiter
 from amb_controller.transient import TransientController
+from amb_plant_sim.control_limit import control_limit, replay_force
+from amb_plant_sim.errors import BoundExceededError
 
 
 def run_metrics(result, speed_hz: float, pid_steady: float | None = None) -> dict:
@@ -208,12 +218,75 @@ def _engage_at_alarm_ramp(loop) -> bool:
     return _engage_at_alarm(loop)
 
 
+#: delays of the limit rows (``limit_i1``, ``limit_i2``)
+LIMIT_DELAYS = (1, 2)
+
+
+def run_limit(matrix: Matrix, key: str, delay: int, settle: bool = True) -> RunResult:
+    """
+    The control limit of scenario ``key`` at ``delay``, replayed over the whole run.
+
+    The optimal force (:func:`amb_plant_sim.control_limit.control_limit` at the scenario's
+    own fault instant and samples per revolution, with the settling objective unless
+    ``settle`` is false) is continued periodically to the run's end and replayed noise-free on
+    the rig.
+
+    Raises
+    ------
+    BoundExceededError
+        The rotor reaches a clearance before any force can act.
+    """
+    scenario = matrix.scenarios[key]
+    spr = matrix.config(SPECS["pid"], scenario).samples_per_rev
+    t_f = min(e.time for e in scenario.events if e.kind in FAULT_KINDS)
+    lim = control_limit(
+        matrix.rig, scenario, spr, t_f, delay, force_limit=matrix.force_limit, settle=settle
+    )
+    n = max(1, round(scenario.duration * scenario.speed_hz)) * spr
+    n_force = max(n - lim.k0, len(lim.force))
+    reps = -(-(n_force - len(lim.force)) // spr)
+    force = np.vstack([lim.force, np.tile(lim.force[-spr:], (reps, 1))])[:n_force]
+    block = replay_force(matrix.rig, scenario, spr, force, lim.k0)
+    added = np.zeros_like(block.bearing_force)
+    added[lim.k0 :] = force
+    return RunResult(
+        time=block.time[:n],
+        displacement=block.displacement[:n],
+        wavelet_force=added[:n],
+        bearing_force=block.bearing_force[:n],
+        contact=block.truth["contact"][:n],
+        phasor=np.zeros((0, 8), complex),
+        commands=[],
+        fault_time=t_f,
+        samples_per_rev=spr,
+        omega=float(block.omega[-1]),
+    )
+
+
+def _row_delay(name: str) -> int:
+    """The delay a row's peak is compared at (its spec's; i = 1 for PID and the others)."""
+    if name.startswith("limit_i"):
+        return int(name.removeprefix("limit_i"))
+    spec = SPECS.get(name)
+    return spec.delay if spec is not None and spec.controller != "none" else 1
+
+
 def comparison(
-    matrix: Matrix, controllers=CONTROLLERS, progress=None, multilevel: bool = False
+    matrix: Matrix,
+    controllers=CONTROLLERS,
+    progress=None,
+    multilevel: bool = False,
+    limits: bool = True,
 ) -> dict:
-    """Run every controller on every scenario; return ``{scenario: {controller: metrics}}``."""
+    """
+    Run every controller on every scenario; return ``{scenario: {controller: metrics}}``.
+
+    With ``limits`` the ``limit_i1`` and ``limit_i2`` rows are added (module docstring) and
+    every row gets ``peak_to_limit``.
+    """
     table: dict = {}
     traces: dict = {}
+    unavailable: dict = {}
     for key, scenario in matrix.scenarios.items():
         table[key] = {}
         traces[key] = {}
@@ -225,9 +298,19 @@ def comparison(
             names += list(MULTILEVEL)
         if key == "sync_150N_3rd":
             names += ["wavelet_i1_8sensors"]
+        if limits:
+            names += [f"limit_i{d}" for d in LIMIT_DELAYS]
         for name in names:
             t0 = time.perf_counter()
-            if name == "wavelet_reconf":
+            if name.startswith("limit_i"):
+                try:
+                    result = run_limit(matrix, key, int(name.removeprefix("limit_i")))
+                except BoundExceededError as exc:
+                    unavailable.setdefault(key, {})[name] = str(exc)
+                    if progress is not None:
+                        progress(f"{key} {name}: no limit: {exc}")
+                    continue
+            elif name == "wavelet_reconf":
                 result = matrix.run(
                     SPECS["wavelet_i1"], key, fault_monitor=True, engage_on=(MASS_LOSS,)
                 )
@@ -267,7 +350,10 @@ def comparison(
             traces[key][name] = (result.time, result.displacement[:, 2], result.fault_time)
             if progress is not None:
                 progress(f"{key} {name}: peak {m['peak'] * 1e6:.1f} um")
-    return {"table": table, "traces": traces}
+        for name, m in table[key].items():
+            lim = table[key].get(f"limit_i{_row_delay(name)}")
+            m["peak_to_limit"] = None if lim is None else m["peak"] / lim["peak"]
+    return {"table": table, "traces": traces, "limits_unavailable": unavailable}
 
 
 def robustness(matrix: Matrix, progress=None) -> dict:
