@@ -266,3 +266,17 @@ def parse_compare(text: str) -> dict:
                     "compare", f"{key} {name}: peak, revs_to_10, peak_force, contacts", text
                 )
     return doc
+
+
+def parse_bound(text: str) -> dict:
+    """Parse ``amb-bound``'s ``bound.json``: the cases (limit, floor, PID, settling)."""
+    try:
+        doc = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise _fail("bound", f"JSON ({exc})", text) from exc
+    if not isinstance(doc, dict) or not {"cases", "force_limit"} <= doc.keys():
+        raise _fail("bound", "bound.json with 'cases' and 'force_limit'", text)
+    for case in doc["cases"]:
+        if "unavoidable" not in case and not {"peak", "floor", "pid_peak"} <= case.keys():
+            raise _fail("bound", "every case with peak, floor and pid_peak", text)
+    return doc

@@ -29,6 +29,7 @@ from results_benchmarks import (
 from results_commands import ROOT, Command, Output
 from results_markdown import _num, table
 from results_parsers import (
+    parse_bound,
     parse_compare,
     parse_demo,
     parse_fault_eval,
@@ -311,6 +312,7 @@ def _compare_report(outs: list[Output], work: Path) -> list[str]:
                 "RMS force (N)",
                 "contacts",
                 "model radius",
+                "peak / limit",
             ],
             [
                 [
@@ -327,6 +329,7 @@ def _compare_report(outs: list[Output], work: Path) -> list[str]:
                     _num(m.get("rms_force"), ".1f"),
                     m["contacts"],
                     _num(m.get("model_radius"), ".4f"),
+                    _num(m.get("peak_to_limit"), ".2f"),
                 ]
                 for name, m in rows.items()
             ],
@@ -338,6 +341,58 @@ def _compare_report(outs: list[Output], work: Path) -> list[str]:
             [n, f"{t['median_s'] * 1e6:.1f}", f"{t['p99_s'] * 1e6:.1f}"]
             for n, t in doc["timing"].items()
         ],
+    )
+    return lines
+
+
+def _bound_commands(work: Path, args) -> list[Command]:
+    return [Command(["amb-bound", "--out", str(work / "run")])]
+
+
+def _bound_report(outs: list[Output], work: Path) -> list[str]:
+    path = work / "run" / "bound.json"
+    doc = parse_bound(path.read_text() if path.is_file() else "")
+    lines = [
+        "The best peak any controller with delay i could give (`amb-bound`: clairvoyant added "
+        f"force within {_num(doc['force_limit'], 'g')} N per axis, total control force and "
+        "clearances as constraints, replayed noise-free on the simulated rig). Floor: the "
+        "largest inner |x| between the fault's revolution start and the first sample a "
+        "command can reach, which no force changes.",
+        "",
+    ]
+    rows = []
+    for c in doc["cases"]:
+        if "unavoidable" in c:
+            rows.append([c["scenario"], c["delay"], c["phase"], c["unavoidable"]] + [""] * 6)
+            continue
+        rows.append(
+            [
+                c["scenario"],
+                c["delay"],
+                f"{c['fault_phase']:.3f}{' (own)' if c['phase'] == 'own' else ''}",
+                f"{c['acts_after_rev']:.3f}",
+                _num(c["peak"], ".1f", 1e6),
+                _num(c["replay_peak"], ".1f", 1e6),
+                _num(c["floor"], ".1f", 1e6),
+                _num(c["pid_peak"], ".1f", 1e6),
+                _num(c.get("revs_below_10pct_pid"), "d"),
+                _num(c["peak_force"], ".0f"),
+            ]
+        )
+    lines += table(
+        [
+            "scenario",
+            "i",
+            "fault at (rev of its period)",
+            "force from (rev after fault)",
+            "limit (µm)",
+            "replayed (µm)",
+            "floor (µm)",
+            "PID only (µm)",
+            "revs below 10 % PID",
+            "peak force (N)",
+        ],
+        rows,
     )
     return lines
 
@@ -414,6 +469,14 @@ SECTIONS = [
         "the fault monitor's onset, delay and false-alarm figures",
         _fault_commands,
         _fault_report,
+    ),
+    Section(
+        "bound",
+        "The control limit: the best any controller could do",
+        "about 20 minutes",
+        "amb_plant_sim.control_limit, the limit rows of amb-compare",
+        _bound_commands,
+        _bound_report,
     ),
     Section(
         "compare",

@@ -196,6 +196,20 @@ COMPARISON = json.dumps(
     }
 )
 
+BOUND = json.dumps(
+    {
+        "force_limit": 1000.0,
+        "cases": [
+            {"scenario": "mass_loss_1st", "phase": "own", "delay": 1, "fault_phase": 0.891,
+             "acts_after_rev": 0.109, "peak": 25.6e-6, "replay_peak": 25.6e-6,
+             "floor": 25.6e-6, "pid_peak": 140.8e-6, "revs_below_10pct_pid": 2,
+             "peak_force": 262.0},
+            {"scenario": "contact_case2", "phase": "own", "delay": 2,
+             "unavoidable": "clearance bound already exceeded"},
+        ],
+    }
+)  # fmt: skip
+
 
 def test_modal_parser_reads_the_critical_speeds_and_modes() -> None:
     r = P.parse_modal(MODAL)
@@ -260,12 +274,13 @@ def test_json_parsers_accept_the_commands_documents() -> None:
     assert list(single) == ["haar"]
     assert P.parse_prediction(PREDICTION)["db4"]["predicted_settling_s"] is None
     assert P.parse_compare(COMPARISON)["table"]["mass_loss_1st"]["wavelet_i1"]["peak"] == 94.7e-6
+    assert P.parse_bound(BOUND)["cases"][0]["floor"] == 25.6e-6
 
 
 @pytest.mark.parametrize(
     "parser",
     [P.parse_modal, P.parse_timeit, P.parse_plant_bench, P.parse_pipeline_bench, P.parse_demo,
-     P.parse_fault_eval, P.parse_prediction, P.parse_compare],
+     P.parse_fault_eval, P.parse_prediction, P.parse_compare, P.parse_bound],
 )  # fmt: skip
 def test_parsers_refuse_unrecognised_output(parser) -> None:
     with pytest.raises(P.ResultsError, match="cannot parse the output: expected"):
@@ -277,6 +292,8 @@ def test_parsers_refuse_documents_without_their_keys() -> None:
         P.parse_fault_eval(json.dumps({"wavelets": {"haar": {"total": 1}}}))
     with pytest.raises(P.ResultsError, match="peak"):
         P.parse_compare(json.dumps({"table": {"k": {"r": {}}}, "speeds_hz": {}, "timing": {}}))
+    with pytest.raises(P.ResultsError, match="floor"):
+        P.parse_bound(json.dumps({"force_limit": 1.0, "cases": [{"peak": 1.0}]}))
     with pytest.raises(P.ResultsError, match="plant's 'complete at"):
         P.parse_run(RUN_STDOUT, "")
 
@@ -299,6 +316,10 @@ def test_sections_render_tables_from_the_samples(tmp_path: Path) -> None:
     )
     text = "\n".join(S.BY_NAME["compare"].report([out("")], tmp_path))
     assert "| wavelet_i1 | 94.7 | - | 12 |" in text
+    (run / "bound.json").write_text(BOUND)
+    text = "\n".join(S.BY_NAME["bound"].report([out("")], tmp_path))
+    assert "| mass_loss_1st | 1 | 0.891 (own) | 0.109 | 25.6 | 25.6 | 25.6 | 140.8 | 2 | 262 |" in text
+    assert "| contact_case2 | 2 | own | clearance bound already exceeded |" in text
 
 
 def test_a_failing_command_is_reported_with_its_status_and_output(tmp_path: Path) -> None:
