@@ -187,7 +187,8 @@ def markdown(result: dict, timing: dict, speeds: dict, force_limit: float | None
     lines = ["# amb-compare: controllers x scenarios (simulated rig)", ""]
     lines.append(
         "Inner sensors (x2, y2, x3, y3). peak: largest |x| after the fault; revs to 10 %: "
-        "revolutions until the per-revolution peak stays below 10 % of it; attenuation: "
+        "revolutions until the per-revolution peak stays below 10 % of it; revs < 10 % PID: "
+        "until it stays below 10 % of PID-only's steady 1 x amplitude; attenuation: "
         "steady 1 x vs PID only; forces: added (wavelet / baseline) force, same per-axis "
         "limit for all; contacts: simulator truth. limit_i1 / limit_i2: the best response any "
         "controller with delay 1 / 2 could give (amb-bound: clairvoyant force, replayed "
@@ -196,16 +197,18 @@ def markdown(result: dict, timing: dict, speeds: dict, force_limit: float | None
     for key, rows in result["table"].items():
         lines += ["", f"## {key} ({speeds[key]:.2f} Hz)", ""]
         lines.append(
-            "| controller | peak um | revs to 10 % | revs to 10 % (1x) | steady 1x um | "
+            "| controller | peak um | revs to 10 % | revs to 10 % (1x) | revs < 10 % PID | "
+            "steady 1x um | "
             "attenuation dB | peak force N | RMS force N | contacts | residual after 1x um | "
             "model radius | peak / limit |"
         )
-        lines.append("|---|---|---|---|---|---|---|---|---|---|---|---|")
+        lines.append("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
         for name, m in rows.items():
             radius = m.get("model_radius")
             lines.append(
                 f"| {name} | {_fmt(m['peak'], 1e6)} | {_fmt(m['revs_to_10'], 1, 0)} | "
                 f"{_fmt(m.get('revs_to_10_1x'), 1, 0)} | "
+                f"{_fmt(m.get('revs_below_10pct_pid'), 1, 0)} | "
                 f"{_fmt(m['steady_1x'], 1e6, 2)} | {_fmt(m['attenuation_db'], 1, 1)} | "
                 f"{m['peak_force']:.0f} | {m['rms_force']:.1f} | {m['contacts']} | "
                 f"{m.get('residual_um', float('nan')):.2f} | "

@@ -11,6 +11,9 @@ Metrics (per run; inner sensors x2, y2, x3, y3 unless said)
 * ``revs_to_10_1x``: the same on the per-revolution 1 x amplitude (one-revolution DFT bin 1
   of each inner sensor, the largest), i.e. the settling of the synchronous vibration the
   controllers act on, without the harmonics a control waveform may add.
+* ``revs_below_10pct_pid``: revolutions after the fault period until the per-revolution peak
+  |x| stays below 10 % of PID-only's steady 1 x amplitude (``pid_steady``; ``None``: not
+  within the run, or no PID-only run to compare with), issue 18's settling metric.
 * ``attenuation_db``: ``20 log10`` of the steady 1 x amplitude (last 10 revolutions,
   largest inner sensor) over the PID-only one (negative = reduction).
 * ``peak_force`` / ``rms_force``: largest ``hypot(f_x, f_y)`` of the added force over the
@@ -105,6 +108,11 @@ def run_metrics(result, speed_hz: float, pid_steady: float | None = None) -> dic
     post = wf[k_f * spr :]
     contact_any = result.contact.any(axis=1) if result.contact.size else np.zeros(0, bool)
     contacts = int(np.count_nonzero(np.diff(contact_any.astype(int), prepend=0) == 1))
+    below_pid = None
+    if pid_steady is not None and pid_steady > 0:
+        over = np.flatnonzero(after > 0.1 * pid_steady)
+        n_over = int(over[-1]) + 1 if over.size else 0
+        below_pid = None if n_over >= len(after) else n_over
     att = None
     if pid_steady is not None and pid_steady > 0 and steady > 0:
         att = 20 * math.log10(steady / pid_steady)
@@ -113,6 +121,7 @@ def run_metrics(result, speed_hz: float, pid_steady: float | None = None) -> dic
         "peak_all_sensors": float(np.abs(result.displacement[k_f * spr :]).max()),
         "revs_to_10": revs_to_10,
         "revs_to_10_1x": None if revs_1x >= len(after_1x) else revs_1x,
+        "revs_below_10pct_pid": below_pid,
         "peak_1x": float(after_1x.max()),
         "steady_1x": steady,
         "attenuation_db": att,

@@ -305,6 +305,7 @@ def _compare_report(outs: list[Output], work: Path) -> list[str]:
                 "peak (µm)",
                 "revs to 10 %",
                 "revs to 10 % (1 x)",
+                "revs < 10 % PID",
                 "peak 1 x (µm)",
                 "residual (µm)",
                 "3x / 5x / 7x (µm)",
@@ -320,6 +321,7 @@ def _compare_report(outs: list[Output], work: Path) -> list[str]:
                     _num(m["peak"], ".1f", 1e6),
                     _num(m["revs_to_10"], "d"),
                     _num(m.get("revs_to_10_1x"), "d"),
+                    _num(m.get("revs_below_10pct_pid"), "d"),
                     _num(m.get("peak_1x"), ".1f", 1e6),
                     _num(m.get("residual_um"), ".1f"),
                     " / ".join(

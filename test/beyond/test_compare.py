@@ -38,12 +38,16 @@ def test_revolutions_to_10_percent_and_peak_of_a_geometric_decay():
     assert m["peak"] == pytest.approx(100e-6, rel=1e-12)
     # 0.5^k > 0.1 for k <= 3: revolutions 0..3 after the fault are above 10 %
     assert m["revs_to_10"] == 4
+    assert m["revs_below_10pct_pid"] is None  # no PID-only amplitude given
+    # against a PID-only amplitude of 400 um: 100 * 0.5^k > 40 for k <= 1
+    assert run_metrics(_run(env), speed_hz=1.0, pid_steady=400e-6)["revs_below_10pct_pid"] == 2
 
 
 def test_never_settling_run_reports_not_reached_and_attenuation_in_db():
     env = np.concatenate([[0.0, 0.0], np.full(30, 50e-6)])
     m = run_metrics(_run(env), speed_hz=1.0, pid_steady=500e-6)
     assert m["revs_to_10"] is None
+    assert m["revs_below_10pct_pid"] == 0  # 50 um is 10 % of 500: never above it
     assert m["steady_1x"] == pytest.approx(50e-6, rel=1e-9)
     assert m["attenuation_db"] == pytest.approx(-20.0, abs=1e-9)
 
