@@ -14,23 +14,19 @@ from __future__ import annotations
 
 import copy
 import math
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 from amb_msgs.msg import FaultEvent, Measurement, WaveletCoefficients
 from diagnostic_msgs.msg import DiagnosticArray
+from reliability_helpers import Diagnostics, get_parameter, set_parameters
+from ros_harness import configuration_refusals
 
 from amb_tools.conversions import to_float_array
 from amb_tools.streams import FRAME_CODES, QUAD_CODES
 from amb_wavelet.analysis import AnalysisFilterbank
 from amb_wavelet.frontend import FRAMES, QUADRATURES, ChannelFrontEnd
 from amb_wavelet.messages import coefficients_msg
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "reliability"))
-from reliability_helpers import Diagnostics, get_parameter, set_parameters
-from ros_harness import configuration_refusals
 
 pytestmark = pytest.mark.ros
 

@@ -2,21 +2,16 @@
 
 from __future__ import annotations
 
-import sys
-from pathlib import Path
-
 import numpy as np
 import pytest
 from amb_msgs.msg import ControlCommand, ControllerStatus, Measurement
 from amb_msgs.srv import SetControllerMode, StartIdentification
+from reliability_helpers import Diagnostics
 
 from amb_tools.streams import COMMAND_QOS, FRAME_CODES, QUAD_CODES
 from amb_wavelet.analysis import AnalysisFilterbank
 from amb_wavelet.frontend import FRAMES, QUADRATURES, ChannelFrontEnd
 from amb_wavelet.messages import coefficients_msg
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "reliability"))
-from reliability_helpers import Diagnostics
 
 pytestmark = pytest.mark.ros
 

@@ -4,21 +4,16 @@ from __future__ import annotations
 
 import json
 import math
-import sys
-from pathlib import Path
 
+import late_command
 import pytest
 from amb_msgs.msg import FaultEvent, Measurement
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from reliability_helpers import Diagnostics, get_parameter, set_parameters
+from synthetic import HZ, SPR, make_run
 
 from amb_common import topics
 from amb_tools.streams import stream_qos
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "fault_monitor"))
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "reliability"))
-import late_command
-from reliability_helpers import Diagnostics, get_parameter, set_parameters
-from synthetic import HZ, SPR, make_run
 
 COEFFICIENTS = topics.absolute(topics.COEFFICIENTS)
 EVENTS = topics.absolute(topics.FAULT_EVENTS)

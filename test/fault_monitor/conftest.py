@@ -1,6 +1,0 @@
-"""Make the synthetic-signal helpers importable for the fault-monitor tests."""
-
-import sys
-from pathlib import Path
-
-sys.path.insert(0, str(Path(__file__).resolve().parent))
