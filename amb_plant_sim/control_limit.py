@@ -20,6 +20,13 @@ unbounded clearances and force (linear by construction, noise-free); the Markov 
 the responses of the undisturbed loop at the scenario's speed to a 1 N force held over sample
 0 on each bearing axis. The optimal sequence is then replayed on the real rig (contacts,
 saturation) noise-free, and the replayed peak is reported with the linear program's.
+
+How exact it is. The ``floor`` (the largest inner |x| from the fault's revolution until
+``k0``) bounds every controller from below; a limit equal to it is the true limit. Above it,
+the limit is the peak of a force that exists (it is replayed), found within a restricted
+set (force free for ``revolutions``, then periodic; journals in the inscribed octagon; the
+force limits checked at the sample instants, the simulator's internal steps between them
+are checked by the replay): the true limit lies between the floor and it.
 """
 
 from __future__ import annotations
