@@ -181,7 +181,7 @@ def control_limit(
     samples_per_rev: int,
     fault_time: float,
     delay: int,
-    revolutions: int = 4,
+    revolutions: int = 2,
     tail_revolutions: int = 4,
     force_limit: float | None = None,
     settle: bool = True,
