@@ -205,6 +205,15 @@ class Rig:
     source: str = ""
 
     @property
+    def feedback_channels(self) -> list[int]:
+        """
+        Sensor channels (0-based, ``[x1, y1, ..., x4, y4]`` order) the local PID closes on.
+
+        ``[x, y]`` of bearing 1's sensor plane, then of bearing 2's: the inner sensors.
+        """
+        return [2 * (b.sensor_plane - 1) + a for b in self.bearings[:2] for a in (0, 1)]
+
+    @property
     def rigid_bodies(self) -> tuple[RigidDisk, ...]:
         """All rigid bodies on the shaft: disks, AMB cores, collars."""
         return self.disks + self.amb_cores + self.collars

@@ -117,11 +117,6 @@ class LimitResult:
     pid_displacement: NDArray[np.float64] | None = None
 
 
-def inner_channels(rig: Rig) -> list[int]:
-    """Sensor channels [x, y] of the two planes the local PID feeds back on (0-based)."""
-    return [2 * (b.sensor_plane - 1) + a for b in rig.bearings[:2] for a in (0, 1)]
-
-
 def linear_rig(rig: Rig) -> Rig:
     """``rig`` with unbounded clearances and force and the linear AMB law (superposition)."""
     return replace(
@@ -162,7 +157,7 @@ def free_and_markov(
         undisturbed loop at the scenario's speed.
     """
     lin = linear_rig(rig)
-    inner = inner_channels(rig)
+    inner = rig.feedback_channels
     quiet = replace(scenario, measurement_noise=0.0)
     free = _outputs(PlantSimulator(lin, quiet, samples_per_rev).advance(n), inner)
     still = replace(quiet, events=())
@@ -250,7 +245,7 @@ def control_limit(
     else:
         sol = program.solve(cap=sol.peak * (1 + 1e-6), least_force=True) or sol
     replay = replay_force(rig, scenario, N, sol.force, k0)
-    x_replay = replay.displacement[:, inner_channels(rig)]
+    x_replay = replay.displacement[:, rig.feedback_channels]
     floor = float(np.abs(free[0][n_a : k0 + 1]).max()) / UM
     hyp = np.hypot(sol.force[:, 0::2], sol.force[:, 1::2])
     return LimitResult(

@@ -154,8 +154,7 @@ class PlantSimulator(EventInputs, StepByStepIntegration):
         self._contact_pos = z0.position_rows(self._clear_nodes)
         self._contact_vel = z0.velocity_rows(self._clear_nodes)
         self._n_force = 2 * self.rotor.n_nodes
-        feed = [rig.bearings[b].sensor_plane - 1 for b in range(2)]
-        self._inner_channels = [2 * feed[0], 2 * feed[0] + 1, 2 * feed[1], 2 * feed[1] + 1]
+        self._inner_channels = rig.feedback_channels
         self._i_max = amb_law.current_limit(rig.amb)
         self.reset()
 
