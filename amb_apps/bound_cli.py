@@ -33,7 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
-from amb_apps.closed_loop import FAULT_KINDS
+from amb_apps.closed_loop import FAULT_KINDS, first_fault
 from amb_apps.compare_cases import SCENARIOS
 from amb_common.paths import config_file
 from amb_common.rig import load_rig
@@ -97,10 +97,10 @@ def _scenario(key: str, rig) -> tuple[str, Scenario]:
 
 def fault_time(scenario: Scenario) -> float:
     """Onset of the scenario's first fault event, s."""
-    times = [e.time for e in scenario.events if e.kind in FAULT_KINDS]
-    if not times:
+    fault = first_fault(scenario)
+    if fault is None:
         raise ValueError(f"scenario {scenario.name}: no fault event ({', '.join(FAULT_KINDS)})")
-    return min(times)
+    return fault.time
 
 
 def moved(scenario: Scenario, spr: int, phase: float | None) -> tuple[Scenario, float]:
@@ -108,10 +108,10 @@ def moved(scenario: Scenario, spr: int, phase: float | None) -> tuple[Scenario, 
     t_f = fault_time(scenario)
     if phase is None:
         return scenario, t_f
+    first = first_fault(scenario)
     fs = scenario.speed_hz * spr
     k = (fault_sample(scenario, t_f, spr) // spr) * spr + round(phase * spr)
     t_new = (k - 0.5) / fs  # the first sample at or after it is k
-    first = next(e for e in scenario.events if e.kind in FAULT_KINDS and e.time == t_f)
     events = tuple(replace(e, time=t_new) if e is first else e for e in scenario.events)
     return replace(scenario, events=events), t_new
 

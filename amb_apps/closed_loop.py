@@ -78,6 +78,12 @@ FAULT_KINDS = ("mass_loss", "sync_force", "step_force", "sensor_fault", "amb_cha
                "misalignment", "base_motion")  # fmt: skip
 
 
+def first_fault(scenario):
+    """The scenario's earliest event of a :data:`FAULT_KINDS` kind ("the fault"), or ``None``."""
+    faults = [e for e in scenario.events if e.kind in FAULT_KINDS]
+    return min(faults, key=lambda e: e.time) if faults else None
+
+
 @dataclass
 class RunResult:
     """
@@ -451,7 +457,7 @@ def run_closed_loop(
         if stop is not None and stop(loop):
             break
     blocks = loop.blocks
-    faults = [e.time for e in scenario.events if e.kind in FAULT_KINDS]
+    fault = first_fault(scenario)
     return RunResult(
         time=np.concatenate([b.time for b in blocks]),
         displacement=np.concatenate([b.displacement for b in blocks]),
@@ -460,7 +466,7 @@ def run_closed_loop(
         contact=np.concatenate([b.truth["contact"] for b in blocks]),
         phasor=np.array(loop.phasors),
         commands=loop.issued,
-        fault_time=float(min(faults)) if faults else 0.0,
+        fault_time=float(fault.time) if fault is not None else 0.0,
         samples_per_rev=config.samples_per_rev,
         omega=float(blocks[-1].omega[-1]),
         model=loop.pipeline.model,

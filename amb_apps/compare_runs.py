@@ -43,7 +43,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from amb_apps.closed_loop import FAULT_KINDS, RunResult, run_closed_loop
+from amb_apps.closed_loop import RunResult, first_fault, run_closed_loop
 from amb_apps.compare_cases import (
     CONTROLLERS,
     HOLD_RAMP_PERIODS,
@@ -247,7 +247,7 @@ def run_limit(matrix: Matrix, key: str, delay: int, settle: bool = True) -> RunR
     """
     scenario = matrix.scenarios[key]
     spr = matrix.config(SPECS["pid"], scenario).samples_per_rev
-    t_f = min(e.time for e in scenario.events if e.kind in FAULT_KINDS)
+    t_f = first_fault(scenario).time
     lim = control_limit(
         matrix.rig, scenario, spr, t_f, delay, force_limit=matrix.force_limit, settle=settle
     )

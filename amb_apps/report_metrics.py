@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from amb_apps.closed_loop import FAULT_KINDS
+from amb_apps.closed_loop import first_fault
 from amb_common import topics
 from amb_common.names import SENSOR_NAMES
 from amb_common.rig import load_rig
@@ -89,8 +89,8 @@ def scenario_fault(path: str | Path) -> tuple[float | None, float, str]:
         in Hz (speed role resolved on ``config/rig.yaml``), scenario name.
     """
     scenario = load_scenario(path, load_rig())
-    faults = [e.time for e in scenario.events if e.kind in FAULT_KINDS]
-    return (float(min(faults)) if faults else None), float(scenario.speed_hz), scenario.name
+    fault = first_fault(scenario)
+    return (None if fault is None else float(fault.time)), float(scenario.speed_hz), scenario.name
 
 
 def choose_fault_time(
