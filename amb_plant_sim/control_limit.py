@@ -246,12 +246,11 @@ def control_limit(
         sol = program.solve(cap=sol.peak * (1 + 1e-6), least_force=True) or sol
     replay = replay_force(rig, scenario, N, sol.force, k0)
     x_replay = replay.displacement[:, rig.feedback_channels]
-    floor = float(np.abs(free[0][n_a : k0 + 1]).max()) / UM
     hyp = np.hypot(sol.force[:, 0::2], sol.force[:, 1::2])
     return LimitResult(
         peak=sol.peak / UM,
         replay_peak=float(np.abs(x_replay[n_a:end]).max()),
-        floor=floor,
+        floor=program.floor / UM,
         pid_peak=float(np.abs(free[0][n_a:end]).max()) / UM,
         pid_steady=pid_steady,
         revs_below_10pct_pid=settle_revs,

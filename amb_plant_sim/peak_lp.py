@@ -31,12 +31,12 @@ inscribed in its clearance circle (``d_q`` at 0, 45, 90, 135 degrees; conservati
 ``1 - cos(pi/8)`` = 7.6 % of the clearance). All constraints are linear in ``(u, t)``, so the
 problem is a linear program (solved by HiGHS through :func:`scipy.optimize.linprog`).
 
-Most force and clearance rows are slack at the optimum. The solver starts from the objective
-rows alone and adds the violated rows of the bounded families after each solve (cutting
-planes) until none is violated by more than its tolerance; the final ``(u, t)`` is then optimal
-for the full problem (it is optimal for a relaxation and satisfies every row). HiGHS's
-interior-point method with crossover is used: on these dense rows it is several times faster
-than its simplex.
+Most clearance rows are slack at the optimum. The objective and force rows are in the program
+from the start; the rows of a family marked ``cut`` (the clearances) are added when violated,
+after each solve (cutting planes), until none is violated by more than its tolerance; the
+final ``(u, t)`` is then optimal for the full problem (it is optimal for a relaxation and
+satisfies every row). HiGHS's interior-point method with crossover is used: on these dense
+rows it is several times faster than its simplex.
 
 Second objective. With the peak fixed at its optimum ``t*`` (times ``1 + slack``), the fewest
 revolutions ``r`` after which every objective output stays within a level (``|y_d[n]| <=
@@ -99,7 +99,8 @@ class PeakSolution:
     Attributes
     ----------
     peak : float
-        The smallest peak ``t`` over the window (objective unit).
+        The peak of the objective outputs over the window under ``force`` (objective unit):
+        the smallest possible one unless a settling level or ``least_force`` was asked.
     force : ndarray (K - k0, m)
         Added force from ``k0`` to the window end (tail included).
     outputs : dict of ndarray (K, p)
@@ -225,9 +226,11 @@ class PeakProgram:
         self._limit = [
             None if f.bound is None else np.tile(f.bound, self.end - f.start) for f in families
         ]
-        ob = self.objective
-        #: the objective rows before k0 do not depend on the force: t >= their largest |y0|
-        self.floor = float(np.abs(ob.free[ob.start : self.k0]).max()) if ob.start < self.k0 else 0.0
+        ob = self._ob = families.index(self.objective)
+        #: the objective rows no force reaches (zero rows of T: before k0, and k0 itself where
+        #: M[0] = 0) keep their free response: t >= their largest |y0|
+        free_rows = ~np.any(self._T[ob], axis=1)
+        self.floor = float(np.abs(self._y0[ob][free_rows]).max()) if free_rows.any() else 0.0
         self.added_limit = float(added_limit)
 
     def solve(
@@ -274,15 +277,13 @@ class PeakProgram:
             for f, T in zip(self.families, self._T, strict=True)
         ]
         ob = self.objective
-        level_rows = np.zeros(self._T[self.families.index(ob)].shape[0], bool)
-        if settle_from is not None:
-            level_rows[max(0, settle_from - ob.start) * ob.free.shape[1] :] = True
         dense, rhs = [], []
-        for f, T, y0 in zip(self.families, self._T, self._y0, strict=True):
-            if f.bound is None and level_rows.any():  # |y| <= level from settle_from on
-                Tc, yc = T[level_rows], y0[level_rows]
-                dense += [np.hstack([Tc, 0 * Tc[:, :1]]), np.hstack([-Tc, 0 * Tc[:, :1]])]
-                rhs += [level - yc, level + yc]
+        if settle_from is not None:  # |y| <= level for the objective from settle_from on
+            first = max(0, settle_from - ob.start) * ob.free.shape[1]
+            Tc, yc = self._T[self._ob][first:], self._y0[self._ob][first:]
+            zc = np.zeros((Tc.shape[0], 1))
+            dense += [np.hstack([Tc, zc]), np.hstack([-Tc, zc])]
+            rhs += [level - yc, level + yc]
         sparse_rows = []
         if least_force:  # s >= |u|: u - s <= 0, -u - s <= 0
             eye = scipy.sparse.eye_array(n_u, format="csr")
@@ -303,14 +304,11 @@ class PeakProgram:
                 if not rows.any():
                     continue
                 Tr, yr = T[rows], y0[rows]
-                col = np.zeros((Tr.shape[0], 1))
-                if f.bound is None:
-                    col -= 1.0  # |y| <= t
-                    A_parts += [np.hstack([Tr, col]), np.hstack([-Tr, col])]
-                    b_parts += [-yr, yr]
-                else:
-                    A_parts += [np.hstack([Tr, col]), np.hstack([-Tr, col])]
-                    b_parts += [lim[rows] - yr, lim[rows] + yr]
+                # |y| <= t for the objective (t's column -1, bound 0), |y| <= lim otherwise
+                col = np.full((Tr.shape[0], 1), -1.0 if f.bound is None else 0.0)
+                bound = 0.0 if f.bound is None else lim[rows]
+                A_parts += [np.hstack([Tr, col]), np.hstack([-Tr, col])]
+                b_parts += [bound - yr, bound + yr]
             A = scipy.sparse.csr_array(np.vstack(A_parts))
             if least_force:
                 A = scipy.sparse.vstack(
@@ -347,9 +345,8 @@ class PeakProgram:
             full = f.free[: self.end].copy()
             full[f.start : self.end] = (y0 + T @ u).reshape(self.end - f.start, -1)
             outputs[f.name] = full
-        peak = float(np.abs(outputs[ob.name][ob.start : self.end]).max())
         return PeakSolution(
-            peak=max(peak, self.floor),
+            peak=float(np.abs(outputs[ob.name][ob.start : self.end]).max()),
             force=np.vstack([force, np.tile(force[-self.period :], (self.tail, 1))]),
             outputs=outputs,
             rows={f.name: int(r.sum()) for f, r in zip(self.families, active, strict=True)},
