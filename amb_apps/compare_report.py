@@ -204,7 +204,7 @@ def markdown(result: dict, timing: dict, speeds: dict, force_limit: float | None
         )
         lines.append("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
         for name, m in rows.items():
-            radius = m.get("model_radius")
+            radius, to_limit = m.get("model_radius"), m.get("peak_to_limit")
             lines.append(
                 f"| {name} | {_fmt(m['peak'], 1e6)} | {_fmt(m['revs_to_10'], 1, 0)} | "
                 f"{_fmt(m.get('revs_to_10_1x'), 1, 0)} | "
@@ -213,7 +213,7 @@ def markdown(result: dict, timing: dict, speeds: dict, force_limit: float | None
                 f"{m['peak_force']:.0f} | {m['rms_force']:.1f} | {m['contacts']} | "
                 f"{m.get('residual_um', float('nan')):.2f} | "
                 f"{'-' if radius is None else f'{radius:.3f}'} | "
-                f"{'-' if m.get('peak_to_limit') is None else f'{m["peak_to_limit"]:.2f}'} |"
+                f"{'-' if to_limit is None else f'{to_limit:.2f}'} |"
             )
         for name, why in result.get("limits_unavailable", {}).get(key, {}).items():
             lines.append(f"\nNo {name} row: {why}.")
