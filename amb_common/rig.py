@@ -165,7 +165,13 @@ class PidGains:
 
 @dataclass(frozen=True)
 class ContactData:
-    """Contact model parameters for eq. (5.5)."""
+    """
+    Contact model parameters for eq. (5.5).
+
+    ``race_inertia`` (kg m^2) and ``race_drag`` (N m s) are the inner race of a rolling
+    auxiliary bearing (``kind: auxiliary``), which the contact's friction spins up; with
+    ``race_inertia = 0`` every race is held at rest (retainers always are).
+    """
 
     model: str
     hertz_stiffness: float
@@ -175,6 +181,8 @@ class ContactData:
     slip_velocity_scale: float
     rotor_radius: float
     substeps: int
+    race_inertia: float = 0.0
+    race_drag: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -414,6 +422,8 @@ def rig_from_dict(data: dict[str, Any], source: str = "") -> Rig:
         ),
         rotor_radius=_pos(_req(c, "rotor_radius", "contact"), "contact.rotor_radius"),
         substeps=max(1, int(_req(c, "substeps", "contact"))),
+        race_inertia=_pos(c.get("race_inertia", 0.0), "contact.race_inertia", True),
+        race_drag=_pos(c.get("race_drag", 0.0), "contact.race_drag", True),
     )
     sm = _req(data, "simulation", "top level")
     simulation = SimulationData(

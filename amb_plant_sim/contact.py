@@ -9,9 +9,11 @@ back along ``-n`` (``n = r/|r|``) with the normal force
     f_c = k delta     + d delta'     (``model: penalty``),
 
 clipped at zero (the bearing cannot pull), and Coulomb friction ``mu f_c`` acts along the
-tangent ``t = (-n_y, n_x)`` against the slip velocity of the rotor surface
-``v_s = r'.t + Omega R`` (surface speed of the spinning journal plus the whirl velocity; the
-auxiliary bearing's race is taken at rest). With ``sign`` regularised as ``tanh(v_s / v_0)``:
+tangent ``t = (-n_y, n_x)`` against the slip velocity of the rotor surface on the bearing,
+``v_s = r'.t + Omega R - u_r`` (surface speed of the spinning journal plus the whirl velocity,
+less the surface speed ``u_r`` of the bearing's race: zero for a bronze retainer, the inner
+race's ``omega_r (R + c)`` for a rolling auxiliary bearing, whose race the friction spins up,
+:func:`race_step`). With ``sign`` regularised as ``tanh(v_s / v_0)``:
 
     f = -f_c n - mu f_c tanh(v_s / v_0) t,
 
@@ -42,6 +44,9 @@ class ContactResult:
         ``max(delta, 0)``, m.
     normal_force : ndarray (k,)
         ``f_c``, N.
+    friction_force : ndarray (k,)
+        Signed tangential force on the rotor along ``t``, ``-mu f_c tanh(v_s / v_0)``, N (its
+        reaction drives the bearing's race).
     in_contact : ndarray (k,) bool
     d_position, d_velocity : ndarray (k, 2, 2)
         Jacobians of ``force`` with respect to the journal position (N/m) and velocity
@@ -51,6 +56,7 @@ class ContactResult:
     force: NDArray[np.float64]
     penetration: NDArray[np.float64]
     normal_force: NDArray[np.float64]
+    friction_force: NDArray[np.float64]
     in_contact: NDArray[np.bool_]
     d_position: NDArray[np.float64]
     d_velocity: NDArray[np.float64]
@@ -63,6 +69,7 @@ def contact_forces(
     clearance: NDArray[np.float64],
     omega: float,
     params: ContactData,
+    race_surface_speed: NDArray[np.float64] | None = None,
 ) -> ContactResult:
     """
     Contact forces at ``k`` clearance bearings.
@@ -79,6 +86,9 @@ def contact_forces(
         Running speed, rad/s (spin sense +z, x towards y).
     params : ContactData
         Stiffness, damping, friction, regularisation, journal radius.
+    race_surface_speed : ndarray (k,), optional
+        Surface speed of each bearing's race in the spin sense, m/s (``u_r``); zero (a race
+        at rest) if omitted.
 
     Returns
     -------
@@ -90,6 +100,7 @@ def contact_forces(
     touching = delta > 0.0
     force = np.zeros_like(r)
     fn = np.zeros(d.shape)
+    ft = np.zeros(d.shape)
     kp = np.zeros((r.shape[0], 2, 2))
     kv = np.zeros((r.shape[0], 2, 2))
     if np.any(touching):
@@ -107,11 +118,67 @@ def contact_forces(
         pushing = raw > 0.0
         f_c = np.where(pushing, raw, 0.0)
         v_s = np.sum(v * t, axis=1) + omega * params.rotor_radius
+        if race_surface_speed is not None:
+            v_s = v_s - np.asarray(race_surface_speed, float)[touching]
         mu = params.friction * np.tanh(v_s / params.slip_velocity_scale)
         direction = n + mu[:, None] * t  # force = -f_c * direction
         force[touching] = -f_c[:, None] * direction
         fn[touching] = f_c
+        ft[touching] = -f_c * mu
         outer = direction[:, :, None] * n[:, None, :]  # direction n^T
         kp[touching] = -(np.where(pushing, dk, 0.0))[:, None, None] * outer
         kv[touching] = -(np.where(pushing, params.damping, 0.0))[:, None, None] * outer
-    return ContactResult(force, np.maximum(delta, 0.0), fn, touching, kp, kv)
+    return ContactResult(force, np.maximum(delta, 0.0), fn, ft, touching, kp, kv)
+
+
+def race_step(
+    race_speed: NDArray[np.float64],
+    friction_force: NDArray[np.float64],
+    rolling_speed: NDArray[np.float64],
+    race_radius: NDArray[np.float64],
+    h: float,
+    params: ContactData,
+) -> NDArray[np.float64]:
+    """
+    Advance the inner-race speed of rolling auxiliary bearings over one step of ``h`` s.
+
+    The race (polar inertia ``J``, viscous drag ``c`` from its balls and seals, bore radius
+    ``R_r``, the journal's radius plus the clearance) is driven by the reaction of the
+    friction on the rotor:
+
+        J omega_r' = -f_t R_r - c omega_r,
+
+    integrated implicitly in the drag (``omega_r <- (omega_r - h f_t R_r / J) / (1 + h c / J)``)
+    and with the friction acting only until the race rolls: a step that would carry the race
+    past the rolling speed (no slip, ``omega_r R_r = r'.t + Omega R``) ends at it. Friction
+    with ``v_0`` of a few mm/s makes this equation stiff (time constant ``J v_0 / (mu f_c R_r^2)``
+    of microseconds), so an explicit step would chatter about the rolling speed.
+
+    Parameters
+    ----------
+    race_speed : ndarray (k,)
+        ``omega_r`` at the start of the step, rad/s.
+    friction_force : ndarray (k,)
+        Tangential force on the rotor along ``t`` (:attr:`ContactResult.friction_force`), N.
+    rolling_speed : ndarray (k,)
+        Race speed at which the contact rolls without slip, rad/s.
+    race_radius : ndarray (k,)
+        ``R_r``, m.
+    h : float
+        Step, s.
+    params : ContactData
+        ``race_inertia`` (kg m^2), ``race_drag`` (N m s).
+
+    Returns
+    -------
+    ndarray (k,)
+        ``omega_r`` at the end of the step, rad/s.
+    """
+    J = params.race_inertia
+    w0 = np.asarray(race_speed, float)
+    f_t = np.asarray(friction_force, float)
+    w1 = (w0 - h * f_t * np.asarray(race_radius, float) / J) / (1.0 + h * params.race_drag / J)
+    roll = np.asarray(rolling_speed, float)
+    driven = f_t != 0.0
+    passed = driven & (np.sign(roll - w0) != np.sign(roll - w1))
+    return np.where(passed, roll, w1)

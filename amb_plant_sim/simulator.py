@@ -74,6 +74,8 @@ class MeasurementBlock:
         ``amb_force`` (n, 4) N (physical AMB force incl. negative stiffness),
         ``contact_force`` (n, k) N (largest normal force in the sample at each clearance
         bearing, order of ``rig.clearance_bearings``), ``contact`` (n, k) bool,
+        ``race_speed`` (n, k) rad/s (inner race of a rolling auxiliary bearing at the end of
+        the sample; 0 for a retainer),
         ``step_by_step`` (n,) bool, ``events_active`` (n, m) bool and ``event_kinds`` (m,).
     """
 
@@ -144,6 +146,11 @@ class PlantSimulator(EventInputs, StepByStepIntegration):
         self._clear_nodes = [self.rotor.node_at(c.z) for c in clear]
         self._clearance = np.array([c.radial_clearance for c in clear])
         self._clearance2 = self._clearance[None] ** 2
+        # rolling auxiliary bearings: their inner race turns (contact.race_step)
+        self._rolling = np.array([c.kind == "auxiliary" for c in clear], dtype=bool) & (
+            rig.contact.race_inertia > 0.0
+        )
+        self._race_radius = rig.contact.rotor_radius + self._clearance
         self._no_contact = np.zeros(len(clear))
         self._max_chunk = 4096
         self._contact_cols = np.array(
@@ -183,6 +190,7 @@ class PlantSimulator(EventInputs, StepByStepIntegration):
         """Back to t = 0 with the rotor at rest on its axis; injected events are dropped."""
         self._x = np.zeros(self._nx)
         self._xk = np.zeros(self._nk)
+        self._race = np.zeros(len(self._clearance))
         self._n = 0
         self._t = 0.0
         self._events: list[Event] = list(self.scenario.events)
@@ -249,6 +257,7 @@ class PlantSimulator(EventInputs, StepByStepIntegration):
             "omega": np.zeros(n),
             "noise": np.zeros((n, 8)),
             "contact_force": np.zeros((n, k)),
+            "race_speed": np.zeros((n, k)),
             "step_by_step": np.zeros(n, dtype=bool),
             "inp": [],
         }
@@ -277,6 +286,7 @@ class PlantSimulator(EventInputs, StepByStepIntegration):
             "amb_force": amb_law.amb_force(self.rig.amb, i_pub, xb, ch_mode),
             "contact_force": rec["contact_force"],
             "contact": rec["contact_force"] > 0,
+            "race_speed": rec["race_speed"],
             "step_by_step": rec["step_by_step"],
             "events_active": active,
             "event_kinds": np.array([e.kind for e in self._events[:ne]]),
@@ -358,6 +368,7 @@ class PlantSimulator(EventInputs, StepByStepIntegration):
                 i0 = cur[0]
                 self._x = res[: self._nx]
                 self._xk = res[self._nx : ns]
+                self._race_coast(d.period)
             else:
                 slow = True
         if slow:
@@ -368,10 +379,23 @@ class PlantSimulator(EventInputs, StepByStepIntegration):
         rec["angle"][s] = theta
         rec["omega"][s] = omega
         rec["contact_force"][s] = contact_max
+        rec["race_speed"][s] = self._race
         rec["step_by_step"][s] = slow
         rec["inp"].append(inp)
         self._n += 1
         self._t = self._next_time(t, d.period)
+
+    def _race_run_down(self, dt: NDArray) -> NDArray:
+        """Race speeds (len(dt), k) after running down out of contact for ``dt`` s."""
+        c = self.rig.contact
+        if c.race_inertia == 0.0:
+            return np.zeros((len(dt), len(self._race)))
+        return self._race[None, :] * np.exp(-c.race_drag * dt / c.race_inertia)[:, None]
+
+    def _race_coast(self, dt: float) -> None:
+        """Let the races of rolling auxiliary bearings run down over ``dt`` s out of contact."""
+        if np.any(self._race):
+            self._race = self._race_run_down(np.array([dt]))[0]
 
     def _next_time(self, t: float, period: float) -> float:
         """Time of the next sample: ``n / fs`` at constant speed, accumulated on a profile."""
@@ -449,6 +473,7 @@ class PlantSimulator(EventInputs, StepByStepIntegration):
             rec["omega"][sl] = d.omega
             rec["noise"][sl] = n_pub[:k_bad]
             rec["contact_force"][sl] = 0.0
+            rec["race_speed"][sl] = self._race_run_down(d.period * np.arange(1, k_bad + 1))
             rec["step_by_step"][sl] = False
             rec["inp"].extend([inp] * k_bad)
             times = (n0 + np.arange(k_bad)) * d.period
@@ -457,6 +482,7 @@ class PlantSimulator(EventInputs, StepByStepIntegration):
             self._t = self._n * d.period
             self._x = S[k_bad, : self._nx].copy()
             self._xk = S[k_bad, self._nx :].copy()
+            self._race_coast(k_bad * d.period)
         if k_bad < L:
             # contact or saturation: shorter chunks until the loop is linear again
             self._chunk_hint = max(2, k_bad)

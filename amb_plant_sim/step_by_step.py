@@ -6,8 +6,9 @@ linear map cannot: contact, force saturation, the nonlinear AMB law, a lost AMB 
 stuck/zeroed PID sensor. The plant advances internal step by internal step (exact response to
 held inputs), with ``contact.substeps`` sub-steps per internal step while a contact is active;
 the contact force of each sub-step is linearly implicit (one Newton step on the force law at
-the sub-step end, through the exact response of the journal to a held force). The PID runs at
-the internal rate with conditional-integration anti-windup while a current saturates.
+the sub-step end, through the exact response of the journal to a held force), and the friction's
+reaction spins the inner race of a rolling auxiliary bearing (``contact.race_step``). The PID
+runs at the internal rate with conditional-integration anti-windup while a current saturates.
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from amb_plant_sim import amb as amb_law
-from amb_plant_sim.contact import contact_forces
+from amb_plant_sim.contact import contact_forces, race_step
 from amb_plant_sim.discretize import SpeedDiscretisation
 
 
@@ -104,6 +105,7 @@ class StepByStepIntegration:
             )
             if not near:
                 x = x_trial
+                self._race_coast(st.h)
                 continue
             base_s = sub.Gi @ i_ref + sub.Gf @ f_e + sub.Ga @ a_b
             Gc, Gp, Gv = self._contact_matrices(d)
@@ -112,9 +114,13 @@ class StepByStepIntegration:
                 x_free = sub.Phi @ x + base_s + (sub.Psi @ (W * rot_s)).real
                 p_free = (self._contact_pos @ x_free).reshape(-1, 2)
                 v_free = (self._contact_vel @ x_free).reshape(-1, 2)
-                cr = contact_forces(p_free, v_free, centre, self._clearance, d.omega, rig.contact)
+                u_r = self._race * self._race_radius
+                cr = contact_forces(
+                    p_free, v_free, centre, self._clearance, d.omega, rig.contact, u_r
+                )
                 if not np.any(cr.in_contact):
                     x = x_free
+                    self._race_coast(sub.h)
                     continue
                 # linearly implicit contact force at the end of the sub-step:
                 # f = F(p_free) + dF/dp (p - p_free) + dF/dv (v - v_free), p = p_free + Gp f
@@ -140,5 +146,21 @@ class StepByStepIntegration:
                 nrm = np.hypot(r_end[:, 0], r_end[:, 1])
                 f_n = -np.sum(fk * r_end, axis=1) / np.maximum(nrm, 1e-12)
                 contact_max = np.maximum(contact_max, f_n)
+                if np.any(self._rolling):
+                    self._spin_races(x, fk, r_end, nrm, d.omega, sub.h)
         self._x, self._xk = x, xk
         return i_first, contact_max
+
+    def _spin_races(
+        self, x: NDArray, fk: NDArray, r_end: NDArray, nrm: NDArray, omega: float, h: float
+    ) -> None:
+        """Advance the rolling auxiliary bearings' races over a sub-step (``contact.race_step``)."""
+        safe = np.maximum(nrm, 1e-12)
+        t = np.stack([-r_end[:, 1], r_end[:, 0]], axis=1) / safe[:, None]
+        f_t = np.where(self._rolling, np.sum(fk * t, axis=1), 0.0)
+        v = (self._contact_vel @ x).reshape(-1, 2)
+        rolling_speed = (np.sum(v * t, axis=1) + omega * self.rig.contact.rotor_radius) / (
+            self._race_radius
+        )
+        new = race_step(self._race, f_t, rolling_speed, self._race_radius, h, self.rig.contact)
+        self._race = np.where(self._rolling, new, 0.0)
