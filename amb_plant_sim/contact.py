@@ -48,6 +48,11 @@ class ContactResult:
         Signed tangential force on the rotor along ``t``, ``-mu f_c tanh(v_s / v_0)``, N (its
         reaction drives the bearing's race).
     in_contact : ndarray (k,) bool
+    tangent : ndarray (k, 2)
+        ``t`` where touching (zero elsewhere).
+    surface_speed : ndarray (k,)
+        The journal's surface speed along ``t``, ``r'.t + Omega R``, m/s, where touching: the
+        race rolls when its own surface speed equals it.
     d_position, d_velocity : ndarray (k, 2, 2)
         Jacobians of ``force`` with respect to the journal position (N/m) and velocity
         (N s/m) at fixed contact direction and slip sign, for the linearly implicit step.
@@ -58,6 +63,8 @@ class ContactResult:
     normal_force: NDArray[np.float64]
     friction_force: NDArray[np.float64]
     in_contact: NDArray[np.bool_]
+    tangent: NDArray[np.float64]
+    surface_speed: NDArray[np.float64]
     d_position: NDArray[np.float64]
     d_velocity: NDArray[np.float64]
 
@@ -101,6 +108,8 @@ def contact_forces(
     force = np.zeros_like(r)
     fn = np.zeros(d.shape)
     ft = np.zeros(d.shape)
+    tan = np.zeros_like(r)
+    surf = np.zeros(d.shape)
     kp = np.zeros((r.shape[0], 2, 2))
     kv = np.zeros((r.shape[0], 2, 2))
     if np.any(touching):
@@ -118,6 +127,8 @@ def contact_forces(
         pushing = raw > 0.0
         f_c = np.where(pushing, raw, 0.0)
         v_s = np.sum(v * t, axis=1) + omega * params.rotor_radius
+        tan[touching] = t
+        surf[touching] = v_s
         if race_surface_speed is not None:
             v_s = v_s - np.asarray(race_surface_speed, float)[touching]
         mu = params.friction * np.tanh(v_s / params.slip_velocity_scale)
@@ -128,7 +139,7 @@ def contact_forces(
         outer = direction[:, :, None] * n[:, None, :]  # direction n^T
         kp[touching] = -(np.where(pushing, dk, 0.0))[:, None, None] * outer
         kv[touching] = -(np.where(pushing, params.damping, 0.0))[:, None, None] * outer
-    return ContactResult(force, np.maximum(delta, 0.0), fn, ft, touching, kp, kv)
+    return ContactResult(force, np.maximum(delta, 0.0), fn, ft, touching, tan, surf, kp, kv)
 
 
 def race_step(

@@ -70,6 +70,7 @@ class StepByStepIntegration:
         contact_max = np.zeros(len(self._clear_nodes))
         i_first = None
         m = d.n_contact_sub
+        idle = 0.0  # time out of contact not yet run down on the races (applied when needed)
         for j in range(d.n_sub):
             y = self._C_in @ x + o_in + n_pid[4 * j : 4 * j + 4]
             for k, v in stuck_in.items():
@@ -105,7 +106,7 @@ class StepByStepIntegration:
             )
             if not near:
                 x = x_trial
-                self._race_coast(st.h)
+                idle += st.h
                 continue
             base_s = sub.Gi @ i_ref + sub.Gf @ f_e + sub.Ga @ a_b
             Gc, Gp, Gv = self._contact_matrices(d)
@@ -114,13 +115,16 @@ class StepByStepIntegration:
                 x_free = sub.Phi @ x + base_s + (sub.Psi @ (W * rot_s)).real
                 p_free = (self._contact_pos @ x_free).reshape(-1, 2)
                 v_free = (self._contact_vel @ x_free).reshape(-1, 2)
+                if idle:
+                    self._race_coast(idle)
+                    idle = 0.0
                 u_r = self._race * self._race_radius
                 cr = contact_forces(
                     p_free, v_free, centre, self._clearance, d.omega, rig.contact, u_r
                 )
                 if not np.any(cr.in_contact):
                     x = x_free
-                    self._race_coast(sub.h)
+                    idle += sub.h
                     continue
                 # linearly implicit contact force at the end of the sub-step:
                 # f = F(p_free) + dF/dp (p - p_free) + dF/dv (v - v_free), p = p_free + Gp f
@@ -146,21 +150,23 @@ class StepByStepIntegration:
                 nrm = np.hypot(r_end[:, 0], r_end[:, 1])
                 f_n = -np.sum(fk * r_end, axis=1) / np.maximum(nrm, 1e-12)
                 contact_max = np.maximum(contact_max, f_n)
-                if np.any(self._rolling):
-                    self._spin_races(x, fk, r_end, nrm, d.omega, sub.h)
+                if np.any(self._rolling[act]):
+                    self._spin_races(cr, fk, sub.h)
+                else:
+                    idle += sub.h
+        self._race_coast(idle)
         self._x, self._xk = x, xk
         return i_first, contact_max
 
-    def _spin_races(
-        self, x: NDArray, fk: NDArray, r_end: NDArray, nrm: NDArray, omega: float, h: float
-    ) -> None:
-        """Advance the rolling auxiliary bearings' races over a sub-step (``contact.race_step``)."""
-        safe = np.maximum(nrm, 1e-12)
-        t = np.stack([-r_end[:, 1], r_end[:, 0]], axis=1) / safe[:, None]
-        f_t = np.where(self._rolling, np.sum(fk * t, axis=1), 0.0)
-        v = (self._contact_vel @ x).reshape(-1, 2)
-        rolling_speed = (np.sum(v * t, axis=1) + omega * self.rig.contact.rotor_radius) / (
-            self._race_radius
-        )
+    def _spin_races(self, cr, fk: NDArray, h: float) -> None:
+        """
+        Advance the rolling auxiliary bearings' races over a sub-step (``contact.race_step``).
+
+        The friction (the tangential part of the implicit force ``fk``) and the rolling speed
+        are taken along the tangent at the sub-step's free position (``cr``), which the journal
+        leaves by at most the sub-step's penetration.
+        """
+        f_t = np.where(self._rolling, np.sum(fk * cr.tangent, axis=1), 0.0)
+        rolling_speed = cr.surface_speed / self._race_radius
         new = race_step(self._race, f_t, rolling_speed, self._race_radius, h, self.rig.contact)
         self._race = np.where(self._rolling, new, 0.0)
