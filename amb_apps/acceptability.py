@@ -30,8 +30,9 @@ back below the clearance: the thesis could not tell these apart either (the test
 The nominal stability boundary (figure 8.3, poles of ``(z - v) + w (z - 1)(z^i - 1)``,
 :func:`amb_controller.stability.exponential_stability_map`) is drawn over the measured map.
 
-Command: ``amb-acceptability --out DIR [--grid N] [--json]`` writes ``acceptability.png`` and
-``acceptability.json``.
+Command: ``amb-acceptability --out DIR [--grid N] [--json] [--jobs N]`` writes
+``acceptability.png`` and ``acceptability.json`` (the runs in N parallel processes, default the
+machine's cores; the result is the same for any N).
 """
 
 from __future__ import annotations
@@ -47,6 +48,7 @@ from pathlib import Path
 import numpy as np
 
 from amb_apps.closed_loop import fe_model, run_closed_loop
+from amb_apps.parallel import add_jobs_argument, run_jobs
 from amb_common.paths import config_file
 from amb_common.rig import load_rig
 from amb_common.topics import DELAY_PERIODS
@@ -324,12 +326,27 @@ def grid_values(n: int) -> np.ndarray:
     return (np.arange(int(n)) + 0.5) / int(n)
 
 
-def _report(progress, done: int, total: int, text: str) -> None:
-    if progress is not None:
-        progress(done, total, text)
+def _classify_task(task: tuple) -> RunClass:
+    """Run one sweep point in a worker process: ``(setup, overrides)`` -> its class."""
+    setup, overrides = task
+    return setup.run(**overrides)
 
 
-def exponential_sweep(setup: SweepSetup, w: np.ndarray, v: np.ndarray, progress=None) -> dict:
+def _sweep(setup: SweepSetup, points: list[dict], labels: list[str], progress, jobs) -> list:
+    """Classify every point (``ControllerConfig`` overrides) in ``jobs`` processes, in order."""
+    done = [0]
+
+    def report(i: int, c: RunClass) -> None:
+        done[0] += 1
+        if progress is not None:
+            progress(done[0], len(points), f"{labels[i]}: {c.label}")
+
+    return run_jobs(_classify_task, [(setup, p) for p in points], jobs, report)
+
+
+def exponential_sweep(
+    setup: SweepSetup, w: np.ndarray, v: np.ndarray, progress=None, jobs: int | None = 1
+) -> dict:
     """
     Classify every (w, v) of a grid (figure 8.4).
 
@@ -341,6 +358,8 @@ def exponential_sweep(setup: SweepSetup, w: np.ndarray, v: np.ndarray, progress=
         1-D grids, ``0 < w < 1``, ``0 <= v < 1``.
     progress : callable, optional
         ``progress(done, total, text)`` after each run.
+    jobs : int or None
+        Parallel processes (:func:`amb_apps.parallel.run_jobs`; None: the cores).
 
     Returns
     -------
@@ -354,19 +373,19 @@ def exponential_sweep(setup: SweepSetup, w: np.ndarray, v: np.ndarray, progress=
     v = np.asarray(v, dtype=float)
     out = {k: [[None] * w.size for _ in range(v.size)] for k in
            ("label", "peak_radius", "steady_1x", "growth_per_period")}  # fmt: skip
-    total, done = w.size * v.size, 0
-    for iv, vv in enumerate(v):
-        for iw, ww in enumerate(w):
-            c = setup.run(response="exponential", w=float(ww), v=float(vv))
-            for key in out:
-                out[key][iv][iw] = getattr(c, key)
-            done += 1
-            _report(progress, done, total, f"w={ww:.3f} v={vv:.3f}: {c.label}")
+    grid = [(iv, iw) for iv in range(v.size) for iw in range(w.size)]
+    points = [dict(response="exponential", w=float(w[iw]), v=float(v[iv])) for iv, iw in grid]
+    labels = [f"w={p['w']:.3f} v={p['v']:.3f}" for p in points]
+    for (iv, iw), c in zip(grid, _sweep(setup, points, labels, progress, jobs), strict=True):
+        for key in out:
+            out[key][iv][iw] = getattr(c, key)
     nominal = exponential_stability_map(w, v, setup.config.delay_periods)
     return {"w": w.tolist(), "v": v.tolist(), **out, "nominal_stable": nominal.tolist()}
 
 
-def linear_rate_sweep(setup: SweepSetup, rates: np.ndarray, progress=None) -> dict:
+def linear_rate_sweep(
+    setup: SweepSetup, rates: np.ndarray, progress=None, jobs: int | None = 1
+) -> dict:
     """
     Classify the linear prescribed response ``c_k = max(0, 1 - rate k)`` over ``rates``.
 
@@ -378,6 +397,8 @@ def linear_rate_sweep(setup: SweepSetup, rates: np.ndarray, progress=None) -> di
         Decay rates per period, increasing, in (0, 1).
     progress : callable, optional
         ``progress(done, total, text)`` after each run.
+    jobs : int or None
+        Parallel processes, as in :func:`exponential_sweep`.
 
     Returns
     -------
@@ -389,11 +410,9 @@ def linear_rate_sweep(setup: SweepSetup, rates: np.ndarray, progress=None) -> di
     """
     rates = np.asarray(rates, dtype=float)
     delay = setup.config.delay_periods
-    rows = []
-    for n, rate in enumerate(rates):
-        c = setup.run(response="linear", rate=float(rate))
-        rows.append(c)
-        _report(progress, n + 1, rates.size, f"linear rate={rate:.3f}: {c.label}")
+    points = [dict(response="linear", rate=float(r)) for r in rates]
+    labels = [f"linear rate={r:.3f}" for r in rates]
+    rows = _sweep(setup, points, labels, progress, jobs)
     labels = [c.label for c in rows]
     ok = [lab == ACCEPTABLE for lab in labels]
     first_bad = ok.index(False) if False in ok else len(ok)
@@ -530,6 +549,7 @@ def main(argv=None) -> int:
     ap.add_argument("--delay", type=int, default=2, help="evaluation delay i [2]")
     ap.add_argument("--rate-step", type=float, default=0.01, help="linear rate step [0.01]")
     ap.add_argument("--json", action="store_true", help="print the JSON result to stdout")
+    add_jobs_argument(ap)
     ap.add_argument("--quiet", action="store_true", help="no progress on stderr")
     args = ap.parse_args(argv)
     try:
@@ -550,9 +570,9 @@ def main(argv=None) -> int:
 
     setup = SweepSetup.first_critical(delay=args.delay)
     pid = setup.run(controller="none")
-    exp = exponential_sweep(setup, w, v, progress)
+    exp = exponential_sweep(setup, w, v, progress, args.jobs)
     rates = np.round(np.arange(args.rate_step, 1.0 - 1e-9, args.rate_step), 6)
-    lin = linear_rate_sweep(setup, rates, progress)
+    lin = linear_rate_sweep(setup, rates, progress, args.jobs)
     result = {
         "scenario": setup.scenario.name,
         "speed_hz": float(setup.scenario.speed_hz),

@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import ClassVar
 
 from amb_apps.closed_loop import fe_model, run_closed_loop
 from amb_apps.plant_models import harmonic_model, influence_by_trials
@@ -56,9 +57,29 @@ SPECS = {
 
 
 class Matrix:
-    """Rig, scenarios and models shared by the runs (models computed once per speed)."""
+    """
+    Rig, scenarios and models shared by the runs (models computed once per speed).
+
+    ``args`` are the constructor's arguments: a worker process of a parallel sweep builds its
+    own matrix from them once (:meth:`shared`) and keeps its models for its later runs.
+    """
+
+    _shared: ClassVar[dict[tuple, Matrix]] = {}
+
+    @classmethod
+    def shared(cls, *args) -> Matrix:
+        """Return this process's matrix built from ``args`` (built on the first call)."""
+        if args not in cls._shared:
+            cls._shared = {args: cls(*args)}
+        return cls._shared[args]
+
+    @classmethod
+    def adopt(cls, matrix: Matrix) -> None:
+        """Make ``matrix`` the one :meth:`shared` returns for its ``args`` in this process."""
+        cls._shared = {matrix.args: matrix}
 
     def __init__(self, scenario_dir: Path, samples_per_rev: int | None, force_limit, quick):
+        self.args = (Path(scenario_dir), samples_per_rev, force_limit, bool(quick))
         self.rig = load_rig()
         self.force_limit = float(force_limit or self.rig.amb.force_limit)
         self.scenarios = {}

@@ -3,7 +3,7 @@
 
 ::
 
-    amb-compare --out runs/compare [--robustness] [--quick]
+    amb-compare --out runs/compare [--robustness] [--quick] [--jobs N]
 
 Controllers (all at the same per-axis force limit, the rig's bearing capacity unless
 ``--force-limit``; the wavelet ones on the Haar x_{1,1} coefficients of the inner sensors):
@@ -65,6 +65,7 @@ from pathlib import Path
 from amb_apps.compare_cases import Matrix
 from amb_apps.compare_report import figures, markdown
 from amb_apps.compare_runs import command_timing, comparison, robustness
+from amb_apps.parallel import add_jobs_argument
 from amb_common.paths import config_file
 
 
@@ -89,6 +90,7 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument(
         "--no-limit", action="store_true", help="skip the limit_i1 / limit_i2 rows (amb-bound)"
     )
+    add_jobs_argument(ap)
     ap.add_argument("--quiet", action="store_true", help="no progress on stderr")
     return ap
 
@@ -107,10 +109,14 @@ def main(argv: list[str] | None = None) -> int:
         matrix = Matrix(scenario_dir, args.samples_per_rev, args.force_limit, args.quick)
         t0 = time.perf_counter()
         result = comparison(
-            matrix, progress=progress, multilevel=args.multilevel, limits=not args.no_limit
+            matrix,
+            progress=progress,
+            multilevel=args.multilevel,
+            limits=not args.no_limit,
+            jobs=args.jobs,
         )
         if args.robustness:
-            result["robustness"] = robustness(matrix, progress)
+            result["robustness"] = robustness(matrix, progress, args.jobs)
     except (ValueError, TypeError, FileNotFoundError) as exc:
         print(f"amb-compare: {exc}", file=sys.stderr)
         return 2

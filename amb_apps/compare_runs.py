@@ -53,6 +53,7 @@ from amb_apps.compare_cases import (
     SPECS,
     Matrix,
 )
+from amb_apps.parallel import run_jobs
 from amb_common.rig import load_rig
 from amb_controller.baselines import perturb_model
 from amb_controller.basis import control_basis
@@ -280,19 +281,117 @@ def _row_delay(name: str) -> int:
     return spec.delay if spec is not None and spec.controller != "none" else 1
 
 
+def _row_names(key: str, controllers, multilevel: bool, limits: bool) -> list[str]:
+    """The rows run on scenario ``key`` (the matrix's own extras added)."""
+    names = list(controllers)
+    if key == "contact_case2":
+        names += ["wavelet_reconf", "wavelet_reconf_alarm", "wavelet_reconf_alarm_ramp"]
+    if multilevel and key.startswith("mass_loss"):
+        names += list(MULTILEVEL)
+    if key == "sync_150N_3rd":
+        names += ["wavelet_i1_8sensors"]
+    if limits:
+        names += [f"limit_i{d}" for d in LIMIT_DELAYS]
+    return names
+
+
+def run_row(matrix: Matrix, key: str, name: str) -> RunResult:
+    """
+    Run row ``name`` of scenario ``key``.
+
+    Raises
+    ------
+    BoundExceededError
+        A ``limit_i*`` row where the rotor reaches a clearance before any force can act.
+    """
+    scenario = matrix.scenarios[key]
+    if name.startswith("limit_i"):
+        return run_limit(matrix, key, int(name.removeprefix("limit_i")))
+    if name == "wavelet_reconf":
+        return matrix.run(SPECS["wavelet_i1"], key, fault_monitor=True, engage_on=(MASS_LOSS,))
+    if name == "wavelet_reconf_alarm":
+        return matrix.run(
+            SPECS["wavelet_i1"], key, fault_monitor=True, engage_on=(MASS_LOSS,),
+            stop=_engage_at_alarm,
+        )  # fmt: skip
+    if name == "wavelet_reconf_alarm_ramp":
+        return matrix.run(
+            SPECS["wavelet_i1"], key, fault_monitor=True, engage_on=(MASS_LOSS,),
+            stop=_engage_at_alarm_ramp,
+        )  # fmt: skip
+    if name in MULTILEVEL:
+        return run_multilevel(matrix, name, key)
+    if name == "wavelet_i1_8sensors":
+        spec = SPECS["wavelet_i1"]
+        config = replace(matrix.config(spec, scenario), sensors=tuple(range(8)))
+        model = matrix.model(spec, scenario, config)
+        return run_closed_loop(matrix.rig, scenario, config, model)
+    return matrix.run(SPECS[name], key)
+
+
+#: cost of a row relative to the others, to start the longest first (wall times of
+#: ``amb-compare --quick``: the contact scenario and the diverging third-critical runs last
+#: 10-50 times longer than a mass loss that stays clear of the auxiliary bearings)
+_SCENARIO_COST = {"contact_case2": 3, "sync_150N_3rd": 2}
+
+
+def _row_task(task: tuple) -> tuple:
+    """
+    Run one row of :func:`comparison` (in a worker process).
+
+    ``(matrix args, key, name)`` -> ``(result, model radius, wall time, error)``; ``result``
+    is ``None`` and ``error`` the reason where no limit exists.
+    """
+    args, key, name = task
+    matrix = Matrix.shared(*args)
+    t0 = time.perf_counter()
+    try:
+        result = run_row(matrix, key, name)
+    except BoundExceededError as exc:
+        return None, None, time.perf_counter() - t0, str(exc)
+    radius = model_radius(matrix, name, key)
+    return result, radius, time.perf_counter() - t0, None
+
+
 def comparison(
     matrix: Matrix,
     controllers=CONTROLLERS,
     progress=None,
     multilevel: bool = False,
     limits: bool = True,
+    jobs: int | None = 1,
 ) -> dict:
     """
     Run every controller on every scenario; return ``{scenario: {controller: metrics}}``.
 
     With ``limits`` the ``limit_i1`` and ``limit_i2`` rows are added (module docstring) and
-    every row gets ``peak_to_limit``.
+    every row gets ``peak_to_limit``. The runs are independent: ``jobs`` processes run them
+    (:func:`amb_apps.parallel.run_jobs`; ``None``: the machine's cores), the table is the
+    same for any ``jobs``.
     """
+    rows = [
+        (key, name)
+        for key in matrix.scenarios
+        for name in _row_names(key, controllers, multilevel, limits)
+    ]
+    order = sorted(range(len(rows)), key=lambda i: -_SCENARIO_COST.get(rows[i][0], 1))
+    tasks = [(matrix.args, *rows[i]) for i in order]
+
+    def done(i: int, out: tuple) -> None:
+        if progress is None:
+            return
+        key, name = rows[order[i]]
+        result, _, wall, error = out
+        if result is None:
+            progress(f"{key} {name}: no limit: {error}")
+        else:
+            peak = run_metrics(result, matrix.scenarios[key].speed_hz)["peak"]
+            progress(f"{key} {name}: peak {peak * 1e6:.1f} um ({wall:.0f} s)")
+
+    if jobs == 1:  # this process's matrix (its models are cached here)
+        Matrix.adopt(matrix)
+    outs = run_jobs(_row_task, tasks, jobs, done)
+    by_row = {rows[order[i]]: out for i, out in enumerate(outs)}
     table: dict = {}
     traces: dict = {}
     unavailable: dict = {}
@@ -300,55 +399,18 @@ def comparison(
         table[key] = {}
         traces[key] = {}
         pid_steady = None
-        names = list(controllers)
-        if key == "contact_case2":
-            names += ["wavelet_reconf", "wavelet_reconf_alarm", "wavelet_reconf_alarm_ramp"]
-        if multilevel and key.startswith("mass_loss"):
-            names += list(MULTILEVEL)
-        if key == "sync_150N_3rd":
-            names += ["wavelet_i1_8sensors"]
-        if limits:
-            names += [f"limit_i{d}" for d in LIMIT_DELAYS]
-        for name in names:
-            t0 = time.perf_counter()
-            if name.startswith("limit_i"):
-                try:
-                    result = run_limit(matrix, key, int(name.removeprefix("limit_i")))
-                except BoundExceededError as exc:
-                    unavailable.setdefault(key, {})[name] = str(exc)
-                    if progress is not None:
-                        progress(f"{key} {name}: no limit: {exc}")
-                    continue
-            elif name == "wavelet_reconf":
-                result = matrix.run(
-                    SPECS["wavelet_i1"], key, fault_monitor=True, engage_on=(MASS_LOSS,)
-                )
-            elif name == "wavelet_reconf_alarm":
-                result = matrix.run(
-                    SPECS["wavelet_i1"], key, fault_monitor=True, engage_on=(MASS_LOSS,),
-                    stop=_engage_at_alarm,
-                )  # fmt: skip
-            elif name == "wavelet_reconf_alarm_ramp":
-                result = matrix.run(
-                    SPECS["wavelet_i1"], key, fault_monitor=True, engage_on=(MASS_LOSS,),
-                    stop=_engage_at_alarm_ramp,
-                )  # fmt: skip
-            elif name in MULTILEVEL:
-                result = run_multilevel(matrix, name, key)
-            elif name == "wavelet_i1_8sensors":
-                spec = SPECS["wavelet_i1"]
-                config = replace(matrix.config(spec, scenario), sensors=tuple(range(8)))
-                model = matrix.model(spec, scenario, config)
-                result = run_closed_loop(matrix.rig, scenario, config, model)
-            else:
-                result = matrix.run(SPECS[name], key)
+        for name in _row_names(key, controllers, multilevel, limits):
+            result, radius, wall, error = by_row[(key, name)]
+            if result is None:
+                unavailable.setdefault(key, {})[name] = error
+                continue
             m = run_metrics(result, scenario.speed_hz, pid_steady)
             if name == "pid":
                 pid_steady = m["steady_1x"]
-            m["wall_time"] = time.perf_counter() - t0
+            m["wall_time"] = wall
             m["residual_um"] = residual_after_1x(result) * 1e6
             m.update(harmonic_content(result))
-            m["model_radius"] = model_radius(matrix, name, key)
+            m["model_radius"] = radius
             if name.startswith("wavelet_reconf"):
                 spr = result.samples_per_rev
                 m["fault_events"] = [
@@ -357,51 +419,65 @@ def comparison(
                 ]
             table[key][name] = m
             traces[key][name] = (result.time, result.displacement[:, 2], result.fault_time)
-            if progress is not None:
-                progress(f"{key} {name}: peak {m['peak'] * 1e6:.1f} um")
         for name, m in table[key].items():
             lim = table[key].get(f"limit_i{_row_delay(name)}")
             m["peak_to_limit"] = None if lim is None else m["peak"] / lim["peak"]
     return {"table": table, "traces": traces, "limits_unavailable": unavailable}
 
 
-def robustness(matrix: Matrix, progress=None) -> dict:
+#: the robustness matrix's cases: model gain and phase errors, and speed off the model's
+ROBUSTNESS_CASES = {
+    "nominal": {},
+    "gain +30%": {"gain": 1.3},
+    "gain -30%": {"gain": 0.7},
+    "phase +30deg": {"phase": math.radians(30)},
+    "phase -30deg": {"phase": math.radians(-30)},
+    "speed +10%": {"speed": 1.1},
+    "speed -10%": {"speed": 0.9},
+}
+ROBUSTNESS_ROWS = ("wavelet_i1", "wavelet_i2", "harmonic_i1", "synchronous_i1")
+
+
+def _robustness_task(task: tuple) -> dict:
+    """Worker of :func:`robustness`: ``(matrix args, row, case)`` -> the run's metrics."""
+    args, name, case = task
+    matrix = Matrix.shared(*args)
+    key = "mass_loss_1st"
+    scenario = matrix.scenarios[key]
+    p = ROBUSTNESS_CASES[case]
+    spec = SPECS[name]
+    config = matrix.config(spec, scenario)
+    nominal = matrix.model(spec, scenario, config)
+    model = perturb_model(nominal, p.get("gain", 1.0), p.get("phase", 0.0), config.inverse_order)
+    hz = scenario.speed_hz * p.get("speed", 1.0)
+    result = matrix.run(spec, key, model=model, speed_hz=hz)
+    pid = matrix.run(SPECS["pid"], key, speed_hz=hz) if "speed" in p else None
+    pid_steady = None if pid is None else run_metrics(pid, hz)["steady_1x"]
+    m = run_metrics(result, hz, pid_steady)
+    if pid is not None:
+        m["pid_peak"] = run_metrics(pid, hz)["peak"]
+    return m
+
+
+def robustness(matrix: Matrix, progress=None, jobs: int | None = 1) -> dict:
     """
     Every controller with its model off by +-30 % gain, +-30 deg phase, and at +-10 % speed.
 
-    On the first-critical mass loss; the model stays the one of the nominal speed.
+    On the first-critical mass loss; the model stays the one of the nominal speed. ``jobs``
+    as in :func:`comparison`.
     """
-    key = "mass_loss_1st"
-    scenario = matrix.scenarios[key]
-    cases = {
-        "nominal": {},
-        "gain +30%": {"gain": 1.3},
-        "gain -30%": {"gain": 0.7},
-        "phase +30deg": {"phase": math.radians(30)},
-        "phase -30deg": {"phase": math.radians(-30)},
-        "speed +10%": {"speed": 1.1},
-        "speed -10%": {"speed": 0.9},
-    }
-    out: dict = {}
-    for name in ("wavelet_i1", "wavelet_i2", "harmonic_i1", "synchronous_i1"):
-        spec = SPECS[name]
-        config = matrix.config(spec, scenario)
-        nominal = matrix.model(spec, scenario, config)
-        out[name] = {}
-        for case, p in cases.items():
-            model = perturb_model(
-                nominal, p.get("gain", 1.0), p.get("phase", 0.0), config.inverse_order
-            )
-            hz = scenario.speed_hz * p.get("speed", 1.0)
-            result = matrix.run(spec, key, model=model, speed_hz=hz)
-            pid = matrix.run(SPECS["pid"], key, speed_hz=hz) if "speed" in p else None
-            pid_steady = None if pid is None else run_metrics(pid, hz)["steady_1x"]
-            m = run_metrics(result, hz, pid_steady)
-            if pid is not None:
-                m["pid_peak"] = run_metrics(pid, hz)["peak"]
-            out[name][case] = m
-            if progress is not None:
-                progress(f"robustness {name} {case}: peak {m['peak'] * 1e6:.1f} um")
+    runs = [(name, case) for name in ROBUSTNESS_ROWS for case in ROBUSTNESS_CASES]
+
+    def done(i: int, m: dict) -> None:
+        if progress is not None:
+            progress(f"robustness {runs[i][0]} {runs[i][1]}: peak {m['peak'] * 1e6:.1f} um")
+
+    if jobs == 1:
+        Matrix.adopt(matrix)
+    outs = run_jobs(_robustness_task, [(matrix.args, *r) for r in runs], jobs, done)
+    out: dict = {name: {} for name in ROBUSTNESS_ROWS}
+    for (name, case), m in zip(runs, outs, strict=True):
+        out[name][case] = m
     return out
 
 

@@ -5,7 +5,7 @@ Usage::
 
     amb-fault-eval --scenarios config/scenarios/faults [--json] [--wavelet haar,db2,db4]
                    [--samples-per-rev 32] [--rig config/rig.yaml] [--match STR]
-                   [--figures DIR]
+                   [--figures DIR] [--jobs N]
 
 Prints the confusion matrix (expected class per row, reported class per column; row ``NONE``
 holds false alarms), detection delay (ms and revolutions), decision delay, onset-time error
@@ -23,6 +23,9 @@ onsets and each event's estimated onset, detection and decision), and ``DIR/summ
 (detection delay and onset error of every matched case against the targets, false alarms per
 hour). The paths written are printed after the tables (to stderr with ``--json``, whose
 stdout stays JSON); the exit status does not depend on them.
+
+The scenarios are simulated in ``--jobs`` parallel processes (default: the machine's cores;
+:mod:`amb_apps.parallel`); the report is the same for any ``--jobs``.
 """
 
 from __future__ import annotations
@@ -34,6 +37,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from amb_apps.evaluation import run_case, simulate_case, summarise
+from amb_apps.parallel import add_jobs_argument, run_jobs
 from amb_common.rig import load_rig
 
 
@@ -55,7 +59,44 @@ def _parser() -> argparse.ArgumentParser:
         metavar="DIR",
         help="also write PNG figures there: one per scenario and wavelet, and summary.png",
     )
+    add_jobs_argument(p)
     return p
+
+
+_RIGS: dict = {}
+
+
+def _case_task(task: tuple) -> list:
+    """
+    Simulate one scenario file and run the monitor with each wavelet (in a worker process).
+
+    ``(file, rig file or None, samples per revolution, wavelets, figure folder or None)`` ->
+    ``[(CaseResult, figure path or None), ...]``, one per wavelet.
+
+    Raises
+    ------
+    ValueError
+        An invalid scenario, the file named in the message.
+    """
+    f, rig_path, spr, wavelets, fig_dir = task
+    if rig_path not in _RIGS:
+        _RIGS[rig_path] = load_rig(rig_path) if rig_path else load_rig()
+    out = []
+    try:
+        case = simulate_case(f, _RIGS[rig_path], samples_per_rev=spr)
+        for w in wavelets:
+            trace: list | None = [] if fig_dir is not None else None
+            res = run_case(case, w, trace=trace)
+            png = None
+            if fig_dir is not None:
+                from amb_apps import eval_figures  # heavy, optional: matplotlib
+
+                png = fig_dir / f"{f.stem}_{res.wavelet}.png"
+                png = eval_figures.case_figure(case, res, trace, png)
+            out.append((res, png))
+    except ValueError as exc:
+        raise ValueError(f"{f}: {exc}") from exc
+    return out
 
 
 def _table(summary: dict, results: list) -> str:
@@ -110,7 +151,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"no *.yaml scenario files in {folder}", file=sys.stderr)
         return 2
 
-    rig = load_rig(args.rig) if args.rig else load_rig()
+    # loaded here first: a bad rig file is reported before any run (workers load their own)
+    _RIGS[args.rig] = load_rig(args.rig) if args.rig else load_rig()
     wavelets = [w.strip() for w in args.wavelet.split(",")] if args.wavelet else [None]
     fig_dir = Path(args.figures) if args.figures else None
     if fig_dir is not None:
@@ -123,19 +165,21 @@ def main(argv: Sequence[str] | None = None) -> int:
         from amb_apps import eval_figures
     written: list[Path] = []
     results: dict[str | None, list] = {w: [] for w in wavelets}
-    for f in files:
-        try:
-            case = simulate_case(f, rig, samples_per_rev=args.samples_per_rev)
-            for w in wavelets:
-                trace: list | None = [] if fig_dir is not None else None
-                res = run_case(case, w, trace=trace)
-                results[w].append(res)
-                if fig_dir is not None:
-                    png = fig_dir / f"{f.stem}_{res.wavelet}.png"
-                    written.append(eval_figures.case_figure(case, res, trace, png))
-        except ValueError as exc:
-            print(f"{f}: {exc}", file=sys.stderr)
-            return 2
+    tasks = [(f, args.rig, args.samples_per_rev, wavelets, fig_dir) for f in files]
+
+    def done(i: int, out: list) -> None:
+        print(f"{files[i].name}: done ({len(out)} wavelet(s))", file=sys.stderr, flush=True)
+
+    try:
+        outs = run_jobs(_case_task, tasks, args.jobs, done if len(files) > 1 else None)
+    except ValueError as exc:
+        print(exc, file=sys.stderr)
+        return 2
+    for out in outs:
+        for w, (res, png) in zip(wavelets, out, strict=True):
+            results[w].append(res)
+            if png is not None:
+                written.append(png)
     parts = {}
     ok = True
     for w, res in results.items():

@@ -9,7 +9,10 @@ and writes ``OUT/index.md``: per experiment the thesis's words, our numbers, eac
 reproduced or not, and the figures. A check that fails is a finding reported in the index, not
 an error: the exit status is non-zero only if a run itself failed.
 
-    python -m amb_apps.reproduce --out out/reproduce [--only ID,...] [--skip-faults]
+    python -m amb_apps.reproduce --out out/reproduce [--only ID,...] [--skip-faults] [--jobs N]
+
+The experiments are independent and run in ``--jobs`` parallel processes (default: the
+machine's cores; :mod:`amb_apps.parallel`), then the fault suite with as many.
 """
 
 from __future__ import annotations
@@ -24,6 +27,7 @@ from pathlib import Path
 
 import yaml
 
+from amb_apps.parallel import add_jobs_argument, run_jobs
 from amb_common.paths import config_file
 
 INNER = ("x2", "y2", "x3", "y3")
@@ -98,8 +102,17 @@ def run_experiment(exp: dict, out: Path) -> dict:
     return {"results": results, "checks": checks, "folder": folder}
 
 
-def fault_suite(out: Path) -> dict | None:
-    """Run ``amb-fault-eval`` over the chapter-5 suite; return its JSON summary."""
+def _experiment_task(task: tuple) -> tuple[dict | None, str | None]:
+    """Run one experiment (in a worker process): ``(exp, out)`` -> ``(numbers, error)``."""
+    exp, out = task
+    try:
+        return run_experiment(exp, out), None
+    except RuntimeError as exc:
+        return None, str(exc)
+
+
+def fault_suite(out: Path, jobs: int | None = None) -> dict | None:
+    """Run ``amb-fault-eval`` over the chapter-5 suite (``jobs`` processes); return its JSON."""
     suite = config_file(Path("scenarios") / "faults")
     if not suite.is_dir():
         return None
@@ -107,7 +120,8 @@ def fault_suite(out: Path) -> dict | None:
     with log.open("w") as fh:
         code = subprocess.run(
             [sys.executable, "-m", "amb_apps.eval_cli", "--scenarios", str(suite),
-             "--json"], stdout=fh, stderr=subprocess.DEVNULL,
+             "--json", *(["--jobs", str(jobs)] if jobs else [])],
+            stdout=fh, stderr=subprocess.DEVNULL,
         ).returncode  # fmt: skip
     try:
         return {"exit": code, **json.loads(log.read_text())}
@@ -186,20 +200,21 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--manifest", type=Path, default=None, help="default config/reproduce.yaml")
     ap.add_argument("--only", default="", help="comma-separated experiment ids")
     ap.add_argument("--skip-faults", action="store_true", help="do not run amb-fault-eval")
+    add_jobs_argument(ap)
     args = ap.parse_args(argv)
     manifest = yaml.safe_load((args.manifest or config_file("reproduce.yaml")).read_text())
     only = {s for s in args.only.split(",") if s}
     args.out.mkdir(parents=True, exist_ok=True)
     done, failed = {}, []
-    for exp in manifest["experiments"]:
-        if only and exp["id"] not in only:
-            continue
-        try:
-            done[exp["id"]] = run_experiment(exp, args.out)
-        except RuntimeError as exc:
+    chosen = [e for e in manifest["experiments"] if not only or e["id"] in only]
+    outs = run_jobs(_experiment_task, [(e, args.out) for e in chosen], args.jobs)
+    for exp, (numbers, error) in zip(chosen, outs, strict=True):
+        if numbers is not None:
+            done[exp["id"]] = numbers
+        else:
             failed.append(exp["id"])
-            print(f"[reproduce] {exp['id']} failed: {exc}", file=sys.stderr)
-    faults = None if args.skip_faults else fault_suite(args.out)
+            print(f"[reproduce] {exp['id']} failed: {error}", file=sys.stderr)
+    faults = None if args.skip_faults else fault_suite(args.out, args.jobs)
     index = write_index(args.out, manifest, done, faults)
     n_checks = sum(len(d["checks"]) for d in done.values())
     n_ok = sum(c["ok"] for d in done.values() for c in d["checks"])

@@ -99,7 +99,7 @@ def test_coarse_map_follows_the_nominal_boundary_where_it_is_clear(setup):
     from amb_apps.acceptability import exponential_sweep
 
     w = v = np.array([0.15, 0.75])
-    out = exponential_sweep(setup, w, v)
+    out = exponential_sweep(setup, w, v, jobs=2)  # the parallel path, as amb-acceptability
     # (w, v) = (0.15, *) nominally unstable, (0.75, 0.75) nominally stable
     assert out["label"][0][0] == UNSTABLE and out["label"][1][0] == UNSTABLE
     assert out["label"][1][1] == ACCEPTABLE
