@@ -23,7 +23,9 @@ which is eq. (5.5), ``f_x + j f_y = (-f_c - j mu f_c) P(t) e^{j theta}``, for ``
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -69,6 +71,89 @@ class ContactResult:
     d_velocity: NDArray[np.float64]
 
 
+class BearingContact(NamedTuple):
+    """
+    Contact at one bearing (:func:`contact_at`), plain floats for the step-by-step hot path.
+
+    ``force`` ``(f_x, f_y)`` N; ``normal_force`` ``f_c`` N; ``friction_force`` along ``t`` N;
+    ``tangent`` ``t``; ``surface_speed`` ``r'.t + Omega R`` m/s; ``d_position`` (N/m) and
+    ``d_velocity`` (N s/m) the 2 x 2 Jacobians as ``((a, b), (c, d))``
+    (:class:`ContactResult`).
+    """
+
+    force: tuple[float, float]
+    normal_force: float
+    friction_force: float
+    tangent: tuple[float, float]
+    surface_speed: float
+    d_position: tuple[tuple[float, float], tuple[float, float]]
+    d_velocity: tuple[tuple[float, float], tuple[float, float]]
+
+
+def contact_at(
+    rx: float,
+    ry: float,
+    vx: float,
+    vy: float,
+    clearance: float,
+    omega: float,
+    params: ContactData,
+    race_surface_speed: float = 0.0,
+) -> BearingContact | None:
+    """
+    Contact force at one bearing, or ``None`` when the journal does not touch (eq. 5.5).
+
+    Parameters
+    ----------
+    rx, ry : float
+        Journal position relative to the bearing centre, m.
+    vx, vy : float
+        Journal velocity, m/s.
+    clearance : float
+        Radial clearance, m.
+    omega : float
+        Running speed, rad/s.
+    params : ContactData
+    race_surface_speed : float
+        ``u_r``, m/s.
+
+    Returns
+    -------
+    BearingContact or None
+        The force law of the module docstring; Jacobians at fixed contact direction and slip.
+    """
+    d = math.hypot(rx, ry)
+    delta = d - clearance
+    if not delta > 0.0:
+        return None
+    nx, ny = rx / d, ry / d
+    tx, ty = -ny, nx
+    if params.model == "hertz":
+        root = math.sqrt(delta)
+        k = params.hertz_stiffness * delta * root
+        dk = 1.5 * params.hertz_stiffness * root
+    else:
+        k = params.penalty_stiffness * delta
+        dk = params.penalty_stiffness
+    raw = k + params.damping * (vx * nx + vy * ny)
+    pushing = raw > 0.0
+    f_c = raw if pushing else 0.0
+    surf = vx * tx + vy * ty + omega * params.rotor_radius
+    mu = params.friction * math.tanh((surf - race_surface_speed) / params.slip_velocity_scale)
+    ex, ey = nx + mu * tx, ny + mu * ty  # force = -f_c (ex, ey)
+    gp = -dk if pushing else 0.0
+    gv = -params.damping if pushing else 0.0
+    return BearingContact(
+        (-f_c * ex, -f_c * ey),
+        f_c,
+        -f_c * mu,
+        (tx, ty),
+        surf,
+        ((gp * ex * nx, gp * ex * ny), (gp * ey * nx, gp * ey * ny)),
+        ((gv * ex * nx, gv * ex * ny), (gv * ey * nx, gv * ey * ny)),
+    )
+
+
 def contact_forces(
     position: NDArray[np.float64],
     velocity: NDArray[np.float64],
@@ -79,7 +164,7 @@ def contact_forces(
     race_surface_speed: NDArray[np.float64] | None = None,
 ) -> ContactResult:
     """
-    Contact forces at ``k`` clearance bearings.
+    Contact forces at ``k`` clearance bearings (:func:`contact_at` at each).
 
     Parameters
     ----------
@@ -102,44 +187,42 @@ def contact_forces(
     ContactResult
     """
     r = np.asarray(position, float) - np.asarray(centre, float)
-    d = np.hypot(r[:, 0], r[:, 1])
-    delta = d - np.asarray(clearance, float)
-    touching = delta > 0.0
-    force = np.zeros_like(r)
-    fn = np.zeros(d.shape)
-    ft = np.zeros(d.shape)
-    tan = np.zeros_like(r)
-    surf = np.zeros(d.shape)
-    kp = np.zeros((r.shape[0], 2, 2))
-    kv = np.zeros((r.shape[0], 2, 2))
-    if np.any(touching):
-        n = r[touching] / d[touching, None]
-        t = np.stack([-n[:, 1], n[:, 0]], axis=1)
-        v = np.asarray(velocity, float)[touching]
-        dl = delta[touching]
-        if params.model == "hertz":
-            k = params.hertz_stiffness * dl**1.5
-            dk = 1.5 * params.hertz_stiffness * np.sqrt(dl)
-        else:
-            k = params.penalty_stiffness * dl
-            dk = np.full(dl.shape, params.penalty_stiffness)
-        raw = k + params.damping * np.sum(v * n, axis=1)
-        pushing = raw > 0.0
-        f_c = np.where(pushing, raw, 0.0)
-        v_s = np.sum(v * t, axis=1) + omega * params.rotor_radius
-        tan[touching] = t
-        surf[touching] = v_s
-        if race_surface_speed is not None:
-            v_s = v_s - np.asarray(race_surface_speed, float)[touching]
-        mu = params.friction * np.tanh(v_s / params.slip_velocity_scale)
-        direction = n + mu[:, None] * t  # force = -f_c * direction
-        force[touching] = -f_c[:, None] * direction
-        fn[touching] = f_c
-        ft[touching] = -f_c * mu
-        outer = direction[:, :, None] * n[:, None, :]  # direction n^T
-        kp[touching] = -(np.where(pushing, dk, 0.0))[:, None, None] * outer
-        kv[touching] = -(np.where(pushing, params.damping, 0.0))[:, None, None] * outer
-    return ContactResult(force, np.maximum(delta, 0.0), fn, ft, touching, tan, surf, kp, kv)
+    v = np.asarray(velocity, float)
+    c = np.broadcast_to(np.asarray(clearance, float), r.shape[:1])
+    u = np.zeros(r.shape[0]) if race_surface_speed is None else np.asarray(race_surface_speed)
+    k = r.shape[0]
+    force = np.zeros((k, 2))
+    fn = np.zeros(k)
+    ft = np.zeros(k)
+    tan = np.zeros((k, 2))
+    surf = np.zeros(k)
+    kp = np.zeros((k, 2, 2))
+    kv = np.zeros((k, 2, 2))
+    for b in range(k):
+        hit = contact_at(r[b, 0], r[b, 1], v[b, 0], v[b, 1], c[b], omega, params, u[b])
+        if hit is None:
+            continue
+        force[b], fn[b], ft[b], tan[b], surf[b] = hit[:5]
+        kp[b], kv[b] = hit.d_position, hit.d_velocity
+    delta = np.hypot(r[:, 0], r[:, 1]) - c
+    return ContactResult(force, np.maximum(delta, 0.0), fn, ft, delta > 0.0, tan, surf, kp, kv)
+
+
+def race_speed_after(
+    race_speed: float,
+    friction_force: float,
+    rolling_speed: float,
+    race_radius: float,
+    h: float,
+    params: ContactData,
+) -> float:
+    """:func:`race_step` at one bearing, plain floats (the step-by-step hot path)."""
+    J = params.race_inertia
+    w1 = (race_speed - h * friction_force * race_radius / J) / (1.0 + h * params.race_drag / J)
+    before, after = float(rolling_speed - race_speed), float(rolling_speed - w1)
+    if friction_force != 0.0 and (before > 0) - (before < 0) != (after > 0) - (after < 0):
+        return rolling_speed  # the step passed (or left) the rolling speed: it rolls
+    return w1
 
 
 def race_step(
@@ -185,11 +268,9 @@ def race_step(
     ndarray (k,)
         ``omega_r`` at the end of the step, rad/s.
     """
-    J = params.race_inertia
-    w0 = np.asarray(race_speed, float)
-    f_t = np.asarray(friction_force, float)
-    w1 = (w0 - h * f_t * np.asarray(race_radius, float) / J) / (1.0 + h * params.race_drag / J)
-    roll = np.asarray(rolling_speed, float)
-    driven = f_t != 0.0
-    passed = driven & (np.sign(roll - w0) != np.sign(roll - w1))
-    return np.where(passed, roll, w1)
+    w0, f_t, roll, r_r = np.broadcast_arrays(
+        *(np.asarray(a, float) for a in (race_speed, friction_force, rolling_speed, race_radius))
+    )
+    args = zip(w0.flat, f_t.flat, roll.flat, r_r.flat, strict=True)
+    out = [race_speed_after(*a, h, params) for a in args]
+    return np.array(out).reshape(w0.shape)

@@ -13,11 +13,14 @@ runs at the internal rate with conditional-integration anti-windup while a curre
 
 from __future__ import annotations
 
+import cmath
+import math
+
 import numpy as np
 from numpy.typing import NDArray
 
 from amb_plant_sim import amb as amb_law
-from amb_plant_sim.contact import contact_forces, race_step
+from amb_plant_sim.contact import contact_at, race_speed_after
 from amb_plant_sim.discretize import SpeedDiscretisation
 
 
@@ -71,6 +74,9 @@ class StepByStepIntegration:
         i_first = None
         m = d.n_contact_sub
         idle = 0.0  # time out of contact not yet run down on the races (applied when needed)
+        psi_w = None
+        params, nb, clear = rig.contact, len(self._clear_nodes), self._clearance.tolist()
+        cen, radius, rolling = centre.tolist(), self._race_radius.tolist(), self._rolling.tolist()
         for j in range(d.n_sub):
             y = self._C_in @ x + o_in + n_pid[4 * j : 4 * j + 4]
             for k, v in stuck_in.items():
@@ -109,64 +115,121 @@ class StepByStepIntegration:
                 idle += st.h
                 continue
             base_s = sub.Gi @ i_ref + sub.Gf @ f_e + sub.Ga @ a_b
-            Gc, Gp, Gv = self._contact_matrices(d)
+            if psi_w is None:  # Psi (W e^{j theta}) = (Psi W) e^{j theta}: once per sample
+                psi_w = sub.Psi @ W
             for q in range(m):
-                rot_s = np.exp(1j * d.omega * (j * st.h + q * sub.h))
-                x_free = sub.Phi @ x + base_s + (sub.Psi @ (W * rot_s)).real
-                p_free = (self._contact_pos @ x_free).reshape(-1, 2)
-                v_free = (self._contact_vel @ x_free).reshape(-1, 2)
+                rot_s = cmath.exp(1j * d.omega * (j * st.h + q * sub.h))
+                x_free = sub.Phi @ x + base_s + (psi_w * rot_s).real
+                pv = (self._contact_pv @ x_free).tolist()
                 if idle:
                     self._race_coast(idle)
                     idle = 0.0
-                u_r = self._race * self._race_radius
-                cr = contact_forces(
-                    p_free, v_free, centre, self._clearance, d.omega, rig.contact, u_r
-                )
-                if not np.any(cr.in_contact):
+                race = self._race.tolist()
+                hits = []
+                for b in range(nb):
+                    rx, ry = pv[2 * b] - cen[b][0], pv[2 * b + 1] - cen[b][1]
+                    hit = contact_at(
+                        rx, ry, pv[2 * nb + 2 * b], pv[2 * nb + 2 * b + 1], clear[b],
+                        d.omega, params, race[b] * radius[b],
+                    )  # fmt: skip
+                    if hit is not None:
+                        hits.append((b, rx, ry, hit))
+                if not hits:
                     x = x_free
                     idle += sub.h
                     continue
-                # linearly implicit contact force at the end of the sub-step:
-                # f = F(p_free) + dF/dp (p - p_free) + dF/dv (v - v_free), p = p_free + Gp f
-                act = np.flatnonzero(cr.in_contact)
-                rows = (2 * act[:, None] + np.arange(2)[None, :]).ravel()
-                na = rows.size
-                kp = np.zeros((na, na))
-                kv = np.zeros((na, na))
-                for q_, a_ in enumerate(act):
-                    kp[2 * q_ : 2 * q_ + 2, 2 * q_ : 2 * q_ + 2] = cr.d_position[a_]
-                    kv[2 * q_ : 2 * q_ + 2, 2 * q_ : 2 * q_ + 2] = cr.d_velocity[a_]
-                sub_p = Gp[np.ix_(rows, rows)]
-                sub_v = Gv[np.ix_(rows, rows)]
-                fa = np.linalg.solve(np.eye(na) - kp @ sub_p - kv @ sub_v, cr.force.ravel()[rows])
-                fk = np.zeros_like(cr.force)
-                fk[act] = fa.reshape(-1, 2)
-                # the bearing cannot pull: drop a contact whose force points outwards
-                rel = p_free - centre
-                pull = np.sum(fk * rel, axis=1) > 0.0
-                fk[pull] = 0.0
-                x = x_free + Gc @ fk.ravel()
-                r_end = (self._contact_pos @ x).reshape(-1, 2) - centre
-                nrm = np.hypot(r_end[:, 0], r_end[:, 1])
-                f_n = -np.sum(fk * r_end, axis=1) / np.maximum(nrm, 1e-12)
-                contact_max = np.maximum(contact_max, f_n)
-                if np.any(self._rolling[act]):
-                    self._spin_races(cr, fk, sub.h)
+                x = x_free + self._implicit_contact(d, hits, contact_max)
+                if any(rolling[b] for b, *_ in hits):
+                    self._spin_races(hits, sub.h)
                 else:
                     idle += sub.h
         self._race_coast(idle)
         self._x, self._xk = x, xk
         return i_first, contact_max
 
-    def _spin_races(self, cr, fk: NDArray, h: float) -> None:
+    def _active_matrices(self, d: SpeedDiscretisation, act: tuple[int, ...]) -> tuple:
+        """
+        Return (and cache) the sub-step's response to the forces at the bearings ``act``.
+
+        ``(I, Gp, Gv, Gc)``: identity, journal positions and velocities at ``act`` per unit
+        force at ``act`` (2a, 2a), and the state per unit force (nx, 2a).
+        """
+        key = (id(d), act)
+        hit = self._amats.get(key)
+        if hit is None or hit[0] is not d:
+            Gc, Gp, Gv = self._contact_matrices(d)
+            rows = (2 * np.array(act)[:, None] + np.arange(2)[None, :]).ravel()
+            sub = np.ix_(rows, rows)
+            hit = (d, np.eye(rows.size), Gp[sub], Gv[sub], np.ascontiguousarray(Gc[:, rows]))
+            self._amats = {key: hit} if len(self._amats) > 256 else {**self._amats, key: hit}
+        return hit[1:]
+
+    def _implicit_contact(
+        self, d: SpeedDiscretisation, hits: list, contact_max: NDArray
+    ) -> NDArray:
+        """
+        Return the state change of the sub-step's linearly implicit contact forces.
+
+        ``hits`` are ``(bearing, r_x, r_y, BearingContact)`` at the free end of the sub-step.
+        The force at the end is ``f = F(p_free) + dF/dp (p - p_free) + dF/dv (v - v_free)``
+        with ``p = p_free + Gp f`` (one Newton step through the exact response of the
+        journals to a held force); a bearing whose force points outwards is dropped (it cannot
+        pull). Updates ``contact_max`` (the normal forces at the end, N) in place.
+        """
+        act = tuple(b for b, *_ in hits)
+        eye, Gp, Gv, Gc = self._active_matrices(d, act)
+        # block-diagonal Jacobians times the response: block row q is J_q @ G[2q:2q+2, :]
+        nq = len(hits)
+        dp = np.array([hit.d_position for *_, hit in hits])
+        dv = np.array([hit.d_velocity for *_, hit in hits])
+        kp_g = np.matmul(dp, Gp.reshape(nq, 2, -1)).reshape(2 * nq, -1)
+        kv_g = np.matmul(dv, Gv.reshape(nq, 2, -1)).reshape(2 * nq, -1)
+        rhs = [c for *_, hit in hits for c in hit.force]
+        jac = eye - kp_g - kv_g
+        if len(hits) == 1:  # Cramer's rule: a 2 x 2 solve costs less than LAPACK's call
+            (a, b), (c, e) = jac.tolist()
+            det = a * e - b * c
+            f = [(e * rhs[0] - b * rhs[1]) / det, (a * rhs[1] - c * rhs[0]) / det]
+        else:
+            f = np.linalg.solve(jac, rhs).tolist()
+        for q, (_, rx, ry, _) in enumerate(hits):
+            if f[2 * q] * rx + f[2 * q + 1] * ry > 0.0:  # pointing outwards: no pull
+                f[2 * q] = f[2 * q + 1] = 0.0
+        fa = np.array(f)
+        # the normal force at the sub-step's end position (p_free + Gp f)
+        end = (Gp @ fa).tolist()
+        for q, (b, rx, ry, _) in enumerate(hits):
+            ex, ey = rx + end[2 * q], ry + end[2 * q + 1]
+            nrm = max(math.hypot(ex, ey), 1e-12)
+            f_n = -(f[2 * q] * ex + f[2 * q + 1] * ey) / nrm
+            if f_n > contact_max[b]:
+                contact_max[b] = f_n
+        self._last_contact_force = f
+        return Gc @ fa
+
+    def _spin_races(self, hits: list, h: float) -> None:
         """
         Advance the rolling auxiliary bearings' races over a sub-step (``contact.race_step``).
 
-        The friction (the tangential part of the implicit force ``fk``) and the rolling speed
-        are taken along the tangent at the sub-step's free position (``cr``), which the journal
-        leaves by at most the sub-step's penetration.
+        The friction (the tangential part of the implicit force just applied) and the rolling
+        speed are taken along the tangent at the sub-step's free position, which the journal
+        leaves by at most the sub-step's penetration; a rolling race not touched runs down
+        (the same implicit step without friction), the retainers have none.
         """
-        f_t = np.where(self._rolling, np.sum(fk * cr.tangent, axis=1), 0.0)
-        rolling_speed = cr.surface_speed / self._race_radius
-        new = race_step(self._race, f_t, rolling_speed, self._race_radius, h, self.rig.contact)
-        self._race = np.where(self._rolling, new, 0.0)
+        params = self.rig.contact
+        f = self._last_contact_force
+        touched = {b: (q, hit) for q, (b, _, _, hit) in enumerate(hits)}
+        race = self._race.tolist()
+        for b, rolls in enumerate(self._rolling.tolist()):
+            if not rolls:
+                race[b] = 0.0
+                continue
+            r_r = float(self._race_radius[b])
+            if b in touched:
+                q, hit = touched[b]
+                f_t = f[2 * q] * hit.tangent[0] + f[2 * q + 1] * hit.tangent[1]
+                roll = hit.surface_speed / r_r
+            else:
+                f_t, roll = 0.0, 0.0
+            race[b] = race_speed_after(race[b], f_t, roll, r_r, h, params)
+        self._race = np.array(race)
