@@ -329,10 +329,17 @@ def run_row(matrix: Matrix, key: str, name: str) -> RunResult:
     return matrix.run(SPECS[name], key)
 
 
-#: cost of a row relative to the others, to start the longest first (wall times of
-#: ``amb-compare --quick``: the contact scenario and the diverging third-critical runs last
-#: 10-50 times longer than a mass loss that stays clear of the auxiliary bearings)
-_SCENARIO_COST = {"contact_case2": 3, "sync_150N_3rd": 2}
+def _row_cost(key: str, name: str) -> int:
+    """
+    A row's cost relative to the others, to start the longest first (a scheduling hint only).
+
+    From the wall times of ``amb-compare --quick``: the limit rows (linear programs) and the
+    rows of the contact and third-critical scenarios (contact integrated step by step) take
+    15-40 s each, a mass-loss run clear of the auxiliary bearings under a second.
+    """
+    if name.startswith("limit_i") or key in ("contact_case2", "sync_150N_3rd"):
+        return 2 if name != "pid" else 1
+    return 0
 
 
 def _row_task(task: tuple) -> tuple:
@@ -374,7 +381,7 @@ def comparison(
         for key in matrix.scenarios
         for name in _row_names(key, controllers, multilevel, limits)
     ]
-    order = sorted(range(len(rows)), key=lambda i: -_SCENARIO_COST.get(rows[i][0], 1))
+    order = sorted(range(len(rows)), key=lambda i: -_row_cost(*rows[i]))
     tasks = [(matrix.args, *rows[i]) for i in order]
 
     def done(i: int, out: tuple) -> None:

@@ -32,7 +32,7 @@ from amb_common.rig import load_rig
 from amb_plant_sim.scenario import scenario_from_dict
 from amb_plant_sim.simulator import PlantSimulator
 
-TARGET = 20.0  # x real time without contact
+TARGET = 20.0  # x real time, without contact and (issue 16) with it
 
 
 def _events(contact: bool, seconds: float) -> list[dict]:
@@ -104,6 +104,9 @@ def main(argv: list[str] | None = None) -> int:
     worst = min(results[(11.0, False)], results[(67.0, False)])
     verdict = "met" if worst >= TARGET else "MISSED"
     print(f"target >= {TARGET:.0f}x real time without contact: {verdict}")
+    worst = min(results[(11.0, True)], results[(67.0, True)])
+    verdict = "met" if worst >= TARGET else "MISSED"
+    print(f"target >= {TARGET:.0f}x real time with a contact: {verdict} (slowest {worst:.1f}x)")
     return 0
 
 
