@@ -59,3 +59,31 @@ def test_reproduce_runs_checks_and_writes_the_index(tmp_path) -> None:
     assert "| impossible bound |" in index and "| NO |" in index
     assert (out / "small" / "report" / "displacement.png").is_file()
     assert (out / "small" / "model.npz").is_file()
+
+
+def test_prediction_metrics_read_amb_predictions_summary() -> None:
+    # a summary as amb-prediction writes it: the worst sensor's amplitude error, and the lead
+    # of the prediction over the measured response (both settling times from the step)
+    from amb_apps.reproduce import prediction_metrics
+
+    summary = {
+        "sensors": {
+            "x1": {"amplitude_ratio": 1.04, "measured_final_1x": 400e-6},
+            "x2": {"amplitude_ratio": 0.93, "measured_final_1x": 100e-6},
+            # near a node (2 % of the largest): its ratio is left out
+            "x3": {"amplitude_ratio": 2.3, "measured_final_1x": 8e-6},
+        },
+        "measured_settling_s": 1.5,
+        "predicted_settling_s": 0.4,
+    }
+    m = prediction_metrics(summary)
+    assert m["amplitude_error"] == pytest.approx(0.07, abs=1e-12)
+    assert m["settling_lead_s"] == pytest.approx(1.1, abs=1e-12)
+    # never settled, or no measured amplitude: the checks must fail, not pass on a None
+    m = prediction_metrics(
+        {"sensors": {"x1": {"amplitude_ratio": None, "measured_final_1x": 0.0}},
+         "measured_settling_s": 1.0,
+         "predicted_settling_s": None}
+    )  # fmt: skip
+    assert m["amplitude_error"] == float("inf")
+    assert m["settling_lead_s"] == float("-inf")
