@@ -162,7 +162,6 @@ class PlantSimulator(EventInputs, StepByStepIntegration):
         self._contact_vel = z0.velocity_rows(self._clear_nodes)
         self._contact_pv = np.vstack([self._contact_pos, self._contact_vel])
         self._amats: dict[tuple, tuple] = {}
-        self._last_contact_force: list[float] = []
         self._n_force = 2 * self.rotor.n_nodes
         self._inner_channels = rig.feedback_channels
         self._i_max = amb_law.current_limit(rig.amb)

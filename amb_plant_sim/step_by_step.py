@@ -138,9 +138,10 @@ class StepByStepIntegration:
                     x = x_free
                     idle += sub.h
                     continue
-                x = x_free + self._implicit_contact(d, hits, contact_max)
+                dx, f = self._implicit_contact(d, hits, contact_max)
+                x = x_free + dx
                 if any(rolling[b] for b, *_ in hits):
-                    self._spin_races(hits, sub.h)
+                    self._spin_races(hits, f, sub.h)
                 else:
                     idle += sub.h
         self._race_coast(idle)
@@ -166,15 +167,16 @@ class StepByStepIntegration:
 
     def _implicit_contact(
         self, d: SpeedDiscretisation, hits: list, contact_max: NDArray
-    ) -> NDArray:
+    ) -> tuple[NDArray, list[float]]:
         """
-        Return the state change of the sub-step's linearly implicit contact forces.
+        Return the state change of the sub-step's linearly implicit contact forces, and them.
 
         ``hits`` are ``(bearing, r_x, r_y, BearingContact)`` at the free end of the sub-step.
         The force at the end is ``f = F(p_free) + dF/dp (p - p_free) + dF/dv (v - v_free)``
         with ``p = p_free + Gp f`` (one Newton step through the exact response of the
         journals to a held force); a bearing whose force points outwards is dropped (it cannot
-        pull). Updates ``contact_max`` (the normal forces at the end, N) in place.
+        pull). The forces are ``[f_x, f_y]`` per hit, in the order of ``hits`` (N). Updates
+        ``contact_max`` (the normal forces at the end, N) in place.
         """
         act = tuple(b for b, *_ in hits)
         eye, Gp, Gv, Gc = self._active_matrices(d, act)
@@ -204,20 +206,18 @@ class StepByStepIntegration:
             f_n = -(f[2 * q] * ex + f[2 * q + 1] * ey) / nrm
             if f_n > contact_max[b]:
                 contact_max[b] = f_n
-        self._last_contact_force = f
-        return Gc @ fa
+        return Gc @ fa, f
 
-    def _spin_races(self, hits: list, h: float) -> None:
+    def _spin_races(self, hits: list, f: list[float], h: float) -> None:
         """
         Advance the rolling auxiliary bearings' races over a sub-step (``contact.race_step``).
 
-        The friction (the tangential part of the implicit force just applied) and the rolling
-        speed are taken along the tangent at the sub-step's free position, which the journal
-        leaves by at most the sub-step's penetration; a rolling race not touched runs down
-        (the same implicit step without friction), the retainers have none.
+        The friction (the tangential part of the implicit forces ``f`` of ``hits``) and the
+        rolling speed are taken along the tangent at the sub-step's free position, which the
+        journal leaves by at most the sub-step's penetration; a rolling race not touched runs
+        down (the same implicit step without friction), the retainers have none.
         """
         params = self.rig.contact
-        f = self._last_contact_force
         touched = {b: (q, hit) for q, (b, _, _, hit) in enumerate(hits)}
         race = self._race.tolist()
         for b, rolls in enumerate(self._rolling.tolist()):
