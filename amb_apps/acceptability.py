@@ -411,8 +411,7 @@ def linear_rate_sweep(
     rates = np.asarray(rates, dtype=float)
     delay = setup.config.delay_periods
     points = [dict(response="linear", rate=float(r)) for r in rates]
-    labels = [f"linear rate={r:.3f}" for r in rates]
-    rows = _sweep(setup, points, labels, progress, jobs)
+    rows = _sweep(setup, points, [f"linear rate={r:.3f}" for r in rates], progress, jobs)
     labels = [c.label for c in rows]
     ok = [lab == ACCEPTABLE for lab in labels]
     first_bad = ok.index(False) if False in ok else len(ok)

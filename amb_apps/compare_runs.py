@@ -395,8 +395,7 @@ def comparison(
             peak = run_metrics(result, matrix.scenarios[key].speed_hz)["peak"]
             progress(f"{key} {name}: peak {peak * 1e6:.1f} um ({wall:.0f} s)")
 
-    if jobs == 1:  # this process's matrix (its models are cached here)
-        Matrix.adopt(matrix)
+    Matrix.adopt(matrix)  # rows run here (one job) use it and its cached models
     outs = run_jobs(_row_task, tasks, jobs, done)
     by_row = {rows[order[i]]: out for i, out in enumerate(outs)}
     table: dict = {}
@@ -479,8 +478,7 @@ def robustness(matrix: Matrix, progress=None, jobs: int | None = 1) -> dict:
         if progress is not None:
             progress(f"robustness {runs[i][0]} {runs[i][1]}: peak {m['peak'] * 1e6:.1f} um")
 
-    if jobs == 1:
-        Matrix.adopt(matrix)
+    Matrix.adopt(matrix)
     outs = run_jobs(_robustness_task, [(matrix.args, *r) for r in runs], jobs, done)
     out: dict = {name: {} for name in ROBUSTNESS_ROWS}
     for (name, case), m in zip(runs, outs, strict=True):

@@ -36,6 +36,9 @@ INNER = ("x2", "y2", "x3", "y3")
 #: node of the steady response and left out of the amplitude check (x3 at 22 Hz: 8 of 411 um)
 NODE_FRACTION = 0.1
 OPS = {"<=": operator.le, ">=": operator.ge, "<": operator.lt, ">": operator.gt}
+#: figures of an experiment in the index: amb-report's, or amb-prediction's per wavelet
+REPORT_FIGURES = ("displacement.png", "forces.png", "coefficients_1x.png")
+PREDICTION_FIGURES = ("signal", "coefficients")
 
 
 def key_metrics(metrics: dict) -> dict[str, float]:
@@ -127,7 +130,8 @@ def run_prediction_experiment(exp: dict, out: Path) -> dict:
           "--wavelets", *wavelets], folder / "prediction.log")  # fmt: skip
     summary = json.loads((folder / "prediction.json").read_text())
     results = {w: prediction_metrics(summary[w]) for w in wavelets}
-    print(f"[reproduce] {exp['id']}: {', '.join(wavelets)} ({time.monotonic() - t0:.0f} s)")
+    t = time.monotonic() - t0
+    print(f"[reproduce] {exp['id']}: {', '.join(wavelets)} ({t:.0f} s)", flush=True)
     return {"results": results, "checks": _checks(exp, results), "folder": folder}
 
 
@@ -269,15 +273,13 @@ def write_index(out: Path, manifest: dict, done: dict, faults: dict | None) -> P
             lines.append(f"| {c['what']} | {measured} | {bound} | {'yes' if c['ok'] else 'NO'} |")
         if exp.get("kind") == "prediction":
             lines.append("")
-            for w in d["results"]:
-                for fig in (f"prediction_{w}_signal.png", f"prediction_{w}_coefficients.png"):
-                    if (d["folder"] / fig).exists():
-                        lines.append(f"![{fig}]({rel}/{fig})")
-            continue
-        lines += ["", f"Report: [{rel}/report/report.md]({rel}/report/report.md)", ""]
-        for fig in ("displacement.png", "forces.png", "coefficients_1x.png"):
-            if (d["folder"] / "report" / fig).exists():
-                lines.append(f"![{fig}]({rel}/report/{fig})")
+            figures = [
+                f"prediction_{w}_{part}.png" for w in d["results"] for part in PREDICTION_FIGURES
+            ]
+        else:
+            lines += ["", f"Report: [{rel}/report/report.md]({rel}/report/report.md)", ""]
+            figures = [f"report/{fig}" for fig in REPORT_FIGURES]
+        lines += [f"![{Path(f).name}]({rel}/{f})" for f in figures if (d["folder"] / f).exists()]
     if faults is not None:
         lines += ["", "## Chapter 5: fault detection and classification (amb-fault-eval)", ""]
         lines += ["```", json.dumps(faults, indent=1)[:6000], "```"]
