@@ -113,7 +113,7 @@ from amb_controller.node_params import (
 from amb_controller.pipeline import ControllerPipeline
 from amb_controller.supervisor import Mode
 from amb_controller.synthesis import ForceLimiter
-from amb_tools.backlog import backlog_counts, declare_max_backlog
+from amb_tools.backlog import backlog_counts, declare_catch_up
 from amb_tools.cdr import CoefficientsView, MeasurementView, read_coefficients, read_measurement
 from amb_tools.conversions import (
     MessageError,
@@ -152,7 +152,8 @@ class WaveletControllerNode(Node):
         qos = stream_qos(self._pipe.samples_per_period)
         self._cmd_pub = self.create_publisher(ControlCommand, topics.COMMAND, COMMAND_QOS)
         self._status_pub = self.create_publisher(ControllerStatus, topics.STATUS, 10)
-        backlog = self._max_backlog = declare_max_backlog(self)
+        backlog = declare_catch_up(self)
+        self._max_backlog = backlog.max_backlog
         self._readers = (
             stream_subscription(
                 self, bus, Measurement, topics.MEASUREMENT, self._on_measurement, qos, backlog

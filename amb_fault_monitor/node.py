@@ -51,8 +51,9 @@ on the monitor's ``/diagnostics`` status (``measurements_rejected``, ``coefficie
 ``samples_*``, ``coefficients_*``), which turns WARN. The monitor is not in the lock-step loop
 and may fall behind on a loaded machine: its subscriptions queue :data:`QUEUE_REVS` revolutions
 of messages, so that it lags rather than loses (a loss would be a gap, and a recalibration).
-In ``realtime`` a lag has a bound, ``max_backlog`` measurements (:mod:`amb_tools.backlog`; 0, the
-default, none): beyond it the oldest are dropped, one counted gap per overload, so that the
+In ``realtime`` a lag has a bound, ``max_backlog`` measurements, queued or by age
+(:mod:`amb_tools.backlog`; 0, the default, none): beyond it the oldest are dropped, one counted
+gap per overload, so that the
 monitor's decisions stay current instead of trailing the rotor by seconds.
 
 Parameters
@@ -111,7 +112,7 @@ from amb_fault_monitor.node_params import (
     parameter_value,
 )
 from amb_fault_monitor.trips import SynchronousAmplitude, TripMonitor, clearance_levels
-from amb_tools.backlog import backlog_counts, declare_max_backlog
+from amb_tools.backlog import backlog_counts, declare_catch_up
 from amb_tools.cdr import (
     CoefficientsView,
     MeasurementView,
@@ -201,7 +202,7 @@ class FaultMonitorNode(Node):
             QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE),
         )
         self._diag = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS, 10)
-        backlog = declare_max_backlog(self)
+        backlog = declare_catch_up(self)
         self._readers = (
             stream_subscription(
                 self, bus, WaveletCoefficients, topics.COEFFICIENTS, self._on_coefficients, qos,

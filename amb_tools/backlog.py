@@ -5,25 +5,47 @@ In ``realtime`` a node that falls behind the measurement stream (a CPU hog, a st
 a slow disk under a composed recorder) finds its queue full of samples whose control periods
 are over: processing them in order keeps it behind for as long as the backlog takes to drain,
 and at a load close to one core that is for good. A :class:`BacklogReader` takes every queued
-message at each wake (rclpy's executors hand them over one per callback) and, when more than
-``max_backlog`` are waiting, drops the oldest and keeps the newest ``max_backlog``: one counted,
-logged gap per overload instead of a backlog that never drains. The readers downstream see an
-ordinary discontinuity (:class:`amb_tools.validation.SampleSequencer`: the filterbank resets at
-the new index, the controller resets its filters, the fault monitor calibrates again) once per
-episode, not once per late sample.
+message at each wake (rclpy's executors hand them over one per callback) and drops the oldest
+when it is more than ``max_backlog`` messages behind: one counted, logged gap per overload
+instead of a backlog that never drains. The readers downstream see an ordinary discontinuity
+(:class:`amb_tools.validation.SampleSequencer`: the filterbank resets at the new index, the
+controller resets its filters, the fault monitor calibrates again) once per episode, not once
+per late sample.
+
+"Behind" is counted two ways, and a message is dropped by either:
+
+- *queued*: more than ``max_backlog`` messages are waiting at this wake;
+- *old*: the message was published more than ``max_backlog`` message intervals ago. A reader let
+  go after a stall (a stopped process, a CPU hog) does not find the stall's messages in its
+  queue at once: they arrive over several wakes (after a 1 s SIGSTOP of a reader of a 1 kHz
+  reliable stream, in batches of 512, 73, 183 and 278), and with the queue rule alone the newest
+  ``max_backlog`` of each batch are kept although every one is too old for its control period
+  (256 messages up to 0.65 s old delivered in one such run with ``max_backlog = 128``; issue 17:
+  commands missing for up to 11 periods after the release). The age is the reader's wall clock
+  less the DDS source timestamp (the writer's wall clock at the publish, ``rmw_message_info``)
+  less the stream's smallest transport time (its latency and any offset between the two clocks:
+  a writer on another computer needs only clocks that do not drift apart; ``max_backlog_by_age:
+  false`` leaves the queue rule alone), in units of the writer's own spacing of the source
+  timestamps, whatever the reader's delays (:class:`MessageAge`). Simulated time and the plant's
+  ``time_scale`` play no part.
 
 ``max_backlog = 0`` (the default) keeps every sample: ``lockstep`` needs all of them and is
 never behind by more than the periods the plant waits for. Every node that reads the
-measurement stream declares the parameter (:func:`declare_max_backlog`) and bounds with it
+measurement stream declares the parameters (:func:`declare_catch_up`) and bounds with them
 its DDS readers of both streams (the controller and the monitor read the coefficients too, about
 one message per two samples); composed in one process (:mod:`amb_tools.local_bus`) the nodes
-share one measurement reader, which takes the value of the first (the filterbank's), and the
+share one measurement reader, which takes the values of the first (the filterbank's), and the
 coefficients are handed over in-process, never queued.
 """
 
 from __future__ import annotations
 
+import itertools
+import math
+import statistics
+import time
 from collections.abc import Callable
+from typing import NamedTuple
 
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
@@ -31,32 +53,73 @@ from rclpy.qos import QoSProfile
 from amb_tools.node_main import descriptor
 from amb_tools.throttled_log import ThrottledWarnings
 
-__all__ = ["MAX_BACKLOG", "BacklogReader", "backlog_counts", "declare_max_backlog"]
+__all__ = [
+    "BY_AGE",
+    "MAX_BACKLOG",
+    "NO_CATCH_UP",
+    "BacklogReader",
+    "CatchUp",
+    "MessageAge",
+    "backlog_counts",
+    "declare_catch_up",
+]
 
 #: Name of the ROS parameter (samples; 0 = keep every sample).
 MAX_BACKLOG = "max_backlog"
+#: Name of the ROS parameter switching the age rule (module docstring) on or off.
+BY_AGE = "max_backlog_by_age"
 
 
-def declare_max_backlog(node: Node) -> int:
+class CatchUp(NamedTuple):
     """
-    Declare ``max_backlog`` on ``node`` (read-only, samples) and return its value.
+    A reader's catch-up bound (module docstring).
+
+    Attributes
+    ----------
+    max_backlog : int
+        Messages a reader may be behind; 0: keep every message.
+    by_age : bool
+        Count "behind" by age as well as in the queue.
+    """
+
+    max_backlog: int = 0
+    by_age: bool = True
+
+
+#: Keep every message (lockstep, and the default of every reader).
+NO_CATCH_UP = CatchUp()
+
+
+def declare_catch_up(node: Node) -> CatchUp:
+    """
+    Declare ``max_backlog`` and ``max_backlog_by_age`` on ``node`` (read-only); return them.
 
     Returns
     -------
-    int
-        Samples kept behind the newest when the reader is behind; 0: keep every sample.
+    CatchUp
     """
     node.declare_parameter(
         MAX_BACKLOG,
         0,
         descriptor(
-            "realtime catch-up: with more stream messages (measurements, coefficients) queued "
-            "than this, the oldest are dropped and the newest max_backlog kept (a counted gap); "
-            "0 = keep every message (lockstep)",
+            "realtime catch-up: stream messages (measurements, coefficients) queued behind more "
+            "than this many, or published more than this many message intervals ago, are "
+            "dropped (a counted gap); 0 = keep every message (lockstep)",
             ints=(0, 1 << 20),
         ),
     )
-    return int(node.get_parameter(MAX_BACKLOG).value)
+    node.declare_parameter(
+        BY_AGE,
+        True,
+        descriptor(
+            "realtime catch-up by age as well (DDS source timestamps: the writer's and the "
+            "reader's clocks must not drift apart; false for a bridge on another computer "
+            "whose clock is not synchronised with this one's)"
+        ),
+    )
+    return CatchUp(
+        int(node.get_parameter(MAX_BACKLOG).value), bool(node.get_parameter(BY_AGE).value)
+    )
 
 
 class BacklogReader:
@@ -75,8 +138,9 @@ class BacklogReader:
         Called with the CDR bytes of each message kept, oldest first.
     qos : rclpy.qos.QoSProfile
         QoS of the subscription.
-    max_backlog : int
-        Messages kept when more are queued; 0: every message is delivered, one per wake.
+    catch_up : CatchUp
+        Messages a reader may be behind, queued or (``by_age``) by age (module docstring);
+        ``max_backlog`` 0: every message is delivered, one per wake.
     on_dropped : callable, optional
         Called with the CDR bytes of each message dropped, oldest first, before the kept ones
         are delivered (a reader that must lose nothing: a composed recorder).
@@ -84,7 +148,9 @@ class BacklogReader:
     Attributes
     ----------
     dropped : int
-        Messages dropped so far.
+        Messages dropped so far (queued or old).
+    dropped_old : int
+        Of those, messages dropped for their age alone (fewer than ``max_backlog`` queued).
     episodes : int
         Wakes that dropped messages (overloads caught up).
     """
@@ -96,35 +162,54 @@ class BacklogReader:
         name: str,
         deliver: Callable[[bytes], None],
         qos: QoSProfile,
-        max_backlog: int = 0,
+        catch_up: CatchUp = NO_CATCH_UP,
         on_dropped: Callable[[bytes], None] | None = None,
     ) -> None:
+        max_backlog = catch_up.max_backlog
         if max_backlog < 0:
             raise ValueError(f"max_backlog = {max_backlog}: must be >= 0 (0 = keep every sample)")
         self._deliver = deliver
         self._on_dropped = on_dropped
         self._msg_type = msg_type
         self.max_backlog = int(max_backlog)
-        self.dropped = self.episodes = 0
+        self.dropped = self.dropped_old = self.episodes = 0
+        self._age = MessageAge(max_backlog) if max_backlog and catch_up.by_age else None
         self._warnings = ThrottledWarnings(node.get_logger(), period=5.0)
         # without a bound each message goes straight to ``deliver``: no extra call per message
         callback = self._on_message if self.max_backlog else deliver
         self.subscription = node.create_subscription(msg_type, name, callback, qos, raw=True)
 
     def _on_message(self, raw: bytes) -> None:
+        # the executor's message comes without its message info (rclpy's EventsExecutor fails on
+        # a callback that asks for it); the rest are taken with it, for their source timestamps
         batch = [raw]
+        sent: list[int] = []
+        received: list[int] = []
         sub = self.subscription
         with sub.handle:  # as rclpy's executors take: every message queued now
             while (taken := sub.handle.take_message(self._msg_type, True)) is not None:
                 batch.append(taken[0])
-        excess = len(batch) - self.max_backlog
+                sent.append(taken[1]["source_timestamp"])
+                received.append(taken[1]["received_timestamp"])
+        queued = max(len(batch) - self.max_backlog, 0)
+        old = 0
+        if self._age is not None:
+            old = self._age.old(sent, time.time_ns(), received)
+            old += old > 0  # the executor's message is older than the first one taken here
+        excess = max(queued, old)
         if excess > 0:
             self.dropped += excess
+            self.dropped_old += excess - queued
             self.episodes += 1
+            why = (
+                f"{len(batch)} messages queued, more than max_backlog = {self.max_backlog}"
+                if queued >= old
+                else f"{old} of {len(batch)} queued messages older than max_backlog = "
+                f"{self.max_backlog} message intervals ({self._age.limit_s * 1e3:.3g} ms)"
+            )
             self._warnings.warning(
                 "backlog",
-                f"{sub.topic_name}: {len(batch)} messages queued, more than max_backlog = "
-                f"{self.max_backlog}: the oldest {excess} dropped to catch up "
+                f"{sub.topic_name}: {why}: the oldest {excess} dropped to catch up "
                 f"({self.dropped} in {self.episodes} overloads so far)",
             )
             if self._on_dropped is not None:
@@ -135,13 +220,111 @@ class BacklogReader:
             self._deliver(item)
 
 
+class MessageAge:
+    """
+    How many of a run of consecutive messages are older than ``max_backlog`` message intervals.
+
+    The age of a message is its reader's wall clock at the take less the writer's at the
+    publish (the DDS source timestamp), less the floor: the smallest transport time seen on the
+    stream, the reader's DDS reception stamp less the source timestamp (the transport's latency
+    and any offset between the two clocks; a message that waited in the reader's queue, or in
+    the writer's for a stopped reader, still shows it when it was received before the wait, so
+    that the floor is known from the first wake that finds two messages). The interval is the
+    writer's spacing of the source timestamps within a run: the median of the first
+    ``max_backlog`` spacings, then a running mean over about ``max_backlog`` spacings of each
+    clipped to half and twice the estimate, so that a gap (messages the writer lost) or a burst
+    (a writer catching up) moves it by at most ``1 / max_backlog`` while a speed change is
+    followed within a few ``max_backlog`` spacings. Until the first ``max_backlog`` spacings are
+    in, no message is old.
+
+    A run is the messages a reader takes at one wake after the executor's own
+    (:class:`BacklogReader`): the executor's message comes without its timestamp, so a reader
+    that keeps up (one message per wake) gives none, and the floor and the interval come from
+    the wakes that found two or more queued (the interval from ``max_backlog`` spacings: the
+    first overload brings them); until then a reader drops by the queue rule alone. ROS-free,
+    so that the rule is tested on its own (``test/reliability/test_backlog_age.py``).
+
+    Parameters
+    ----------
+    max_backlog : int
+        Bound, in messages (>= 1).
+    """
+
+    def __init__(self, max_backlog: int) -> None:
+        if max_backlog < 1:
+            raise ValueError(f"max_backlog = {max_backlog}: must be >= 1")
+        self.max_backlog = int(max_backlog)
+        self._first: list[int] = []  # the spacings before the estimate exists, ns
+        self._interval: float | None = None  # ns
+        self._floor: int | None = None
+
+    @property
+    def interval_s(self) -> float:
+        """The estimated spacing of the writer's publishes, s (nan until known)."""
+        return math.nan if self._interval is None else self._interval * 1e-9
+
+    @property
+    def limit_s(self) -> float:
+        """The age bound, ``max_backlog`` intervals, s (inf until the interval is known)."""
+        return math.inf if self._interval is None else self.max_backlog * self._interval * 1e-9
+
+    def _spacing(self, d: int) -> None:
+        if self._interval is None:
+            self._first.append(d)
+            if len(self._first) >= self.max_backlog:
+                self._interval = float(statistics.median(self._first))
+                self._first = []
+            return
+        i = self._interval
+        self._interval = i + (min(max(d, 0.5 * i), 2.0 * i) - i) / self.max_backlog
+
+    def old(self, sent: list[int], now: int, received: list[int] | None = None) -> int:
+        """
+        Record a run of consecutive messages and return how many of its first are too old.
+
+        Parameters
+        ----------
+        sent : list of int
+            Source timestamps of the run, oldest first, ns (wall clock); may be empty.
+        now : int
+            The reader's wall clock at the take, ns.
+        received : list of int, optional
+            The reader's DDS reception stamps of the run, ns (wall clock); None: each taken on
+            arrival (``now``).
+
+        Returns
+        -------
+        int
+            The length of the run's prefix older than the bound (0 .. ``len(sent)``).
+        """
+        if not sent:
+            return 0
+        for earlier, later in itertools.pairwise(sent):
+            if later > earlier:
+                self._spacing(later - earlier)
+        if received is None:
+            floor = now - sent[-1]
+        else:
+            floor = min(r - t for r, t in zip(received, sent, strict=True))
+        self._floor = floor if self._floor is None else min(self._floor, floor)
+        if self._interval is None:
+            return 0
+        limit = self.max_backlog * self._interval + self._floor
+        newest_old = -1
+        for k, t in enumerate(sent):
+            if now - t > limit:
+                newest_old = k
+        return newest_old + 1
+
+
 def backlog_counts(*readers: BacklogReader | None) -> dict[str, int]:
-    """The ``/diagnostics`` values of a node's readers: messages dropped behind, overloads.
+    """The ``/diagnostics`` values of a node's readers: drops, drops for age alone, overloads.
 
     Summed over the readers given (None: a stream handed over in-process, never behind).
     """
     own = [r for r in readers if r is not None]
     return {
         "backlog_dropped": sum(r.dropped for r in own),
+        "backlog_dropped_old": sum(r.dropped_old for r in own),
         "backlog_overloads": sum(r.episodes for r in own),
     }

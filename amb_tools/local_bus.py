@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
 
-from amb_tools.backlog import BacklogReader
+from amb_tools.backlog import NO_CATCH_UP, BacklogReader, CatchUp
 
 __all__ = ["LocalBus", "StreamPublisher", "stream_publisher", "stream_subscription"]
 
@@ -87,7 +87,7 @@ class LocalBus:
         name: str,
         callback: RawCallback,
         qos: QoSProfile,
-        max_backlog: int = 0,
+        catch_up: CatchUp = NO_CATCH_UP,
         lossless: bool = False,
     ) -> BacklogReader | None:
         """
@@ -106,7 +106,7 @@ class LocalBus:
             Called with the raw CDR of each message.
         qos : rclpy.qos.QoSProfile
             QoS of the DDS reader (outside topics), as the node would have used alone.
-        max_backlog : int
+        catch_up : amb_tools.backlog.CatchUp
             The DDS reader's catch-up bound (:class:`amb_tools.backlog.BacklogReader`); the
             first reader of a topic sets it for all.
         lossless : bool
@@ -125,7 +125,7 @@ class LocalBus:
         if not topic.local and topic.dds_reader is None:
             topic.dds_reader = BacklogReader(
                 node, msg_type, resolved, lambda raw, t=topic: self._deliver(t, raw), qos,
-                max_backlog, lambda raw, t=topic: self._deliver_dropped(t, raw),
+                catch_up, lambda raw, t=topic: self._deliver_dropped(t, raw),
             )  # fmt: skip
         return topic.dds_reader
 
@@ -179,7 +179,7 @@ def stream_subscription(
     name: str,
     callback: RawCallback,
     qos: QoSProfile,
-    max_backlog: int = 0,
+    catch_up: CatchUp = NO_CATCH_UP,
 ) -> BacklogReader | None:
     """Subscribe ``callback`` (raw CDR) to a stream: from the bus if composed, else from DDS.
 
@@ -187,8 +187,8 @@ def stream_subscription(
     by the composed readers of an outside topic), or None for a topic published in-process.
     """
     if bus is None:
-        return BacklogReader(node, msg_type, name, callback, qos, max_backlog)
-    return bus.subscribe(node, msg_type, name, callback, qos, max_backlog)
+        return BacklogReader(node, msg_type, name, callback, qos, catch_up)
+    return bus.subscribe(node, msg_type, name, callback, qos, catch_up)
 
 
 def stream_publisher(node: Node, bus: LocalBus | None, msg_type: type, name: str, qos: QoSProfile):

@@ -37,7 +37,7 @@ from rcl_interfaces.msg import (
 from rclpy.node import Node
 
 from amb_common import topics
-from amb_tools.backlog import backlog_counts, declare_max_backlog
+from amb_tools.backlog import backlog_counts, declare_catch_up
 from amb_tools.cdr import MeasurementView, read_measurement
 from amb_tools.conversions import MessageError, stamp_seconds
 from amb_tools.local_bus import LocalBus, stream_publisher, stream_subscription
@@ -95,7 +95,7 @@ class WaveletFilterbankNode(Node):
         self._diag = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS, 10)
         self._meas_reader = stream_subscription(
             self, bus, Measurement, topics.MEASUREMENT, self._on_measurement, qos,
-            declare_max_backlog(self),
+            declare_catch_up(self),
         )  # fmt: skip
         self._status_timer = self.create_timer(
             self.get_parameter("status_period").value, self._publish_status

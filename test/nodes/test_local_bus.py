@@ -2,18 +2,23 @@
 
 A :class:`~amb_tools.local_bus.LocalBus` feeds two readers of an outside topic from one DDS
 reader bounded at 4 messages: a burst of 40 queued measurements (all acknowledged by the reader
-before it spins) reaches the bounded reader as its newest 4, one counted overload, and the
-``lossless`` reader (the composed recorder) as all 40, in order. A stream published in
-process reaches its composed readers whole and an outside DDS reader from its match on.
+before it spins) reaches the bounded reader as its newest 4 by the queue rule alone, one counted
+overload, and the ``lossless`` reader (the composed recorder) as all 40, in order. With the age
+rule as well, the burst taken 50 ms after it was published (40 messages within a few ms: 4 of
+their intervals is far less) is too old, all of it. A stream published in process reaches its
+composed readers whole and an outside DDS reader from its match on.
 """
 
 from __future__ import annotations
+
+import time
 
 import pytest
 from amb_msgs.msg import Measurement, WaveletCoefficients
 from rclpy.duration import Duration
 from rclpy.serialization import serialize_message
 
+from amb_tools.backlog import CatchUp
 from amb_tools.cdr import read_coefficients, read_measurement
 from amb_tools.local_bus import LocalBus
 from amb_tools.streams import stream_qos
@@ -24,9 +29,10 @@ BURST = 40
 BOUND = 4
 
 
-def test_a_catch_up_drop_reaches_the_lossless_reader_in_order(ros) -> None:
-    reader_node = ros.node("amb_test_bus_reader")
-    driver = ros.node("amb_test_bus_driver")
+@pytest.mark.parametrize("by_age", [False, True])
+def test_a_catch_up_drop_reaches_the_lossless_reader_in_order(ros, by_age: bool) -> None:
+    reader_node = ros.node(f"amb_test_bus_reader_{by_age:d}")
+    driver = ros.node(f"amb_test_bus_driver_{by_age:d}")
     qos = stream_qos(16)
     pub = driver.create_publisher(Measurement, "/amb/measurement", qos)
     bus = LocalBus()
@@ -34,7 +40,8 @@ def test_a_catch_up_drop_reaches_the_lossless_reader_in_order(ros) -> None:
     everything: list[int] = []
     shared = bus.subscribe(
         reader_node, Measurement, "/amb/measurement",
-        lambda raw: bounded.append(read_measurement(raw).sample_index), qos, max_backlog=BOUND,
+        lambda raw: bounded.append(read_measurement(raw).sample_index), qos,
+        catch_up=CatchUp(BOUND, by_age),
     )  # fmt: skip
     again = bus.subscribe(
         reader_node, Measurement, "/amb/measurement",
@@ -46,10 +53,15 @@ def test_a_catch_up_drop_reaches_the_lossless_reader_in_order(ros) -> None:
         pub.publish(serialize_message(Measurement(sample_index=k, samples_per_rev=16)))
     # every message is in the reader's queue (reliable: acknowledged) before it is taken
     assert pub.wait_for_all_acked(Duration(seconds=30.0))
+    time.sleep(0.05)  # s: every message older than 4 of the burst's intervals when taken
     assert ros.spin_until(lambda: len(everything) >= BURST, timeout=30.0), (bounded, everything)
     assert everything == list(range(BURST))
-    assert bounded == list(range(BURST - BOUND, BURST))
-    assert (shared.dropped, shared.episodes) == (BURST - BOUND, 1)
+    if by_age:
+        assert bounded == []
+        assert (shared.dropped, shared.dropped_old, shared.episodes) == (BURST, BOUND, 1)
+    else:
+        assert bounded == list(range(BURST - BOUND, BURST))
+        assert (shared.dropped, shared.dropped_old, shared.episodes) == (BURST - BOUND, 0, 1)
 
 
 def test_a_local_stream_reaches_a_reader_outside_from_its_match_on(ros) -> None:

@@ -21,7 +21,7 @@ from amb_apps.system import NODES, run_parameters, stream_readers
 from amb_common import topics
 from amb_common.paths import scenario_file
 from amb_plant_sim.errors import ScenarioError
-from amb_tools.backlog import MAX_BACKLOG
+from amb_tools.backlog import BY_AGE, MAX_BACKLOG
 
 ROOT = Path(__file__).resolve().parents[2]
 LAUNCH = ROOT / "launch" / "amb_system.launch.py"
@@ -113,8 +113,8 @@ def test_run_parameters_are_declared_by_the_nodes() -> None:
         source = (ROOT / NODE_MODULES[name]).read_text()
         names = _declared(name)
         for param in params:
-            if param == MAX_BACKLOG:  # declared by amb_tools.backlog for each measurement reader
-                assert "declare_max_backlog(self)" in source, name
+            if param in (MAX_BACKLOG, BY_AGE):  # amb_tools.backlog's, for each stream reader
+                assert "declare_catch_up(self)" in source, name
                 continue
             declared = param in names if names else re.search(rf'["\']{param}["\']', source)
             assert declared, f"{name} does not declare parameter {param!r} set for a run"
