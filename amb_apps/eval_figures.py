@@ -2,8 +2,9 @@
 Figures of ``amb-fault-eval --figures DIR`` (matplotlib, Agg backend, PNG).
 
 The conventions of :mod:`amb_apps.report_figures` (its DPI, palette PNG writer, µm, plane
-names): displacement in µm, time in s from sample 0 (``sample_index / fs``, constant speed),
-detection ratios dimensionless (feature / threshold, :mod:`amb_fault_monitor.features`).
+names): displacement in µm, time in s from sample 0 (the simulator's sample instants, also on
+a speed profile), detection ratios dimensionless (feature / threshold,
+:mod:`amb_fault_monitor.features`).
 
 * :func:`case_figure`: one scenario with one wavelet, in a window around the first true fault
   onset (2 revolutions before to 4 after, stretched to the detection of the events found
@@ -32,7 +33,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.lines import Line2D
 
-from amb_apps.evaluation import CaseResult, SimulatedCase
+from amb_apps.evaluation import CaseResult, SimulatedCase, sample_time
 from amb_apps.report_figures import PLANE_NOTE, UM, save_figure
 from amb_wavelet.levels import revolution_level
 
@@ -162,10 +163,13 @@ def case_figure(case: SimulatedCase, result: CaseResult, trace: list, path: str 
         ``path``.
     """
     spr = case.samples_per_rev
-    fs = spr * case.speed_hz
     block = case.block
     lo, hi, anchor = case_window(case, result)
-    t = block.sample_index / fs
+
+    def at(sample):  # s, the instant of a sample index (or of an array of them)
+        return sample_time(block.time, sample)
+
+    t = block.time
     win = slice(lo, hi + 1)
     t_lo, t_hi = t[lo], t[hi]
 
@@ -200,7 +204,7 @@ def case_figure(case: SimulatedCase, result: CaseResult, trace: list, path: str 
             r = np.maximum(rs[k0:k1], RATIO_FLOOR)
             top = max(top, float(r.max()))
             ax.step(
-                ns[k0:k1] / fs,
+                at(ns[k0:k1]),
                 r,
                 where="post",
                 color=colour[j],
@@ -234,10 +238,10 @@ def case_figure(case: SimulatedCase, result: CaseResult, trace: list, path: str 
     for i, m in enumerate(truths):
         s_true = m["true_onset_sample"]
         for ax in [*disp, *rat, whole]:
-            ax.axvline(s_true / fs, color="k", ls="--", lw=1.1)
+            ax.axvline(at(s_true), color="k", ls="--", lw=1.1)
         if lo <= s_true <= hi:
-            _tag(rat[0], s_true / fs, f"T{i + 1}", "k", i)
-        label = f"T{i + 1} true {m['expected']}\n{s_true / fs:.4f} s"
+            _tag(rat[0], at(s_true), f"T{i + 1}", "k", i)
+        label = f"T{i + 1} true {m['expected']}\n{at(s_true):.4f} s"
         handles.append(Line2D([], [], color="k", ls="--", label=label))
     marks = (
         ("onset_sample_index", ":"),
@@ -249,15 +253,15 @@ def case_figure(case: SimulatedCase, result: CaseResult, trace: list, path: str 
         for key, ls in marks:
             if lo <= e[key] <= hi:
                 for ax in [*disp, *rat]:
-                    ax.axvline(e[key] / fs, color=c, ls=ls, lw=1.1)
+                    ax.axvline(at(e[key]), color=c, ls=ls, lw=1.1)
         if lo <= e["detection_sample_index"] <= hi:
-            _tag(rat[1], e["detection_sample_index"] / fs, f"E{i + 1}", c, i)
-        whole.axvline(e["detection_sample_index"] / fs, color=c, lw=1.0)
+            _tag(rat[1], at(e["detection_sample_index"]), f"E{i + 1}", c, i)
+        whole.axvline(at(e["detection_sample_index"]), color=c, lw=1.0)
         label = (
             f"E{i + 1} {_event_label(e)}"
-            f"\nonset {e['onset_sample_index'] / fs:.4f} s, "
-            f"detection {e['detection_sample_index'] / fs:.4f} s"
-            f"\ndecision {e['decision_sample_index'] / fs:.4f} s"
+            f"\nonset {at(e['onset_sample_index']):.4f} s, "
+            f"detection {at(e['detection_sample_index']):.4f} s"
+            f"\ndecision {at(e['decision_sample_index']):.4f} s"
         )
         handles.append(Line2D([], [], color=c, lw=2.0, label=label))
     rat[1].legend(handles=handles, fontsize=7, loc="center left", bbox_to_anchor=(1.0, 0.5))
@@ -271,7 +275,7 @@ def case_figure(case: SimulatedCase, result: CaseResult, trace: list, path: str 
     whole.axvspan(t_lo, t_hi, color="tab:orange", alpha=0.15, label="window above")
     if result.calibration_end_sample is not None:
         whole.axvline(
-            result.calibration_end_sample / fs, color="0.5", ls="-.", lw=0.9, label="calibrated"
+            at(result.calibration_end_sample), color="0.5", ls="-.", lw=0.9, label="calibrated"
         )
     whole.set_title("whole run: peak radial displacement per revolution", fontsize=9)
     whole.set_ylabel("peak |r| (µm)", fontsize=8)
@@ -284,7 +288,11 @@ def case_figure(case: SimulatedCase, result: CaseResult, trace: list, path: str 
     rat[1].set_xlabel("time (s)")
     disp[0].set_xlim(t_lo, t_hi)
     if anchor is not None:
-        t0, speed = anchor / fs, case.speed_hz
+        # the speed at the onset: revolutions over the window (a few) also on a run-up
+        t0, speed = (
+            at(anchor),
+            float(block.omega[min(anchor, block.omega.size - 1)]) / (2 * math.pi),
+        )
         for ax in disp[:2]:
             sec = ax.secondary_xaxis(
                 "top", functions=(lambda v: (v - t0) * speed, lambda r: r / speed + t0)
@@ -292,10 +300,12 @@ def case_figure(case: SimulatedCase, result: CaseResult, trace: list, path: str 
             sec.set_xlabel("revolutions from the first onset", fontsize=7)
             sec.tick_params(labelsize=7)
 
-    lines = [
-        f"{Path(case.path).stem}: wavelet {result.wavelet}, {case.speed_hz:.2f} Hz "
-        f"({2 * math.pi * case.speed_hz:.0f} rad/s), {spr} samples/rev"
-    ]
+    hz = block.omega / (2 * math.pi)
+    if np.ptp(hz) > 1e-9 * hz.max():
+        speed_text = f"speed {hz[0]:.2f} to {hz[-1]:.2f} Hz"
+    else:
+        speed_text = f"{case.speed_hz:.2f} Hz ({2 * math.pi * case.speed_hz:.0f} rad/s)"
+    lines = [f"{Path(case.path).stem}: wavelet {result.wavelet}, {speed_text}, {spr} samples/rev"]
     lines += [_match_line(m, result.finest_support) for m in result.matches]
     if result.false_alarms:
         lines.append(

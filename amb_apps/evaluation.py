@@ -36,12 +36,19 @@ is ``MISSED``. Events matched to nothing are false alarms. Detection delay is
 ``detection - true onset``, the onset error ``estimated onset - true onset``. The true onset
 of ``from: contact`` is the first sample instant at or after the first contact force > 0
 (the simulator's truth, however light the touch; its truth row ``s`` holds the force over
-the interval after sample ``s``, so the onset is ``s + 1``, as ``ceil(time * fs)`` for a
-timed fault); the peak force of that first touch is reported with the match. A
+the interval after sample ``s``, so the onset is ``s + 1``, as the first sample instant at or
+after the time of a timed fault); the peak force of that first touch is reported with the match. A
 fault that comes before the monitor finished calibrating (its healthy window is
 ``calibration_revs`` plus the support of the deepest level, about 33 revolutions with db4
 at 32 samples per revolution) is flagged ``before_calibration`` and counted in the summary:
 the scenario, not the method, is then at fault (place faults later).
+
+Speed profiles (run-ups, run-downs: ``speed_profile`` in place of ``speed``) are simulated to
+the scenario's ``duration`` (:meth:`PlantSimulator.samples_before
+<amb_plant_sim.simulator.PlantSimulator.samples_before>`), times are the simulator's sample
+instants (:func:`sample_time`; not ``sample / fs``) and revolutions are samples over
+``samples_per_rev``, true at any speed under speed-synchronous sampling; each match carries
+the running speed at the true onset (``speed_hz_at_onset``).
 """
 
 from __future__ import annotations
@@ -54,6 +61,7 @@ from typing import Any
 
 import numpy as np
 import yaml
+from numpy.typing import ArrayLike
 
 from amb_common.faults import FaultEvent, FaultType
 from amb_fault_monitor.config import MonitorConfig
@@ -72,6 +80,7 @@ __all__ = [
     "evaluate_case",
     "load_case",
     "run_case",
+    "sample_time",
     "simulate_case",
     "summarise",
 ]
@@ -146,14 +155,31 @@ def load_case(path: str | Path) -> tuple[dict[str, Any], list[Expectation], dict
     return d, expect, monitor
 
 
-def _truth_onset(exp: Expectation, truth: dict, fs: float, after: float) -> int | None:
-    if exp.source == "time":
-        return math.ceil(exp.time * fs - 1e-9)
+def _truth_onset(exp: Expectation, truth: dict, times: np.ndarray, after: float) -> int | None:
+    """True onset sample of an expectation; ``times`` are the sample instants (s)."""
+    if exp.source == "time":  # the first sample instant at or after the event (its onset)
+        return int(np.searchsorted(times, exp.time - 1e-9))
     contact = truth["contact"].any(axis=1)
-    idx = np.flatnonzero(contact & (np.arange(contact.size) >= after * fs))
+    idx = np.flatnonzero(contact & (times >= after - 1e-9))
     # truth row s holds the contact force over (t_s, t_s+1]: the sample at t_s was taken
-    # before the touch, the first sample at or after it is s + 1 (as ceil(time * fs) above)
+    # before the touch, the first sample at or after it is s + 1 (as for a timed fault)
     return int(idx[0]) + 1 if idx.size else None
+
+
+def sample_time(times: np.ndarray, sample: ArrayLike) -> Any:
+    """
+    Instant (s) of sample index ``sample`` (int or array) of a block with instants ``times``.
+
+    Beyond the block (an onset back-dated before sample 0, an index after the last sample) the
+    instants are extrapolated with the first or last period. On a speed profile the instants are
+    not ``sample / fs``; revolutions are ``samples / samples_per_rev`` at any speed.
+    """
+    k = np.asarray(sample)
+    inside = np.clip(k, 0, times.size - 1)
+    before = times[0] + k * (times[1] - times[0])
+    after = times[-1] + (k - (times.size - 1)) * (times[-1] - times[-2])
+    out = np.where(k < 0, before, np.where(k >= times.size, after, times[inside]))
+    return float(out) if out.ndim == 0 else out
 
 
 def _first_burst_peak(truth: dict, first: int, gap: int = 2) -> float:
@@ -205,7 +231,11 @@ def simulate_case(
     spr = int(samples_per_rev or scenario.samples_per_rev or 32)
     t0 = time.perf_counter()
     sim = PlantSimulator(rig, scenario, spr, seed)
-    block = sim.advance(round(scenario.duration * spr * scenario.speed_hz))
+    if scenario.profile_hz:  # every sample before the end (a run-up: more than at its start)
+        n = sim.samples_before(scenario.duration)
+    else:  # whole samples at the speed, rounded (unchanged for the suite's cases)
+        n = round(scenario.duration * spr * scenario.speed_hz)
+    block = sim.advance(n)
     return SimulatedCase(
         path=str(path),
         name=scenario.name,
@@ -256,7 +286,7 @@ def run_case(
     if "levels" in mon_d:
         cfg = replace(cfg, levels=tuple(mon_d["levels"]))
     block = case.block
-    fs = spr * case.speed_hz
+    times = block.time  # s, the sample instants (on a speed profile not n / fs)
     t0 = time.perf_counter()
     adapter = FilterbankAdapter(spr, wav)
     monitor = FaultMonitor(cfg)
@@ -285,12 +315,19 @@ def run_case(
     expect = case.expect
     last_fault_time = max((e.time for e in expect if e.time is not None), default=0.0)
     for exp in expect:
-        true = _truth_onset(exp, block.truth, fs, last_fault_time if exp.source != "time" else 0)
+        after = last_fault_time if exp.source != "time" else 0.0
+        true = _truth_onset(exp, block.truth, times, after)
         row: dict[str, Any] = {"expected": exp.fault.name, "true_onset_sample": true}
         if true is None:
             row["predicted"] = "NO_TRUTH"
             res.matches.append(row)
             continue
+        if true >= times.size:  # the onset falls after the run's last sample
+            row["predicted"] = "NO_TRUTH"
+            res.matches.append(row)
+            continue
+        row["true_onset_time"] = float(times[true])
+        row["speed_hz_at_onset"] = float(block.omega[true] / (2 * math.pi))
         cal = monitor.calibration_end
         row["before_calibration"] = cal is None or true < cal
         if exp.source == "contact":
@@ -315,16 +352,20 @@ def run_case(
                 detection_delay_samples=e.detection_sample_index - true,
                 decision_delay_samples=e.decision_sample_index - true,
                 onset_error_samples=e.onset_sample_index - true,
-                detection_delay_ms=1e3 * (e.detection_sample_index - true) / fs,
+                detection_delay_ms=1e3
+                * (sample_time(times, e.detection_sample_index) - times[true]),
                 detection_delay_revs=(e.detection_sample_index - true) / spr,
                 decision_delay_revs=(e.decision_sample_index - true) / spr,
-                onset_error_ms=1e3 * (e.onset_sample_index - true) / fs,
+                onset_error_ms=1e3 * (sample_time(times, e.onset_sample_index) - times[true]),
             )
         res.matches.append(row)
     for i, e in enumerate(events):
         if i not in used:
             res.false_alarms.append(
-                {"predicted": e.fault_type.name, "detection_time": e.detection_sample_index / fs}
+                {
+                    "predicted": e.fault_type.name,
+                    "detection_time": sample_time(times, e.detection_sample_index),
+                }
             )
     return res
 

@@ -304,13 +304,49 @@ class PlantSimulator(EventInputs, StepByStepIntegration):
             truth=truth,
         )
 
+    def samples_before(self, t_end: float) -> int:
+        """
+        How many samples from the next one have their instants before ``t_end``.
+
+        Parameters
+        ----------
+        t_end : float
+            Simulated time, s.
+
+        Returns
+        -------
+        int
+            ``n`` such that ``advance(n)`` ends with the last sample before ``t_end``: at
+            constant speed ``ceil(t_end / period) - sample_index``; on a speed profile the instants
+            accumulated as :meth:`advance` does (each sample's period from the quantised speed at
+            its instant), without simulating.
+        """
+        n, t = self._n, self._t
+        if not self.scenario.profile_hz:  # instants n * period
+            return max(0, math.ceil(t_end / self._period(self._speed_hz(t)) - 1e-9) - n)
+        count = 0
+        while t < t_end - 1e-12:
+            count += 1
+            n += 1
+            t = t + self._period(self._speed_hz(t))
+        return count
+
     # ------------------------------------------------------------------ internals
     def _speed_hz(self, t: float) -> float:
         return self.scenario.speed_at(t)
 
+    def _speed_key(self, speed_hz: float) -> int:
+        """The discretisation cache's key: the speed in quanta (``simulation.speed_quantum``)."""
+        return max(1, round(speed_hz / self.rig.simulation.speed_quantum))
+
+    def _period(self, speed_hz: float) -> float:
+        """Sample period at ``speed_hz`` as the discretisation has it (quantised speed), s."""
+        omega = 2 * math.pi * self._speed_key(speed_hz) * self.rig.simulation.speed_quantum
+        return 2 * math.pi / (omega * self.samples_per_rev)
+
     def _disc(self, speed_hz: float) -> SpeedDiscretisation:
         q = self.rig.simulation.speed_quantum
-        key = max(1, round(speed_hz / q))
+        key = self._speed_key(speed_hz)
         d = self._cache.get(key)
         if d is None:
             omega = 2 * math.pi * key * q
