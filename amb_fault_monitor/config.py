@@ -108,6 +108,10 @@ class MonitorConfig:
         (:mod:`amb_fault_monitor.control_transients`). One revolution (one control period)
         leaves a margin and keeps short the time in which a real fault would be taken for the
         step.
+    coil_floor, coil_factor, coil_confirm_revs
+        Coil/amplifier check (:mod:`amb_fault_monitor.coil_check`): the smallest threshold of
+        the demanded-minus-measured current, A; the threshold's factor over the largest healthy
+        difference of the calibration window; how long it must hold, revolutions.
     """
 
     samples_per_rev: int = param(
@@ -171,6 +175,14 @@ class MonitorConfig:
         runtime=True,
     )
     control_window_revs: float = 1.0
+    coil_floor: float = param(
+        0.1,
+        description="coil check: smallest threshold of the demanded minus measured control "
+        "current of an axis, A",
+        floats=(1e-6, 100.0),
+    )
+    coil_factor: float = 4.0
+    coil_confirm_revs: float = 0.25
 
     def __post_init__(self) -> None:
         spr = self.samples_per_rev
@@ -187,7 +199,8 @@ class MonitorConfig:
             "calibration_revs", "settle_ratio", "k", "confirm_ratio", "confirm_revs", "quiet_revs",
             "decision_revs", "max_tail_revs", "isolation", "sync_change", "burst_gap_revs",
             "tail_rise", "tail_rise_median", "dead_revs", "base_coherence", "base_dominance",
-            "rearm_revs", "control_step", "control_window_revs",
+            "rearm_revs", "control_step", "control_window_revs", "coil_floor", "coil_factor",
+            "coil_confirm_revs",
         )  # fmt: skip
         for name in positive:
             if not getattr(self, name) > 0:

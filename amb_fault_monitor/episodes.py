@@ -53,6 +53,8 @@ class Episode:
         False when none; None until looked up.
     contacts : ContactBursts
         The contact bursts found in it.
+    explained : str
+        The fault it is the consequence of (``COIL_FAILURE``: monitor notes, step 6), or "".
     """
 
     start: int
@@ -72,6 +74,7 @@ class Episode:
     low_peak: float = 0.0
     high_peak: float = 0.0
     contacts: ContactBursts = field(init=False)
+    explained: str = ""
 
     def __post_init__(self) -> None:
         self.contacts = ContactBursts(self.start)

@@ -12,7 +12,9 @@ Fault detection from wavelet coefficients in the fixed and rotating frames (thes
   :mod:`amb_fault_monitor.onset`; its class: :mod:`amb_fault_monitor.classifier`;
 * contact bursts in a ring-down: :mod:`amb_fault_monitor.bursts`;
 * transients of the controller's own force: :mod:`amb_fault_monitor.control_transients`;
-* stuck or zero channels: :mod:`amb_fault_monitor.dead_channels`.
+* stuck or zero channels: :mod:`amb_fault_monitor.dead_channels`;
+* coil and amplifier failures, from the measured against the demanded currents:
+  :mod:`amb_fault_monitor.coil_check`.
 
 Episodes
 --------
@@ -37,6 +39,12 @@ Episodes
 5. *Control transients*: an episode that a step of the applied control force explains is
    counted, not reported (:mod:`amb_fault_monitor.control_transients`); contact bursts in
    the step's window are the response to it and not counted.
+6. *Coil failures*: a ``COIL_FAILURE`` (:meth:`FaultMonitor.currents`) comes a quarter
+   revolution after the failure; the episode the rotor's response then opens (its estimated
+   onset within a revolution of the failure's) is its consequence, counted
+   (``coil_explained``), not reported as a class of Table 5.1 (the one-sided pull of a lost
+   coil changes the 1 x level for good, as a mass loss does). Contacts in it are reported:
+   the rotor does touch.
 
 Sensor channels found faulty (decided sensor faults and stuck channels) are masked (their
 plane feature uses the partner channel only) until :meth:`FaultMonitor.reset`.
@@ -50,6 +58,7 @@ from amb_common.faults import FaultEvent, FaultType
 from amb_common.names import N_SENSORS
 from amb_fault_monitor.calibration import Calibration, CalibrationWindow
 from amb_fault_monitor.classifier import classify
+from amb_fault_monitor.coil_check import CoilCheck
 from amb_fault_monitor.config import MonitorConfig
 from amb_fault_monitor.control_transients import ControlSteps
 from amb_fault_monitor.dead_channels import DeadChannels
@@ -94,15 +103,17 @@ class FaultMonitor:
     Notes
     -----
     Feed one :class:`~amb_fault_monitor.records.SampleCoefficients` per sample with
-    :meth:`step`, in increasing ``sample_index``, and the control force applied in each sample
+    :meth:`step`, in increasing ``sample_index``, the control force applied in each sample
     with :meth:`control_force` (module notes, step 5; without it no transient is attributed to
-    control). The first ``calibration_revs`` revolutions of settled coefficients calibrate the
-    thresholds (they must be healthy); events are emitted afterwards. :meth:`reset` starts
-    again (new calibration).
+    control) and, given the rig's current gain ``ki`` (N/A), its currents with
+    :meth:`currents` (step 6; without ``ki`` no coil check). The first ``calibration_revs``
+    revolutions of settled coefficients calibrate the thresholds (they must be healthy); events
+    are emitted afterwards. :meth:`reset` starts again (new calibration).
     """
 
-    def __init__(self, config: MonitorConfig) -> None:
+    def __init__(self, config: MonitorConfig, ki: float | None = None) -> None:
         self._config = config
+        self._coils = CoilCheck(config, ki) if ki is not None else None
         self._R = revolution_level(config.samples_per_rev)
         self._finest = min(config.levels) if config.levels else 1
         self._centres = AtomCentres()
@@ -118,8 +129,9 @@ class FaultMonitor:
     @config.setter
     def config(self, config: MonitorConfig) -> None:
         self._config = config
-        for part in (self._calibration, self._sync, self._dead, self._control):
-            part.config = config
+        for part in (self._calibration, self._sync, self._dead, self._control, self._coils):
+            if part is not None:
+                part.config = config
 
     def reset(self) -> None:
         """Forget all state, thresholds and masked channels; calibrate again."""
@@ -138,6 +150,10 @@ class FaultMonitor:
         self.unconfirmed = 0
         self.samples = 0
         self.calibration_end: int | None = None
+        if self._coils is not None:
+            self._coils.reset()
+        self._coil_onsets: list[int] = []
+        self.coil_explained = 0
 
     @property
     def calibrated(self) -> bool:
@@ -235,6 +251,35 @@ class FaultMonitor:
         comparison.
         """
         self._control.record(sample_index, force)
+
+    def currents(
+        self, sample_index: int, commanded_force: np.ndarray, current: np.ndarray, omega: float
+    ) -> list[FaultEvent]:
+        """
+        Check one sample's currents for a coil or amplifier failure (module notes, step 6).
+
+        Parameters
+        ----------
+        sample_index : int
+            The measurement's index.
+        commanded_force : numpy.ndarray
+            Its ``bearing_force`` (4,), N: ``K_i`` times the demanded current.
+        current : numpy.ndarray
+            Its measured control current (4,), A.
+        omega : float
+            Its running speed, rad/s.
+
+        Returns
+        -------
+        list of FaultEvent
+            ``COIL_FAILURE`` events confirmed at this sample (:mod:`amb_fault_monitor.coil_check`);
+            empty without ``ki``.
+        """
+        if self._coils is None:
+            return []
+        events = self._coils.step(sample_index, commanded_force, current, omega)
+        self._coil_onsets += [e.onset_sample_index for e in events]
+        return events
 
     def step(self, record: SampleCoefficients) -> list[FaultEvent]:
         """
@@ -410,6 +455,14 @@ class FaultMonitor:
                     if quiet:
                         self._end_tail(n, events)
                     return
+                if ev.fault_type != FaultType.AUX_BEARING_CONTACT and self._coil_explains(ev):
+                    ep.explained = FaultType.COIL_FAILURE.name
+                    self.coil_explained += 1
+                    if ep.contacts.count:
+                        self._report_contacts(ep, n, events)
+                    if quiet:
+                        self._end_tail(n, events)
+                    return
                 events.append(ev)
                 if ev.fault_type == FaultType.SENSOR_FAULT and ev.channel >= 0:
                     self._mask[ev.channel] = False
@@ -430,6 +483,11 @@ class FaultMonitor:
         if quiet or n - ep.decided.decision_sample_index >= cfg.max_tail_revs * spr:
             self._end_tail(n, events)
 
+    def _coil_explains(self, ev: FaultEvent) -> bool:
+        """Whether a coil failure's onset lies within a revolution of the episode's (step 6)."""
+        spr = self._config.samples_per_rev
+        return any(abs(ev.onset_sample_index - c) <= spr for c in self._coil_onsets)
+
     def _control_run(self, ep: Episode) -> list | None:
         """The control step run that explains ``ep`` (looked up until its decision), or None."""
         if ep.control is not None or ep.decided is not None:
@@ -445,7 +503,7 @@ class FaultMonitor:
 
     def _report_contacts(self, ep: Episode, n: int, events: list[FaultEvent]) -> None:
         """One ``AUX_BEARING_CONTACT`` event for the contact bursts found so far (step 4)."""
-        after = "CONTROL_TRANSIENT" if ep.control else ep.decided.fault_type.name
+        after = "CONTROL_TRANSIENT" if ep.control else ep.explained or ep.decided.fault_type.name
         events.append(ep.contacts.event(n, self._omega, after, self._config))
 
     def _sync_status(self, ep: Episode) -> str | None:

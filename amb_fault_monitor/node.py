@@ -10,7 +10,11 @@ with its contact counters) and published as ``amb_msgs/FaultEvent`` on ``/amb/fa
 transient that a step of it explains (``control_step``, N per axis from one revolution to the
 next; the monitor's module notes, step 5) is no event but counted on ``/diagnostics``
 (``control_transients``, ``last_control_transient``, ``control_step_n`` in use; the monitor
-status turns WARN with the message "transient from control action ..."). They also feed two
+status turns WARN with the message "transient from control action ..."), and their currents:
+a measured control current (``current``) that departs from the demand (``bearing_force`` over
+``K_i`` of the rig file) for a quarter revolution is a ``COIL_FAILURE`` event naming the AMB
+and the axis (:mod:`amb_fault_monitor.coil_check`; the rotor's response to it is counted as
+``coil_explained``, its contacts reported). They also feed two
 trips per plane with hysteresis (:mod:`amb_fault_monitor.trips`): the radial displacement and
 the 1 x orbit semi-major axis over the last revolution. Their levels default to fractions
 (``trip_displacement_fraction``, ``trip_1x_fraction``) of the clearance of the nearest
@@ -177,7 +181,7 @@ class FaultMonitorNode(Node):
         self._trip_1x = TripMonitor(self._level(p("trip_1x").value, "1x"), hyst)
         self._sync_amp = SynchronousAmplitude(self._spr)
         self._box = self._blackbox()
-        self._monitor = FaultMonitor(config)
+        self._monitor = FaultMonitor(config, self._ki)
         self._meas_seq = SampleSequencer(self._spr)
         # coefficient messages every second sample: index // 2 is consecutive (module notes)
         self._coef_seq = SampleSequencer(self._spr // 2)
@@ -262,6 +266,7 @@ class FaultMonitorNode(Node):
             self._clearance = clearance_levels(rig, 1.0)  # m, nearest clearance per plane
         except FaultMonitorError as exc:
             raise ConfigurationError(f"parameter 'rig' = {path!r}: {exc}") from exc
+        self._ki = rig.amb.Ki  # N/A: the coil check's demanded current (FaultMonitor.currents)
 
     def _blackbox(self) -> BlackBox | None:
         p = self.get_parameter
@@ -374,6 +379,10 @@ class FaultMonitorNode(Node):
         n = int(msg.sample_index)
         self._monitor.control_force(n, from_float_array(msg.wavelet_force))
         self.last_sample = n
+        for ev in self._monitor.currents(
+            n, from_float_array(msg.bearing_force), from_float_array(msg.current), self._omega
+        ):
+            self._emit(ev, msg.header.stamp, n)
         d = from_float_array(msg.displacement)
         amp = self._sync_amp.step(d, float(msg.rotor_angle))
         found = [("displacement", pl, self._trip) for pl in self._trip.step(d)]
@@ -521,6 +530,7 @@ class FaultMonitorNode(Node):
             "control_transients": self.control_transients,
             "control_step_n": self._monitor.config.control_step,
             "last_control_transient": self._last_control or "",
+            "coil_explained": self._monitor.coil_explained,
             **{f"contacts_bearing_{b}": c for b, c in sorted(self._log.contacts.items())},
             **self.counts,
             **{f"samples_{k}": v for k, v in self._meas_seq.counts.items()},

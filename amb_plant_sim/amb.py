@@ -9,7 +9,8 @@ eq. 2.32-2.37), ``i`` the control current (A, ``i_1 = -i_2 = i``).
   (gravity is not in the lateral model): ``f = mu0 N^2 A [((I_b + i)/(c_g - x))^2
   - ((I_b - i)/(c_g + x))^2]``, with ``I_b`` from :attr:`AmbData.bias_current`; its slopes at
   the origin are ``K_i`` and ``K_z`` (2.24e6 N/m with Table 2.2).
-- Channel loss: ``both`` coils dead gives no force; a single working coil gives its own term.
+- Channel loss: ``both`` coils dead gives no force; a single working coil gives its own term;
+  the current sensors then read what the coils carry (:func:`measured_current`).
 - Saturation: the control part ``K_i i`` is limited to ``+-force_limit`` (1 kN, section 2.6),
   applied as a current limit ``force_limit / K_i``.
 """
@@ -62,6 +63,39 @@ def pair_force(amb: AmbData, current: NDArray, x: NDArray) -> NDArray[np.float64
     """Nonlinear opposing-pair force (eq. 2.33), N."""
     f1, f2 = coil_forces(amb, current, x)
     return f1 + f2
+
+
+def measured_current(amb: AmbData, current: NDArray, modes: NDArray) -> NDArray[np.float64]:
+    """
+    Control current per axis as the amplifiers' current sensors give it, A.
+
+    The two coils of an axis carry ``I_b + i`` and ``I_b - i`` (eq. 2.33); the control
+    current is half their difference, ``i`` while both work. A lost coil carries nothing:
+    ``both`` lost reads 0, coil 1 alone ``(I_b + i) / 2``, coil 2 alone ``(i - I_b) / 2`` (a
+    step of ``I_b / 2`` = 2.35 A with Table 2.2 and the gain halved). What the demand ``i``
+    asked for and what the coils carry then differ: the fault monitor's coil check
+    (:mod:`amb_fault_monitor.coil_check`).
+
+    Parameters
+    ----------
+    amb : AmbData
+    current : ndarray (..., 4)
+        Control current demanded per axis (after the limit), A.
+    modes : ndarray (..., 4) of int
+        ``NORMAL``, ``LOST``, ``COIL_POSITIVE``, ``COIL_NEGATIVE`` per axis.
+
+    Returns
+    -------
+    ndarray (..., 4)
+    """
+    i = np.asarray(current, float)
+    modes = np.asarray(modes)
+    if not np.any(modes != NORMAL):
+        return i
+    ib = amb.bias_current
+    coil1 = np.where((modes == NORMAL) | (modes == COIL_POSITIVE), ib + i, 0.0)
+    coil2 = np.where((modes == NORMAL) | (modes == COIL_NEGATIVE), ib - i, 0.0)
+    return 0.5 * (coil1 - coil2)
 
 
 def amb_force(

@@ -65,9 +65,12 @@ class MeasurementBlock:
     displacement : ndarray (n, 8)
         Sensor readings [x1, y1, ..., x4, y4], m (with sensor faults and noise).
     current : ndarray (n, 4)
-        Control current per axis [b1x, b1y, b2x, b2y], A (PID + wavelet, after saturation).
+        Control current per axis [b1x, b1y, b2x, b2y], A, as the current sensors read it (half
+        the difference of the two coils' currents): the demand (PID + wavelet, after
+        saturation) unless a coil or amplifier channel is lost (:func:`amb.measured_current`).
     bearing_force : ndarray (n, 4)
-        Control force ``K_i i`` per axis, N (PID + wavelet, after saturation).
+        Control force ``K_i i`` per axis from the demanded current, N (PID + wavelet, after
+        saturation): the force the controller asked for.
     truth : dict of ndarray
         Simulator-only data, never to be published: ``true_displacement`` (n, 8) m,
         ``journal_displacement`` (n, k, 2) m at the clearance bearings,
@@ -299,7 +302,7 @@ class PlantSimulator(EventInputs, StepByStepIntegration):
             angle=rec["angle"],
             omega=rec["omega"],
             displacement=y,
-            current=i_pub,
+            current=amb_law.measured_current(self.rig.amb, i_pub, ch_mode),
             bearing_force=self.rig.amb.Ki * i_pub,
             truth=truth,
         )

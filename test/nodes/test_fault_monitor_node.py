@@ -6,6 +6,7 @@ import json
 import math
 
 import late_command
+import numpy as np
 import pytest
 from amb_msgs.msg import FaultEvent, Measurement
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
@@ -13,6 +14,7 @@ from reliability_helpers import Diagnostics, get_parameter, set_parameters
 from synthetic import HZ, SPR, make_run
 
 from amb_common import topics
+from amb_common.rig import load_rig
 from amb_tools.streams import stream_qos
 
 COEFFICIENTS = topics.absolute(topics.COEFFICIENTS)
@@ -223,3 +225,43 @@ def test_1x_trip_error_and_black_box_bag(ros, node_process, tmp_path) -> None:
     span = (stamps[-1] - stamps[0]) * 1e-9
     assert span == pytest.approx(0.3, abs=3.0 / fs)
     assert counts["/amb/measurement"] == pytest.approx(0.3 * fs, abs=4)
+
+
+def test_a_lost_coil_is_published_from_the_currents(ros, node_process) -> None:
+    """Issue 19: the measured current of axis b2y reads 0 while 0.5 A is demanded from sample
+    FAULT on: one COIL_FAILURE naming AMB 2 and b2y, a quarter revolution later, from the
+    measurements alone (no coefficient stream); nothing before, nothing for the other axes."""
+    ki = load_rig().amb.Ki  # N/A
+    fm = node_process(
+        "-m amb_fault_monitor.node", params={"samples_per_rev": SPR, "status_period": 0.2}
+    )
+    node = ros.node("amb_test_fm_coil_driver")
+    pub = node.create_publisher(Measurement, "/amb/measurement", stream_qos(SPR))
+    events: list[FaultEvent] = []
+    node.create_subscription(FaultEvent, "/amb/fault/events", events.append, 100)
+    writers = Diagnostics(node)
+    assert ros.spin_until(
+        lambda: pub.get_subscription_count() >= 1 and writers.matched("fault_monitor", EVENTS),
+        timeout=30.0,
+    ), fm.log()
+    fault, total = 40 * SPR, 44 * SPR  # the calibration window is 16 revolutions
+    demand = np.array([0.2, -0.1, 0.3, 0.5])  # A per axis
+    for start in range(0, total, 64):
+        for i in range(start, min(start + 64, total)):
+            m = _measurement(i, [0.0] * 8, 2 * math.pi * (i % SPR) / SPR)
+            current = demand.copy()
+            if i >= fault:
+                current[3] = 0.0  # b2y: both coils lost
+            m.bearing_force = (ki * demand).tolist()
+            m.current = current.tolist()
+            pub.publish(m)
+        ros.spin_for(0.05)
+    assert ros.spin_until(lambda: len(events) >= 1, timeout=30.0), fm.log()
+    ros.spin_for(0.5)
+    assert len(events) == 1, [e.description for e in events]
+    ev = events[0]
+    assert ev.fault_type == FaultEvent.COIL_FAILURE
+    assert ev.bearing == 2
+    assert {kv.key: kv.value for kv in ev.evidence}["axis"] == "b2y"
+    assert ev.onset_sample_index == fault
+    assert ev.detection_sample_index == fault + math.ceil(0.25 * SPR) - 1
