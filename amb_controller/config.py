@@ -23,6 +23,7 @@ from amb_common.names import N_AXES, SENSOR_NAMES
 from amb_common.topics import DELAY_PERIODS
 from amb_controller.basis import QUADRATURES
 from amb_controller.errors import ControllerValueError
+from amb_controller.supervisor import DEFAULT_FAULT_ACTIONS
 
 __all__ = [
     "BASELINE_CONTROLLERS",
@@ -193,7 +194,7 @@ class ControllerConfig:
         allowed="an integer >= 1",
     )
     fault_actions: dict[int, str] = param(  # noqa: RUF009 (param returns a field)
-        default_factory=lambda: {2: "hold"},
+        default_factory=lambda: dict(DEFAULT_FAULT_ACTIONS),
         description="FaultEvent.fault_type -> action (hold | off | ignore)",
         allowed=f"fault_type 0..255 -> {FAULT_ACTIONS}",
     )

@@ -89,7 +89,12 @@ class Mode(IntEnum):
 
 #: FaultEvent.fault_type values (amb_msgs/FaultEvent.msg).
 AUX_BEARING_CONTACT = 2
-DEFAULT_FAULT_ACTIONS = {AUX_BEARING_CONTACT: "hold"}
+COIL_FAILURE = 5
+#: The reconfiguration on a fault (thesis 3.3.2): on a contact hold the force that acts (the
+#: rotor touches; a changing force would rub it on), on a coil or amplifier failure stop (the
+#: plant the model was identified on has lost an actuator axis: its commands no longer mean
+#: what they did; the PID carries on).
+DEFAULT_FAULT_ACTIONS = {AUX_BEARING_CONTACT: "hold", COIL_FAILURE: "off"}
 
 
 @dataclass(frozen=True)

@@ -5,12 +5,18 @@ import pytest
 import pywt
 
 from amb_controller.basis import control_basis, measurement_basis
+from amb_controller.config import ControllerConfig
 from amb_controller.guard import DivergenceGuard, GuardConfig
 from amb_controller.identification import MarkovIdentifier, StepExperiment
 from amb_controller.inverse import pseudo_inverse_series
 from amb_controller.model_file import WaveletModel
 from amb_controller.response import PrescribedResponse
-from amb_controller.supervisor import AUX_BEARING_CONTACT, Mode, WaveletControlSupervisor
+from amb_controller.supervisor import (
+    AUX_BEARING_CONTACT,
+    COIL_FAILURE,
+    Mode,
+    WaveletControlSupervisor,
+)
 from amb_controller.synthesis import ForceLimiter, synthesize
 from amb_controller.transient import TransientController
 from amb_wavelet.synthesis import basis_function
@@ -228,6 +234,8 @@ def test_guard_trip_zeroes_force_and_fault_holds():
     held = sup.step(2, np.array([5e-6]))
     np.testing.assert_allclose(held.coefficients, last.coefficients)
     assert held.hold
+    assert sup.on_fault(COIL_FAILURE) == "off" and sup.mode == Mode.OFF  # an actuator lost
+    assert ControllerConfig(samples_per_rev=64).fault_actions == {2: "hold", 5: "off"}
 
 
 def test_model_file_round_trip(tmp_path):
