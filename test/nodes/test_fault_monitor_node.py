@@ -32,6 +32,15 @@ def _measurement(i, xy, angle) -> Measurement:
     return m
 
 
+def _driver(ros, name: str, spr: int) -> tuple:
+    """A test node publishing measurements and collecting events: (node, pub, events, diag)."""
+    node = ros.node(name)
+    pub = node.create_publisher(Measurement, "/amb/measurement", stream_qos(spr))
+    events: list[FaultEvent] = []
+    node.create_subscription(FaultEvent, "/amb/fault/events", events.append, 100)
+    return node, pub, events, Diagnostics(node)
+
+
 def test_mass_loss_event_published_and_logged(ros, node_process, tmp_path) -> None:
     log = tmp_path / "events.jsonl"
     fb = node_process(
@@ -97,11 +106,7 @@ def test_control_transient_is_counted_on_diagnostics_not_published(ros, node_pro
     fm = node_process(
         "-m amb_fault_monitor.node", params={"samples_per_rev": spr, "status_period": 0.2}
     )
-    node = ros.node("amb_test_fm_control")
-    pub = node.create_publisher(Measurement, "/amb/measurement", stream_qos(spr))
-    events: list[FaultEvent] = []
-    node.create_subscription(FaultEvent, "/amb/fault/events", events.append, 100)
-    diag = Diagnostics(node)
+    node, pub, events, diag = _driver(ros, "amb_test_fm_control", spr)
     assert ros.spin_until(
         lambda: (
             pub.get_subscription_count() >= 2
@@ -235,11 +240,7 @@ def test_a_lost_coil_is_published_from_the_currents(ros, node_process) -> None:
     fm = node_process(
         "-m amb_fault_monitor.node", params={"samples_per_rev": SPR, "status_period": 0.2}
     )
-    node = ros.node("amb_test_fm_coil_driver")
-    pub = node.create_publisher(Measurement, "/amb/measurement", stream_qos(SPR))
-    events: list[FaultEvent] = []
-    node.create_subscription(FaultEvent, "/amb/fault/events", events.append, 100)
-    writers = Diagnostics(node)
+    _, pub, events, writers = _driver(ros, "amb_test_fm_coil_driver", SPR)
     assert ros.spin_until(
         lambda: pub.get_subscription_count() >= 1 and writers.matched("fault_monitor", EVENTS),
         timeout=30.0,
