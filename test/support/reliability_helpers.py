@@ -43,6 +43,24 @@ class Diagnostics:
         return int(self.get(name, MATCHED_KEY + topic, "-1"))
 
 
+def call_service(ros, client, request, attempts: int = 4, wait: float = 5.0):
+    """
+    Call a service and return its response, asking again if no response comes in ``wait`` s.
+
+    Fast DDS drops a service's response when the client's response reader has not been
+    matched 100 ms after the request arrived (rmw_fastrtps PR 467, 704: "failed to send
+    response (timeout): client will not receive response"); ``wait_for_service`` only says that
+    the request side is matched. Seen under load (a core kept busy) on the parameter services.
+    The services called here are idempotent (set / get parameters), so asking again is safe.
+    """
+    for _ in range(attempts):
+        future = client.call_async(request)
+        if ros.spin_until(future.done, wait):
+            return future.result()
+        client.remove_pending_request(future)
+    raise AssertionError(f"{client.srv_name}: no response in {attempts} calls of {wait} s")
+
+
 def set_parameters(ros, node, target: str, params: dict):
     """Call ``/<target>/set_parameters``; return the list of ``SetParametersResult``."""
     from rcl_interfaces.srv import SetParameters
@@ -53,9 +71,7 @@ def set_parameters(ros, node, target: str, params: dict):
     request = SetParameters.Request(
         parameters=[Parameter(k, value=v).to_parameter_msg() for k, v in params.items()]
     )
-    future = client.call_async(request)
-    assert ros.spin_until(future.done, 20.0)
-    return future.result().results
+    return call_service(ros, client, request).results
 
 
 def get_parameter(ros, node, target: str, name: str):
@@ -65,9 +81,8 @@ def get_parameter(ros, node, target: str, name: str):
 
     client = node.create_client(GetParameters, f"/{target}/get_parameters")
     assert client.wait_for_service(timeout_sec=20.0)
-    future = client.call_async(GetParameters.Request(names=[name]))
-    assert ros.spin_until(future.done, 20.0)
-    return parameter_value_to_python(future.result().values[0])
+    response = call_service(ros, client, GetParameters.Request(names=[name]))
+    return parameter_value_to_python(response.values[0])
 
 
 def fe_model_file(scenario: dict, tmp_path: Path) -> tuple[Path, Path]:
