@@ -63,14 +63,16 @@ def test_a_run_is_old_up_to_its_last_message_beyond_the_bound() -> None:
 
 def test_no_age_bound_before_the_interval_is_known() -> None:
     age = MessageAge(BOUND)
+    warmup = MessageAge.WARMUP
     assert age.old([], 10**12) == 0  # the executor's message alone: nothing known
     assert age.old([0], 10**12) == 0  # one message: no spacing yet
-    _pairs(age, BOUND - 2, start=2)  # BOUND - 2 spacings: not yet
+    _pairs(age, warmup - 2, start=2)  # WARMUP - 2 spacings: not yet
     assert age.limit_s == float("inf")
-    late = [BOUND * 2 * DT, (BOUND * 2 + 1) * DT]  # the BOUND-1-th spacing, 1 s late: not yet
+    k = 2 * warmup
+    late = [k * DT, (k + 1) * DT]  # the WARMUP-1-th spacing, 1 s late: not yet
     assert age.old(late, late[-1] + 10**9) == 0
-    # the run bringing the BOUND-th spacing, 1 s late, is judged with the new estimate
-    late = [(BOUND * 2 + 2) * DT, (BOUND * 2 + 3) * DT]
+    # the run bringing the WARMUP-th spacing, 1 s late, is judged with the new estimate
+    late = [(k + 2) * DT, (k + 3) * DT]
     assert age.old(late, late[-1] + 10**9) == 2
     assert age.limit_s == pytest.approx(BOUND * DT * 1e-9, rel=1e-12)
 
