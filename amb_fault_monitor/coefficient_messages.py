@@ -5,6 +5,12 @@ The ``WaveletCoefficients`` messages of the ``fault_monitor`` node: their check 
 "Bad input"); :func:`record_from_msg` converts an accepted one into the core's
 :class:`~amb_fault_monitor.records.SampleCoefficients`. ``KIND``, ``FRAME`` and ``QUAD`` map
 the message codes onto the core's names.
+
+A message the filterbank serialised in this process (the nodes composed on one
+:class:`~amb_tools.local_bus.LocalBus`) comes as a view that carries the filterbank's records
+(:class:`amb_wavelet.messages.LocalRecords`): its levels, codes, supports, lengths and finite
+values are the filterbank's own, so only what depends on the monitor's configuration
+(``samples_per_rev``) is checked; a message from DDS is checked field by field.
 """
 
 from __future__ import annotations
@@ -49,6 +55,8 @@ def check_coefficients(msg: WaveletCoefficients, samples_per_rev: int) -> None:
         )
     if not msg.sets:
         raise MessageError("field 'sets' is empty: a coefficient message carries at least one")
+    if getattr(msg, "records", None) is not None:
+        return  # serialised in this process by the filterbank from its own records (module notes)
     deepest = revolution_level(samples_per_rev) + EXTRA_OCTAVES
     n = msg.sample_index
     for s in msg.sets:

@@ -28,7 +28,7 @@ is still understood. The tests check both directions against rclpy's serialiser.
 from __future__ import annotations
 
 import struct
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import lru_cache
 
 import amb_msgs.msg
@@ -330,6 +330,10 @@ class CoefficientsView:
     samples_per_period: int
     channel_names: list[str]
     sets: list[CoefficientSetView]
+    #: The producer's own records of these coefficients when the view was made in this process
+    #: by :func:`coefficients_cdr` (``records``), else None: composed readers take them instead
+    #: of rebuilding them from ``sets``.
+    records: object = field(default=None, repr=False, metadata={"message_field": False})
 
 
 _SET = struct.Struct("<qqQd?")
@@ -344,6 +348,7 @@ def coefficients_cdr(
     samples_per_period: int,
     channel_names: list[str] | tuple[str, ...],
     sets: list[tuple],
+    records: object = None,
 ) -> bytes:
     """Serialise a ``WaveletCoefficients`` message.
 
@@ -360,30 +365,27 @@ def coefficients_cdr(
     sets : list of tuple
         ``(level, kind, frame, quadrature, translation_index, first_sample_index,
         last_sample_index, pseudo_frequency, settled, values)`` per ``CoefficientSet``,
-        ``values`` a float64 array.
+        ``values`` a float64 array (a read-only one is kept in the view as it is, others are
+        copied).
+    records : object, optional
+        The producer's own form of the same coefficients, kept in the view
+        (:attr:`CoefficientsView.records`) for the readers composed in this process.
 
     Returns
     -------
     bytes
     """
-    out = bytearray(CDR_LE)
-    out += struct.pack("<iI", header.stamp.sec, header.stamp.nanosec)
-    out += _string(header.frame_id)
-    out += bytes(-(len(out) - _ORIGIN) % 4) + _string(wavelet)
-    out += bytes(-(len(out) - _ORIGIN) % 4) + struct.pack("<I", samples_per_rev)
-    out += bytes(-(len(out) - _ORIGIN) % 8)
-    out += struct.pack("<QqI", sample_index, period_index, samples_per_period)
-    out += struct.pack("<I", len(channel_names))
-    for name in channel_names:
-        out += bytes(-(len(out) - _ORIGIN) % 4) + _string(name)
-    out += bytes(-(len(out) - _ORIGIN) % 4) + struct.pack("<I", len(sets))
+    names = tuple(channel_names)
     sizes = tuple(len(s[9]) for s in sets)
-    flat = []
+    layout, frame, tail, names_cdr = _coefficients_layout(
+        header.frame_id, wavelet, int(samples_per_rev), names, sizes
+    )
+    flat = [CDR_LE, header.stamp.sec, header.stamp.nanosec, frame, tail, sample_index,
+            period_index, samples_per_period, names_cdr, len(sets)]  # fmt: skip
     for level, kind, frame, quad, m, first, last, freq, settled, values in sets:
         flat += (level, kind, frame, quad, m, first, last, freq, settled, len(values))
-        flat += np.asarray(values, dtype=float).tolist()
-    out += _sets_struct((len(out) - _ORIGIN) % 8, sizes).pack(*flat)
-    raw = bytes(out)
+        flat += values.tolist() if isinstance(values, np.ndarray) else list(values)
+    raw = layout.pack(*flat)
     # the view read_coefficients would parse from these bytes, made from the fields at hand: a
     # reader composed in this process (amb_tools.local_bus) is handed this very object and
     # gets the view without parsing it again
@@ -391,17 +393,51 @@ def coefficients_cdr(
         raw,
         CoefficientsView(
             header, wavelet, int(samples_per_rev), int(sample_index), int(period_index),
-            int(samples_per_period), [str(n) for n in channel_names],
+            int(samples_per_period), list(names),
             [CoefficientSetView(int(level), int(kind), int(frame), int(quad), int(m), int(first),
                                 int(last), float(freq), bool(settled), _frozen(values))
              for level, kind, frame, quad, m, first, last, freq, settled, values in sets],
+            records,
         ),
     )  # fmt: skip
     return raw
 
 
+@lru_cache(maxsize=64)
+def _coefficients_layout(
+    frame_id: str, wavelet: str, samples_per_rev: int, names: tuple[str, ...], sizes: tuple
+) -> tuple[struct.Struct, bytes, bytes, bytes]:
+    """The whole ``WaveletCoefficients`` CDR as one struct, and its three constant parts.
+
+    A stream's layout repeats with the sizes of its sets. The struct packs the encapsulation
+    header, ``sec, nanosec``, the frame id (constant), the wavelet and ``samples_per_rev``
+    (constant), ``sample_index, period_index, samples_per_period``, the channel names
+    (constant), ``n_sets`` and the fields of each set as :func:`_sets_struct`; the constants
+    are returned with it.
+    """
+    frame = _string(frame_id)
+    pos = 8 + len(frame)  # counted from the origin (after the encapsulation header)
+    tail = bytes(-pos % 4) + _string(wavelet)
+    tail += bytes(-(pos + len(tail)) % 4) + struct.pack("<I", samples_per_rev)
+    pos += len(tail)
+    fmt = f"<4siI{len(frame)}s{len(tail)}s{-pos % 8}xQqI"
+    pos += -pos % 8 + 20
+    names_cdr = struct.pack("<I", len(names))
+    for name in names:
+        names_cdr += bytes(-(pos + len(names_cdr)) % 4) + _string(name)
+    names_cdr += bytes(-(pos + len(names_cdr)) % 4)
+    pos += len(names_cdr) + 4
+    sets = _sets_struct(pos % 8, sizes).format.lstrip("<")
+    return struct.Struct(f"{fmt}{len(names_cdr)}sI{sets}"), frame, tail, names_cdr
+
+
 def _frozen(values) -> np.ndarray:
-    """A read-only float64 copy (a parsed view is read-only, and the caller's array may change)."""
+    """A read-only float64 array: ``values`` if it is one already, else a copy.
+
+    (A parsed view is read-only, and the caller's array may change.)
+    """
+    if isinstance(values, np.ndarray) and values.dtype == np.float64 and not values.flags.writeable:
+        return values
     out = np.array(values, dtype=np.float64)
     out.flags.writeable = False
     return out

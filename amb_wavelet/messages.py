@@ -10,6 +10,8 @@ what :func:`coefficients_bytes` writes, the in-process loop records what
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from amb_msgs.msg import CoefficientSet, WaveletCoefficients
 
@@ -135,7 +137,8 @@ def coefficients_bytes(
     bytes
         For ``Publisher.publish``.
     """
-    sets = _coefficient_set_fields(coefficients, slots, samples_per_rev, rotor_speed)
+    records = [c._replace(values=_frozen(c.values)) for c in coefficients]
+    sets = _coefficient_set_fields(records, slots, samples_per_rev, rotor_speed)
     return coefficients_cdr(
         header_view(header),
         wavelet,
@@ -145,7 +148,28 @@ def coefficients_bytes(
         samples_per_period,
         SENSOR_NAMES,
         sets,
+        LocalRecords(tuple(slots), records),
     )
+
+
+class LocalRecords(NamedTuple):
+    """The filterbank's records of a message serialised in this process, for composed readers.
+
+    Kept in the message's view (:attr:`amb_tools.cdr.CoefficientsView.records`): a reader on the
+    same :class:`~amb_tools.local_bus.LocalBus` takes ``records`` (their ``values`` read-only,
+    ordered by ``slots``) instead of rebuilding them from the sets (:func:`coefficient_records`),
+    and need not check what this process's filterbank wrote (finite values, one support per
+    coefficient, eight values per set).
+    """
+
+    slots: tuple
+    records: list
+
+
+def _frozen(values: np.ndarray) -> np.ndarray:
+    out = np.array(values, dtype=np.float64)
+    out.flags.writeable = False
+    return out
 
 
 def coefficient_records(msg, slots) -> list:
@@ -155,6 +179,11 @@ def coefficient_records(msg, slots) -> list:
     in the order of ``slots``, into one ``values`` vector, exactly as the filterbank core
     produced it, so that a consumer of the message stream sees the same numbers as one fed by
     the core directly.
+
+    A message this process's filterbank serialised (:func:`coefficients_bytes`; the readers
+    composed with it on one :class:`~amb_tools.local_bus.LocalBus`) carries the records
+    themselves (:class:`LocalRecords`): asked for the same ``slots``, they are returned as they
+    are (read-only values), the same numbers without the joining.
 
     Parameters
     ----------
@@ -173,6 +202,9 @@ def coefficient_records(msg, slots) -> list:
         If a set has the wrong number of values or a non-finite value, or a requested slot is
         missing for a coefficient.
     """
+    local = getattr(msg, "records", None)
+    if isinstance(local, LocalRecords) and local.slots == tuple(slots):
+        return list(local.records)  # composed with the filterbank: its own records
     records: dict[tuple, dict] = {}
     for s in msg.sets:
         key = (s.level, s.kind, s.translation_index)

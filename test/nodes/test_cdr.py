@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 from msg_fill import diff, random_message, to_plain
 
-from amb_tools.cdr import read_coefficients, read_measurement
+from amb_tools.cdr import HeaderView, StampView, read_coefficients, read_measurement
 from amb_tools.conversions import measurement_bytes, measurement_msgs
 from amb_wavelet.messages import coefficients_bytes, coefficients_msg
 
@@ -111,6 +111,55 @@ def test_coefficients_bytes_deserialise_to_the_message_coefficients_msg_builds(w
         published += 1
     assert published == 48  # every odd sample completes a level-1 coefficient
     assert isinstance(msgs[0], Measurement)
+
+
+@pytest.mark.parametrize("wavelet", ["haar", "db4"])
+def test_composed_readers_take_the_filterbanks_records_with_the_numbers_dds_readers_get(
+    wavelet,
+) -> None:
+    """The view kept at serialisation carries the filterbank's records (``LocalRecords``).
+
+    A reader composed with the filterbank gets them as they are; a reader of the same bytes from
+    DDS rebuilds them from the sets: both must see the core's numbers. The monitor's check of a
+    local view still refuses another ``samples_per_rev``.
+    """
+    from amb_fault_monitor.coefficient_messages import check_coefficients
+    from amb_tools.conversions import MessageError
+    from amb_tools.streams import FRAME_CODES, QUAD_CODES
+    from amb_wavelet.analysis import AnalysisFilterbank
+    from amb_wavelet.frontend import ChannelFrontEnd
+    from amb_wavelet.messages import LocalRecords, coefficient_records
+
+    rng = np.random.default_rng(11)
+    front = ChannelFrontEnd(32)
+    bank = AnalysisFilterbank(wavelet, 6, front.n_channels)
+    slots = [(FRAME_CODES[f], QUAD_CODES[q]) for f in FRAME_CODES for q in QUAD_CODES]
+    block = _block(64, rng)
+    bank.reset(start_sample_index=int(block.sample_index[0]))
+    header = HeaderView(StampView(3, 4), "rig")
+    checked = 0
+    for xy, angle, n in zip(block.displacement, block.angle, block.sample_index, strict=True):
+        core = bank.step(front.step(xy, angle), int(n))
+        if not core:
+            continue
+        raw = coefficients_bytes(header, wavelet, 32, 32, int(n), 421.0, core, slots)
+        local, remote = read_coefficients(raw), read_coefficients(bytes(bytearray(raw)))
+        assert isinstance(local.records, LocalRecords) and remote.records is None
+        mine, rebuilt = coefficient_records(local, slots), coefficient_records(remote, slots)
+        assert len(mine) == len(rebuilt) == len(core)
+        for a, b, c in zip(mine, rebuilt, core, strict=True):
+            assert a[:5] == b[:5] == c[:5] and a.settled == b.settled == c.settled
+            np.testing.assert_array_equal(a.values, c.values)
+            np.testing.assert_array_equal(b.values, c.values)
+            assert not a.values.flags.writeable  # shared by the readers: read-only
+        # a reader asking for other slots rebuilds them from the sets
+        part = coefficient_records(local, slots[2:])
+        np.testing.assert_array_equal(part[0].values, core[0].values[16:])
+        check_coefficients(local, 32)
+        with pytest.raises(MessageError, match="samples_per_rev"):
+            check_coefficients(local, 64)
+        checked += 1
+    assert checked == 32
 
 
 SET_FIELDS = ("level", "kind", "frame", "quadrature", "translation_index", "first_sample_index",

@@ -86,7 +86,11 @@ def to_plain(msg: Any) -> Any:
     if hasattr(msg, "get_fields_and_field_types"):
         return {f: to_plain(getattr(msg, f)) for f in msg.get_fields_and_field_types()}
     if hasattr(msg, "__dataclass_fields__"):
-        fields = [f for f in msg.__dataclass_fields__ if f.islower() and not f.startswith("_")]
+        fields = [
+            name
+            for name, f in msg.__dataclass_fields__.items()
+            if name.islower() and not name.startswith("_") and f.metadata.get("message_field", True)
+        ]  # a view's own additions (amb_tools.cdr) are not message fields
         return {f: to_plain(getattr(msg, f)) for f in fields}  # rosbags: constants are fields
     if isinstance(msg, np.ndarray):
         return [to_plain(v) for v in msg.tolist()]
