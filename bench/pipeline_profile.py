@@ -38,6 +38,19 @@ def cpu_in_window(usage: dict, t0: float, t1: float) -> float:
     return float(np.interp(t1, t, cpu) - np.interp(t0, t, cpu))
 
 
+def processed_samples(bag: Path) -> int:
+    """Samples the filterbank processed in a run: two per coefficient message in its bag.
+
+    Every odd sample completes a level-1 coefficient; 0 without a bag.
+    """
+    if not bag.exists():
+        return 0
+    from amb_common import topics
+    from amb_tools.bag_read import read_bag
+
+    return 2 * read_bag(bag).counts.get("/" + topics.COEFFICIENTS, 0)
+
+
 def main() -> None:
     """Run one case with per-node CPU logs and print the CPU per sample of each node."""
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
@@ -101,6 +114,15 @@ def main() -> None:
         print(f"{'all nodes':>20} {total:7.2f} {total / samples * 1e6:10.1f} {total / wall:9.0%}")
         rest = total - bridge  # issue 17's budget: the node set, the plant (a rig's bridge) apart
         print(f"{'plant excepted':>20} {rest:7.2f} {rest / samples * 1e6:10.1f} {rest / wall:9.0%}")
+        processed = processed_samples(out / "bag")
+        if processed:
+            # a node set that cannot keep up drops samples to catch up (realtime): its CPU per
+            # plant sample then understates the work of one sample
+            print(
+                f"samples the filterbank processed (2 x its coefficient messages in the bag): "
+                f"{processed} of {samples} ({processed / samples:.0%}); plant excepted "
+                f"{rest / processed * 1e6:.1f} us per processed sample"
+            )
         if args.cprofile:
             for f in sorted(prof.glob("*.prof")):
                 for key in ("tottime", "cumulative"):
