@@ -105,7 +105,12 @@ class CoilCheck:
                 cfg = self.config
                 self.threshold = np.maximum(cfg.coil_floor, cfg.coil_factor * self._largest)
             return []
-        over = (diff > self.threshold) & ~self.failed
+        over = diff > self.threshold
+        if not over.any():  # the usual sample: every run ends, nothing confirmed
+            if self._run.any():
+                self._run[:] = 0
+            return []
+        over &= ~self.failed
         self._first = np.where(over & (self._run == 0), n, self._first)
         self._run = np.where(over, self._run + 1, 0)
         events = []
