@@ -62,6 +62,20 @@ def _block(n: int, rng: np.random.Generator) -> SimpleNamespace:
     )
 
 
+def _filterbank(wavelet: str, n: int, rng: np.random.Generator):
+    """Front end and filterbank at 32 samples/rev, every (frame, quadrature) slot, n samples."""
+    from amb_tools.streams import FRAME_CODES, QUAD_CODES
+    from amb_wavelet.analysis import AnalysisFilterbank
+    from amb_wavelet.frontend import ChannelFrontEnd
+
+    front = ChannelFrontEnd(32)
+    bank = AnalysisFilterbank(wavelet, 6, front.n_channels)
+    slots = [(FRAME_CODES[f], QUAD_CODES[q]) for f in FRAME_CODES for q in QUAD_CODES]
+    block = _block(n, rng)
+    bank.reset(start_sample_index=int(block.sample_index[0]))
+    return front, bank, slots, block
+
+
 def test_measurement_bytes_deserialise_to_the_messages_measurement_msgs_builds() -> None:
     from amb_msgs.msg import Measurement
     from rclpy.serialization import deserialize_message
@@ -84,16 +98,7 @@ def test_coefficients_bytes_deserialise_to_the_message_coefficients_msg_builds(w
     from amb_msgs.msg import Measurement, WaveletCoefficients
     from rclpy.serialization import deserialize_message
 
-    from amb_tools.streams import FRAME_CODES, QUAD_CODES
-    from amb_wavelet.analysis import AnalysisFilterbank
-    from amb_wavelet.frontend import ChannelFrontEnd
-
-    rng = np.random.default_rng(10)
-    front = ChannelFrontEnd(32)
-    bank = AnalysisFilterbank(wavelet, 6, front.n_channels)
-    slots = [(FRAME_CODES[f], QUAD_CODES[q]) for f in FRAME_CODES for q in QUAD_CODES]
-    block = _block(96, rng)
-    bank.reset(start_sample_index=int(block.sample_index[0]))
+    front, bank, slots, block = _filterbank(wavelet, 96, np.random.default_rng(10))
     msgs = measurement_msgs(block, np.zeros((96, 4)), 0, 32, 1e4)
     published = 0
     for k, m in enumerate(msgs):
@@ -125,17 +130,9 @@ def test_composed_readers_take_the_filterbanks_records_with_the_numbers_dds_read
     """
     from amb_fault_monitor.coefficient_messages import check_coefficients
     from amb_tools.conversions import MessageError
-    from amb_tools.streams import FRAME_CODES, QUAD_CODES
-    from amb_wavelet.analysis import AnalysisFilterbank
-    from amb_wavelet.frontend import ChannelFrontEnd
     from amb_wavelet.messages import LocalRecords, coefficient_records
 
-    rng = np.random.default_rng(11)
-    front = ChannelFrontEnd(32)
-    bank = AnalysisFilterbank(wavelet, 6, front.n_channels)
-    slots = [(FRAME_CODES[f], QUAD_CODES[q]) for f in FRAME_CODES for q in QUAD_CODES]
-    block = _block(64, rng)
-    bank.reset(start_sample_index=int(block.sample_index[0]))
+    front, bank, slots, block = _filterbank(wavelet, 64, np.random.default_rng(11))
     header = HeaderView(StampView(3, 4), "rig")
     checked = 0
     for xy, angle, n in zip(block.displacement, block.angle, block.sample_index, strict=True):
