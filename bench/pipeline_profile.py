@@ -4,7 +4,9 @@ Runs one lock-step case of ``bench/pipeline.py`` (same scenario, model and nodes
 ``AMB_CPU_LOG`` (or, with ``--cprofile``, ``AMB_PROFILE``) set, so that every node writes its
 process CPU timeline at shutdown (:mod:`amb_tools.node_main`); prints, per node, the CPU
 seconds used between the plant's first and last sample (start-up and discovery excluded), CPU
-microseconds per sample and the share of that wall time, then (``--cprofile``) the top functions
+microseconds per sample and the share of that wall time, the samples the filterbank processed
+(a node set that drops samples to catch up in ``realtime`` does less than one sample's work per
+plant sample) and the CPU per processed sample, then (``--cprofile``) the top functions
 of each node by own time and by cumulative time. cProfile inflates Python-heavy code by up to
 about 2x: read its table for where the time goes, the ``AMB_CPU_LOG`` run for how much.
 
