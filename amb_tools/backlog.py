@@ -30,10 +30,8 @@ per late sample.
   ``time_scale`` play no part.
 
 The newest message of a wake is never dropped: however old, it is the newest the reader has, and
-the stream may end with it. Before, a wake whose messages were all old dropped every one, and a
-reader behind at the end of a run never processed the last sample (one realtime run of
-``bench/pipeline.py`` at 67 Hz x 32 ended with the nodes 96 samples short of the plant's last,
-and ``amb-run`` waited out its 300 s drain).
+the stream may end with it (a reader that dropped it would never process the last sample of a
+run, and ``amb-run``'s drain would wait for it).
 
 ``max_backlog = 0`` (the default) keeps every sample: ``lockstep`` needs all of them and is
 never behind by more than the periods the plant waits for. Every node that reads the
