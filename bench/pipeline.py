@@ -27,6 +27,7 @@ runs made under the same load.
 
     python bench/pipeline.py [--duration 8] [--cases 11:64,67:32] [--repeat 3]
         [--composed [--apart fault_monitor]] [--nice NODE=N] [--hog START:SECONDS]
+        [--set NODE.PARAM:=VALUE ...]
 """
 
 from __future__ import annotations
@@ -202,10 +203,12 @@ def case(
     repeat: int = 1,
     run_args: list[str] | tuple[str, ...] = (),
     hog: tuple[float, float] | None = None,
+    extra: list[str] | tuple[str, ...] = (),
 ) -> list[dict]:
     """Run one speed/sampling case ``repeat`` times; return the plant's numbers of each run.
 
-    ``hog``: (start, seconds) of a CPU hog in each realtime run (:func:`hog_windows`).
+    ``hog``: (start, seconds) of a CPU hog in each realtime run (:func:`hog_windows`);
+    ``extra``: more ``amb-run --set`` items (:func:`run_mode`).
     """
     scenario, model = prepare(hz, spr, duration, work)
     runs = []
@@ -217,7 +220,7 @@ def case(
             cpu_log = work / f"cpu_{mode}_{hz:g}_{i}"
             env["AMB_CPU_LOG"] = str(cpu_log)
             out = run_mode(scenario, model, mode, work / f"{mode}_{hz:g}_{i}", env=env,
-                           run_args=run_args, hog=hogged)  # fmt: skip
+                           extra=extra, run_args=run_args, hog=hogged)  # fmt: skip
             log = (out / "logs" / "plant_sim.log").read_text()
             m = COMPLETE.search(log)
             if m is None:
@@ -275,6 +278,9 @@ def main() -> None:
     )
     ap.add_argument("--nice", action="append", default=[], help="amb-run --nice NODE=N")
     ap.add_argument(
+        "--set", action="append", default=[], help="amb-run --set NODE.PARAM:=VALUE (repeatable)"
+    )
+    ap.add_argument(
         "--hog",
         help="START:SECONDS: one core busy from START s after each realtime launch, SECONDS long",
     )
@@ -292,6 +298,7 @@ def main() -> None:
     run_args += [a for n in args.nice for a in ("--nice", n)]
     apart = f", {', '.join(args.apart)} apart" if args.apart else ""
     apart += f", nice {' '.join(args.nice)}" if args.nice else ""
+    apart += f", set {' '.join(args.set)}" if args.set else ""
     print(f"deployment: {'composed (wavelet_stack)' if args.composed else 'one process per node'}"
           f"{apart}")  # fmt: skip
     cases = [tuple(c.split(":")) for c in args.cases.split(",")]
@@ -302,7 +309,9 @@ def main() -> None:
              f"{'lost':>5}" if hog else ""))  # fmt: skip
     with tempfile.TemporaryDirectory() as tmp:
         for hz, spr in cases:
-            runs = case(float(hz), int(spr), args.duration, Path(tmp), args.repeat, run_args, hog)
+            runs = case(
+                float(hz), int(spr), args.duration, Path(tmp), args.repeat, run_args, hog, args.set
+            )
             for i, r in enumerate(runs):
                 print(_row(f"{hz} Hz x {spr} #{i + 1}", r), flush=True)
             if len(runs) > 1:
