@@ -108,7 +108,8 @@ def declare_catch_up(node: Node) -> CatchUp:
         descriptor(
             "realtime catch-up: stream messages (measurements, coefficients) queued behind more "
             "than this many, or published more than this many message intervals ago, are "
-            "dropped (a counted gap); 0 = keep every message (lockstep)",
+            "dropped (a counted gap; the newest of each take stays); 0 = keep every message "
+            "(lockstep)",
             ints=(0, 1 << 20),
         ),
     )
