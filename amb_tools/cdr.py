@@ -395,7 +395,7 @@ def coefficients_cdr(
             header, wavelet, int(samples_per_rev), int(sample_index), int(period_index),
             int(samples_per_period), list(names),
             [CoefficientSetView(int(level), int(kind), int(frame), int(quad), int(m), int(first),
-                                int(last), float(freq), bool(settled), _frozen(values))
+                                int(last), float(freq), bool(settled), frozen_values(values))
              for level, kind, frame, quad, m, first, last, freq, settled, values in sets],
             records,
         ),
@@ -412,7 +412,7 @@ def _coefficients_layout(
     A stream's layout repeats with the sizes of its sets. The struct packs the encapsulation
     header, ``sec, nanosec``, the frame id (constant), the wavelet and ``samples_per_rev``
     (constant), ``sample_index, period_index, samples_per_period``, the channel names
-    (constant), ``n_sets`` and the fields of each set as :func:`_sets_struct`; the constants
+    (constant), ``n_sets`` and the fields of each set as :func:`_sets_format`; the constants
     are returned with it.
     """
     frame = _string(frame_id)
@@ -427,11 +427,11 @@ def _coefficients_layout(
         names_cdr += bytes(-(pos + len(names_cdr)) % 4) + _string(name)
     names_cdr += bytes(-(pos + len(names_cdr)) % 4)
     pos += len(names_cdr) + 4
-    sets = _sets_struct(pos % 8, sizes).format.lstrip("<")
+    sets = _sets_format(pos % 8, sizes)
     return struct.Struct(f"{fmt}{len(names_cdr)}sI{sets}"), frame, tail, names_cdr
 
 
-def _frozen(values) -> np.ndarray:
+def frozen_values(values) -> np.ndarray:
     """A read-only float64 array: ``values`` if it is one already, else a copy.
 
     (A parsed view is read-only, and the caller's array may change.)
@@ -443,13 +443,13 @@ def _frozen(values) -> np.ndarray:
     return out
 
 
-@lru_cache(maxsize=256)
-def _sets_struct(start: int, sizes: tuple[int, ...]) -> struct.Struct:
-    """The ``CoefficientSet[]`` elements, from ``start`` (mod 8 after the origin), as one struct.
+def _sets_format(start: int, sizes: tuple[int, ...]) -> str:
+    """The ``struct`` format (no byte order) of ``CoefficientSet[]`` from ``start`` (mod 8).
 
-    ``sizes`` is the number of values of each set; padding bytes (``x``) written as zeros.
+    ``start`` is counted after the origin; ``sizes`` is the number of values of each set;
+    padding bytes (``x``) are written as zeros.
     """
-    fmt, pos = ["<"], start
+    fmt, pos = [], start
 
     def pad(size: int) -> None:
         nonlocal pos
@@ -471,7 +471,7 @@ def _sets_struct(start: int, sizes: tuple[int, ...]) -> struct.Struct:
             pad(8)
             fmt.append(f"{n}d")
             pos += 8 * n
-    return struct.Struct("".join(fmt))
+    return "".join(fmt)
 
 
 def read_coefficients(raw: bytes) -> CoefficientsView:

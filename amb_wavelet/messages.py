@@ -16,7 +16,7 @@ import numpy as np
 from amb_msgs.msg import CoefficientSet, WaveletCoefficients
 
 from amb_common.names import N_SENSORS, SENSOR_NAMES
-from amb_tools.cdr import coefficients_cdr, header_view
+from amb_tools.cdr import coefficients_cdr, frozen_values, header_view
 from amb_tools.conversions import (
     MessageError,
     check_finite,
@@ -137,7 +137,7 @@ def coefficients_bytes(
     bytes
         For ``Publisher.publish``.
     """
-    records = [c._replace(values=_frozen(c.values)) for c in coefficients]
+    records = [c._replace(values=frozen_values(c.values)) for c in coefficients]
     sets = _coefficient_set_fields(records, slots, samples_per_rev, rotor_speed)
     return coefficients_cdr(
         header_view(header),
@@ -164,12 +164,6 @@ class LocalRecords(NamedTuple):
 
     slots: tuple
     records: list
-
-
-def _frozen(values: np.ndarray) -> np.ndarray:
-    out = np.array(values, dtype=np.float64)
-    out.flags.writeable = False
-    return out
 
 
 def coefficient_records(msg, slots) -> list:
