@@ -246,11 +246,10 @@ class MessageAge:
     (:class:`BacklogReader`): the executor's message comes without its timestamp, so a reader
     that keeps up (one message per wake) gives none, and the floor and the interval come from
     the wakes that found two or more queued; until then a reader drops by the queue rule alone.
-    With a warm-up of ``max_backlog`` spacings (128-512 in realtime) an idle reader had often not
-    collected them before a stall, and worked through the first few hundred stale samples after
-    it (one fresh-clone suite run, filterbank: 322 dropped of the 704 the 1 s stop queued; 519-631
-    in six runs of the test alone); 16 spacings come from a few such wakes. ROS-free,
-    so that the rule is tested on its own (``test/reliability/test_backlog_age.py``).
+    The warm-up is short (:attr:`WARMUP`, not ``max_backlog``) because an idle reader has few such
+    wakes before a stall, and without the estimate it works through the stall's stale samples
+    (``docs/history.md``, "Catch-up by age"). ROS-free, so that the rule is tested on its own
+    (``test/reliability/test_backlog_age.py``).
 
     Parameters
     ----------
