@@ -50,7 +50,8 @@ def processed_samples(bag: Path) -> int:
     from amb_common import topics
     from amb_tools.bag_read import read_bag
 
-    return 2 * read_bag(bag).counts.get("/" + topics.COEFFICIENTS, 0)
+    data = read_bag(bag)
+    return 2 * data.counts.get(data.topic(topics.COEFFICIENTS), 0)
 
 
 def main() -> None:
