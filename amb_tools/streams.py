@@ -4,7 +4,9 @@ How the parts' topics are carried: the QoS of the streams and the codes of the c
 One home for what every node, the replay bridge, the tests and the benchmarks must agree on
 (ARCHITECTURE.md, topics): the sample-rate streams (``/amb/measurement``,
 ``/amb/wavelet/coefficients``) are reliable and several control periods deep, because the
-lock-step loop needs every sample; commands (``/amb/control/command``) are reliable, 16 deep.
+lock-step loop needs every sample; commands (``/amb/control/command``) are reliable, 16 deep;
+the controller's status (``/amb/control/status``) is reliable and deep enough for a lost message
+to be repaired (:data:`STATUS_QOS`).
 A coefficient set names its frame and quadrature by the codes of ``CoefficientSet.msg``.
 """
 
@@ -20,6 +22,7 @@ __all__ = [
     "FRAME_CODES",
     "MATCHED_KEY",
     "QUAD_CODES",
+    "STATUS_QOS",
     "matched_subscribers",
     "stream_qos",
 ]
@@ -33,6 +36,16 @@ QUAD_CODES = {"even": CoefficientSet.QUADRATURE_EVEN, "odd": CoefficientSet.QUAD
 #: ``delay_periods + 16`` periods ahead).
 COMMAND_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST, depth=16, reliability=ReliabilityPolicy.RELIABLE
+)
+
+#: ``/amb/control/status`` (one message per control period): reliable, 256 deep. A message the
+#: transport loses (a reader's shared-memory port full while its process is descheduled) is
+#: resent only after the reader asks for it, at the writer's next heartbeat: every 3 s with
+#: Fast DDS's defaults, 30 periods at 10 periods/s and 201 at 67 Hz. A writer that kept fewer
+#: had already dropped it, and the recorder's bag missed it for good (10 deep: 75 of 78
+#: statuses in one loaded run, every command recorded).
+STATUS_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST, depth=256, reliability=ReliabilityPolicy.RELIABLE
 )
 
 
