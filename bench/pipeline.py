@@ -19,6 +19,12 @@ For each case (running speed, samples per revolution): a wavelet model from the 
    from the bag's ``Measurement.status`` (``STATUS_COMMAND_MISSING``) the fraction of periods
    controlled before, during and after the hog (from 2 periods after it), how many periods
    after the hog the last uncontrolled one came, and the samples missing from the bag.
+4. per run and mode, the CPU of each node other than the plant (``AMB_CPU_LOG``, between the
+   plant's first and last sample) per sample the filterbank processed (two per coefficient
+   message in the bag: a node set that drops samples to catch up does less than one sample's
+   work per plant sample), their sum, and the budget of issue 17: one core, ``1e6 / fs`` us
+   per sample (the other core is the bridge's and the operating system's). The transport's
+   CPU is inside each node's (Fast DDS's threads run in the node's process).
 Each case is run ``--repeat`` times (the model is made once); every run is printed with the
 plant's command counts (``missing``: no command by the period's start; ``late``: arrived after)
 and the machine's 1-minute load average at its end, then the median over the runs. Numbers
@@ -122,6 +128,61 @@ class Hog:
         self._cancel.set()
         if self._thread is not None:
             self._thread.join()
+
+
+def cpu_in_window(usage: dict, t0: float, t1: float) -> float:
+    """CPU s a node used between monotonic times ``t0`` and ``t1`` (timeline interpolated)."""
+    timeline = np.asarray(usage["timeline"], dtype=float).reshape(-1, 2)
+    if timeline.shape[0] < 2:
+        return float("nan")
+    t, cpu = timeline[:, 0], timeline[:, 1]
+    return float(np.interp(t1, t, cpu) - np.interp(t0, t, cpu))
+
+
+def processed_samples(bag: Path) -> int:
+    """Samples the filterbank processed in a run: two per coefficient message in its bag.
+
+    Every odd sample completes a level-1 coefficient; 0 without a bag.
+    """
+    if not bag.exists():
+        return 0
+    from amb_common import topics
+    from amb_tools.bag_read import read_bag
+
+    data = read_bag(bag)
+    return 2 * data.counts.get(data.topic(topics.COEFFICIENTS), 0)
+
+
+def node_cpu(cpu_log: Path, wall: float) -> dict[str, float]:
+    """CPU s of each node of a run between the plant's first and last sample.
+
+    ``cpu_log``: the run's ``AMB_CPU_LOG`` folder; ``wall``: the plant's run wall s (the
+    window's length when its CPU log has no ``run_window``).
+    """
+    plant = json.loads((cpu_log / "plant_sim.cpu.json").read_text())
+    # the plant's own first and last sample (its shutdown comes seconds later: acks, report)
+    window = tuple(
+        plant.get("run_window") or (plant["end_monotonic_s"] - wall, plant["end_monotonic_s"])
+    )
+    return {
+        f.name.split(".")[0]: cpu_in_window(json.loads(f.read_text()), *window)
+        for f in sorted(cpu_log.glob("*.cpu.json"))
+    }
+
+
+def _cpu_line(mode: str, r: dict, fs: float) -> str:
+    """Per-node CPU per processed sample of one run and mode, the plant excepted (item 4)."""
+    cpu, processed = r.get("cpu"), r.get("processed", 0)
+    if not cpu or not processed:
+        return f"{'':>16} {mode}: no CPU logs or no coefficients in the bag"
+    nodes = {n: c for n, c in cpu.items() if n != "plant_sim"}
+    cells = ", ".join(f"{n} {c / processed * 1e6:.0f}" for n, c in nodes.items())
+    total = sum(nodes.values()) / processed * 1e6
+    return (
+        f"{'':>16} {mode}: us of CPU per processed sample ({processed} of "
+        f"{r.get('samples', 0)}): {cells}; node set {total:.0f} of the {1e6 / fs:.0f} budget "
+        f"({total * fs / 1e6:.0%})"
+    )
 
 
 def run_mode(
@@ -231,6 +292,9 @@ def case(
                 result[mode].update(
                     {k: float(v) for k, v in control.groupdict().items() if v is not None}
                 )
+            result[mode]["cpu"] = node_cpu(cpu_log, result[mode]["wall"])
+            result[mode]["processed"] = processed_samples(out / "bag")
+            result[mode]["samples"] = round(hz * spr * duration)
             counts = COUNTS.search(log)
             result[mode].update(
                 {k: int(v) for k, v in counts.groupdict().items()} if counts else {}
@@ -314,6 +378,8 @@ def main() -> None:
             )
             for i, r in enumerate(runs):
                 print(_row(f"{hz} Hz x {spr} #{i + 1}", r), flush=True)
+                for mode in ("lockstep", "realtime"):
+                    print(_cpu_line(mode, r[mode], r["fs"]), flush=True)
             if len(runs) > 1:
                 med = {
                     "lockstep": {"rtf": statistics.median(r["lockstep"]["rtf"] for r in runs)},

@@ -17,7 +17,6 @@ about 2x: read its table for where the time goes, the ``AMB_CPU_LOG`` run for ho
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import pstats
 import shutil
@@ -25,33 +24,8 @@ import sys
 import tempfile
 from pathlib import Path
 
-import numpy as np
-
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from pipeline import COMPLETE, prepare, run_mode
-
-
-def cpu_in_window(usage: dict, t0: float, t1: float) -> float:
-    """CPU s a node used between monotonic times ``t0`` and ``t1`` (timeline interpolated)."""
-    timeline = np.asarray(usage["timeline"], dtype=float).reshape(-1, 2)
-    if timeline.shape[0] < 2:
-        return float("nan")
-    t, cpu = timeline[:, 0], timeline[:, 1]
-    return float(np.interp(t1, t, cpu) - np.interp(t0, t, cpu))
-
-
-def processed_samples(bag: Path) -> int:
-    """Samples the filterbank processed in a run: two per coefficient message in its bag.
-
-    Every odd sample completes a level-1 coefficient; 0 without a bag.
-    """
-    if not bag.exists():
-        return 0
-    from amb_common import topics
-    from amb_tools.bag_read import read_bag
-
-    data = read_bag(bag)
-    return 2 * data.counts.get(data.topic(topics.COEFFICIENTS), 0)
+from pipeline import COMPLETE, node_cpu, prepare, processed_samples, run_mode
 
 
 def main() -> None:
@@ -99,21 +73,12 @@ def main() -> None:
         samples = round(float(hz) * int(spr) * args.duration)
         print(f"case {hz} Hz x {spr} ({samples} samples), {args.mode}: {m.group(0) if m else '?'}")
         wall = float(m.group("wall")) if m else float("nan")
-        plant = json.loads((prof / "plant_sim.cpu.json").read_text())
-        # the plant's own first and last sample (its shutdown comes seconds later: acks, report)
-        window = tuple(
-            plant.get("run_window") or (plant["end_monotonic_s"] - wall, plant["end_monotonic_s"])
-        )
         print(f"{'node':>20} {'cpu s':>7} {'us/sample':>10} {'cpu/wall':>9}")
         total = bridge = 0.0
-        for f in sorted(prof.glob("*.cpu.json")):
-            cpu = cpu_in_window(json.loads(f.read_text()), *window)
+        for name, cpu in node_cpu(prof, wall).items():
             total += cpu
-            bridge += cpu if f.name.startswith("plant_sim.") else 0.0
-            print(
-                f"{f.name.split('.')[0]:>20} {cpu:7.2f} {cpu / samples * 1e6:10.1f} "
-                f"{cpu / wall:9.0%}"
-            )
+            bridge += cpu if name == "plant_sim" else 0.0
+            print(f"{name:>20} {cpu:7.2f} {cpu / samples * 1e6:10.1f} {cpu / wall:9.0%}")
         print(f"{'all nodes':>20} {total:7.2f} {total / samples * 1e6:10.1f} {total / wall:9.0%}")
         rest = total - bridge  # issue 17's budget: the node set, the plant (a rig's bridge) apart
         print(f"{'plant excepted':>20} {rest:7.2f} {rest / samples * 1e6:10.1f} {rest / wall:9.0%}")
