@@ -35,12 +35,12 @@ running on the PID. (A message for a later sample is no progress towards this on
 restarted past it never sends it.) If neither a measurement nor a coefficient message arrives
 for ``measurement_timeout`` s, the controller reports it and forgets its history, so that it
 holds zero until the stream returns; it then resumes without a restart. If no measurement has
-come after twice ``measurement_timeout``, its DDS reader of the measurements is replaced by a
-new one, once per stall (:meth:`amb_tools.backlog.BacklogReader.renew`): a reader whose process
-was stopped for seconds was seen to be fed nothing more by Fast DDS's shared-memory transport,
-its coefficients still coming. A command the pipeline made with a non-finite value (never
-expected) is replaced by a zero command. A period whose measurements carry
-``STATUS_COMMAND_MISSING`` ran without the command sent for it (lost, late, or the plant's
+come after twice ``measurement_timeout`` and its DDS reader of the measurements holds none, the
+reader is replaced by a new one, once per stall (:meth:`amb_tools.backlog.BacklogReader.renew`):
+a reader whose process was stopped for seconds was seen to be fed nothing more by Fast DDS's
+shared-memory transport, its coefficients still coming. A command the pipeline made with a
+non-finite value (never expected) is replaced by a zero command. A period whose measurements
+carry ``STATUS_COMMAND_MISSING`` ran without the command sent for it (lost, late, or the plant's
 watchdog): it is counted ``commands_late`` and the controller's step that made it is undone, so
 that the integrators do not wind up (:mod:`amb_controller.supervisor`, "Commands the plant did
 not apply"). All of it is counted on ``/diagnostics``.
@@ -433,14 +433,15 @@ class WaveletControllerNode(Node):
             self._publish_diagnostics()
 
     def _renew_silent_reader(self, silent: float, timeout: float) -> None:
-        """Replace the measurement reader once per stall, after twice ``measurement_timeout``.
+        """Replace an empty measurement reader, once per stall, after twice the timeout.
 
-        Not at the stall itself: a process let go after a stop finds the stall's measurements
-        queued in its reader (its watchdog may run before them), and a new reader would lose
+        A process starved of CPU (stopped, or let run a few ms at a time) finds the silence's
+        measurements queued in its reader, its watchdog running before them: they are handed
+        over (:meth:`~amb_tools.backlog.BacklogReader.poll`), and a new reader would have lost
         them. A reader the transport stopped feeding holds none (module notes).
         """
         reader = self._readers[0]
-        if reader is None or self._renewed or silent <= 2.0 * timeout:
+        if reader is None or self._renewed or silent <= 2.0 * timeout or reader.poll():
             return
         reader.renew()
         self._renewed = True

@@ -193,6 +193,22 @@ class BacklogReader:
             self._msg_type, self._name, callback, self._qos, raw=True
         )
 
+    def poll(self) -> bool:
+        """
+        Hand over a queued message now, as a wake would; return whether one was queued.
+
+        For a watchdog that finds the stream silent: a reader whose process was starved of CPU
+        holds the silence's messages (they are delivered, and the reader is alive), one the
+        transport stopped feeding holds none (:meth:`renew`).
+        """
+        sub = self.subscription
+        with sub.handle:
+            taken = sub.handle.take_message(self._msg_type, True)
+        if taken is None:
+            return False
+        (self._on_message if self.max_backlog else self._deliver)(taken[0])
+        return True
+
     def renew(self) -> None:
         """
         Replace the DDS reader with a new one of the same topic and QoS; the counts stay.

@@ -99,7 +99,8 @@ def test_a_local_stream_reaches_a_reader_outside_from_its_match_on(ros) -> None:
 @pytest.mark.parametrize("bound", [0, 64])
 def test_a_renewed_reader_is_matched_anew_and_keeps_its_counts(ros, bound: int) -> None:
     """``BacklogReader.renew``: one subscription still (the old one destroyed), the stream goes on
-    to the same callback, in order, with the same catch-up bound and counts."""
+    to the same callback, in order, with the same catch-up bound and counts; ``poll`` hands a
+    queued message over and says whether there was one."""
     reader_node = ros.node(f"amb_test_renew_reader_{bound}")
     driver = ros.node(f"amb_test_renew_driver_{bound}")
     qos = stream_qos(16)
@@ -123,3 +124,11 @@ def test_a_renewed_reader_is_matched_anew_and_keeps_its_counts(ros, bound: int) 
     assert ros.spin_until(lambda: len(got) >= 10, timeout=30.0), got
     assert got == list(range(10))
     assert (reader.max_backlog, reader.dropped) == (bound, 0)
+    # poll: a queued message handed over without the executor; then nothing is queued
+    pub.publish(serialize_message(Measurement(sample_index=10, samples_per_rev=16)))
+    deadline = time.monotonic() + 30.0
+    while not reader.poll():
+        assert time.monotonic() < deadline, "the message never reached the reader"
+        time.sleep(0.01)
+    assert got == list(range(11))
+    assert not reader.poll()
