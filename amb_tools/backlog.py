@@ -183,14 +183,14 @@ class BacklogReader:
         self._age = MessageAge(max_backlog) if max_backlog and catch_up.by_age else None
         self._warnings = ThrottledWarnings(node.get_logger(), period=5.0)
         self._node, self._name, self._qos = node, name, qos
+        # without a bound each message goes straight to ``deliver``: no extra call per message
+        self._wake = self._on_message if self.max_backlog else deliver
         self.renewed = 0
         self.subscription = self._subscribe()
 
     def _subscribe(self):
-        # without a bound each message goes straight to ``deliver``: no extra call per message
-        callback = self._on_message if self.max_backlog else self._deliver
         return self._node.create_subscription(
-            self._msg_type, self._name, callback, self._qos, raw=True
+            self._msg_type, self._name, self._wake, self._qos, raw=True
         )
 
     def poll(self) -> bool:
@@ -206,7 +206,7 @@ class BacklogReader:
             taken = sub.handle.take_message(self._msg_type, True)
         if taken is None:
             return False
-        (self._on_message if self.max_backlog else self._deliver)(taken[0])
+        self._wake(taken[0])
         return True
 
     def renew(self) -> None:

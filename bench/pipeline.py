@@ -300,8 +300,7 @@ def case(
                 {k: int(v) for k, v in counts.groupdict().items()} if counts else {}
             )
             if hogged is not None:
-                total = round(hz * spr * duration)
-                result["hog"] = hog_windows(out, cpu_log, hogged, spr, total)
+                result["hog"] = hog_windows(out, cpu_log, hogged, spr, result[mode]["samples"])
         result["load"] = os.getloadavg()[0]
         runs.append(result)
     return runs
