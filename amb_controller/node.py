@@ -23,27 +23,24 @@ sample is processed without it and the pipeline answers that period with zero fo
 Bad input and dead peers
 ------------------------
 Measurements are validated (:func:`amb_tools.validation.check_measurement`) and sequenced
-(:class:`amb_tools.validation.SampleSequencer`: repeats, stray indices and impossible stamps are
-dropped; a confirmed gap or restart makes the pipeline answer the broken period with a held zero
-command). Coefficient messages are rejected if their wavelet or ``samples_per_rev`` is not the
-controller's, their sample index lies before the stream or more than eight periods ahead of it,
-their stamp differs from their measurement's, or a set is malformed. If the coefficients of a
-sample have not arrived ``coefficient_timeout`` wall seconds after the later of its measurement
-and the last coefficient message accepted for an earlier sample (a dead filterbank), the sample
-is processed without them: the period is answered with zero force, and the lock-step loop keeps
-running on the PID. (A message for a later sample is no progress towards this one: a filterbank
-restarted past it never sends it.) If neither a measurement nor a coefficient message arrives
-for ``measurement_timeout`` s, the controller reports it and forgets its history, so that it
-holds zero until the stream returns; it then resumes without a restart. If no measurement has
-come after twice ``measurement_timeout`` and its DDS reader of the measurements holds none, the
-reader is replaced by a new one, once per stall (:meth:`amb_tools.backlog.BacklogReader.renew`):
-a reader whose process was stopped for seconds was seen to be fed nothing more by Fast DDS's
-shared-memory transport, its coefficients still coming. A command the pipeline made with a
-non-finite value (never expected) is replaced by a zero command. A period whose measurements
-carry ``STATUS_COMMAND_MISSING`` ran without the command sent for it (lost, late, or the plant's
-watchdog): it is counted ``commands_late`` and the controller's step that made it is undone, so
-that the integrators do not wind up (:mod:`amb_controller.supervisor`, "Commands the plant did
-not apply"). All of it is counted on ``/diagnostics``.
+(:class:`amb_tools.validation.SampleSequencer`: repeats, stray indices and impossible stamps
+are dropped; a confirmed gap or restart makes the pipeline answer the broken period with a
+held zero command). Coefficient messages are rejected if their wavelet or ``samples_per_rev``
+is not the controller's, their sample index lies before the stream or more than eight periods
+ahead of it, their stamp differs from their measurement's, or a set is malformed. If the
+coefficients of a sample have not arrived ``coefficient_timeout`` wall seconds after the later
+of its measurement and the last coefficient message accepted for an earlier sample (a dead
+filterbank), the sample is processed without them: the period is answered with zero force, and
+the lock-step loop keeps running on the PID. (A message for a later sample is no progress
+towards this one: a filterbank restarted past it never sends it.) If neither a measurement nor
+a coefficient message arrives for ``measurement_timeout`` s, the controller reports it and
+forgets its history, so that it holds zero until the stream returns; it then resumes without a
+restart. A command the pipeline made with a non-finite value (never expected) is replaced by a
+zero command. A period whose measurements carry ``STATUS_COMMAND_MISSING`` ran without the
+command sent for it (lost, late, or the plant's watchdog): it is counted ``commands_late`` and
+the controller's step that made it is undone, so that the integrators do not wind up
+(:mod:`amb_controller.supervisor`, "Commands the plant did not apply"). All of it is counted
+on ``/diagnostics``.
 
 Why the timeouts count from the last coefficient message: in lock-step the plant publishes a
 period's samples at once and waits for the command, so a loaded filterbank that works through
@@ -178,7 +175,6 @@ class WaveletControllerNode(Node):
         self._last_wall: float | None = None
         self._last_coefficient: tuple[int, float] | None = None  # last accepted: index, wall s
         self._stale = False
-        self._renewed = False  # the measurement reader was renewed in this stall
         self._pending_config: ControllerConfig | None = None
         self.counts = dict.fromkeys(
             (
@@ -303,7 +299,7 @@ class WaveletControllerNode(Node):
         now = time.monotonic()
         self._last_wall = now
         if self._stale:
-            self._stale = self._renewed = False
+            self._stale = False
             self.get_logger().info(f"measurements resumed at sample {msg.sample_index}")
         before = dict(self._sequencer.counts)
         accepted = self._sequencer.push(
@@ -406,11 +402,7 @@ class WaveletControllerNode(Node):
     def _watchdog(self) -> None:
         if self._pending:
             self._drain()  # a dead filterbank: stop waiting after coefficient_timeout
-        if self._last_wall is None:
-            return
-        timeout = self.get_parameter("measurement_timeout").value
-        if self._stale:
-            self._renew_silent_reader(time.monotonic() - self._last_wall, timeout)
+        if self._last_wall is None or self._stale:
             return
         # in lock-step the plant waits for our command: no measurement comes while the
         # filterbank works through a period, but its coefficients do (module notes)
@@ -418,7 +410,7 @@ class WaveletControllerNode(Node):
         if self._last_coefficient is not None:
             last = max(last, self._last_coefficient[1])
         silent = time.monotonic() - last
-        if silent > timeout:
+        if silent > self.get_parameter("measurement_timeout").value:
             self._stale = True
             self.counts["stalls"] += 1
             self._drain(force=True)
@@ -431,24 +423,6 @@ class WaveletControllerNode(Node):
             )
             self.get_logger().warning(self._last_reason)
             self._publish_diagnostics()
-
-    def _renew_silent_reader(self, silent: float, timeout: float) -> None:
-        """Replace an empty measurement reader, once per stall, after twice the timeout.
-
-        A process starved of CPU (stopped, or let run a few ms at a time) finds the silence's
-        measurements queued in its reader, its watchdog running before them: they are handed
-        over (:meth:`~amb_tools.backlog.BacklogReader.poll`), and a new reader would have lost
-        them. A reader the transport stopped feeding holds none (module notes).
-        """
-        reader = self._readers[0]
-        if reader is None or self._renewed or silent <= 2.0 * timeout or reader.poll():
-            return
-        reader.renew()
-        self._renewed = True
-        self.get_logger().warning(
-            f"no measurement for {silent:.2f} s after sample {self._last_processed}: "
-            f"measurement reader renewed ({reader.renewed} so far)"
-        )
 
     def _process(self, m: MeasurementView, coeffs: CoefficientsView | None) -> None:
         records = []

@@ -158,8 +158,6 @@ class BacklogReader:
         Of those, messages dropped for their age alone (fewer than ``max_backlog`` queued).
     episodes : int
         Wakes that dropped messages (overloads caught up).
-    renewed : int
-        Times the DDS reader was replaced (:meth:`renew`).
     """
 
     def __init__(
@@ -182,48 +180,9 @@ class BacklogReader:
         self.dropped = self.dropped_old = self.episodes = 0
         self._age = MessageAge(max_backlog) if max_backlog and catch_up.by_age else None
         self._warnings = ThrottledWarnings(node.get_logger(), period=5.0)
-        self._node, self._name, self._qos = node, name, qos
         # without a bound each message goes straight to ``deliver``: no extra call per message
-        self._wake = self._on_message if self.max_backlog else deliver
-        self.renewed = 0
-        self.subscription = self._subscribe()
-
-    def _subscribe(self):
-        return self._node.create_subscription(
-            self._msg_type, self._name, self._wake, self._qos, raw=True
-        )
-
-    def poll(self) -> bool:
-        """
-        Hand over a queued message now, as a wake would; return whether one was queued.
-
-        For a watchdog that finds the stream silent: a reader whose process was starved of CPU
-        holds the silence's messages (they are delivered, and the reader is alive), one the
-        transport stopped feeding holds none (:meth:`renew`).
-        """
-        sub = self.subscription
-        with sub.handle:
-            taken = sub.handle.take_message(self._msg_type, True)
-        if taken is None:
-            return False
-        self._wake(taken[0])
-        return True
-
-    def renew(self) -> None:
-        """
-        Replace the DDS reader with a new one of the same topic and QoS; the counts stay.
-
-        For a stream gone silent while its writer runs on. After a reader's process was stopped
-        for seconds (``test/reliability/test_starved_controller.py``: 2.5 s at a time beside two
-        CPU hogs), Fast DDS's shared-memory transport was seen to deliver nothing more to that
-        reader for the rest of the run (3 of 18 runs, nothing queued in the reader, its other
-        streams flowing; none of 8 runs over UDP only), while a new reader is matched and fed
-        at once (``docs/history.md``, "A reader the transport stopped feeding"). Messages
-        the old reader had not delivered are lost: the readers downstream see a gap.
-        """
-        self._node.destroy_subscription(self.subscription)
-        self.subscription = self._subscribe()
-        self.renewed += 1
+        callback = self._on_message if self.max_backlog else deliver
+        self.subscription = node.create_subscription(msg_type, name, callback, qos, raw=True)
 
     def _on_message(self, raw: bytes) -> None:
         # the executor's message comes without its message info (rclpy's EventsExecutor fails on
