@@ -257,6 +257,9 @@ class SweepSetup:
             controller="transient",
             inverse_order=5,
             displacement_bound=bound,
+            # the diagram maps what every (w, v) does on the rig, as the thesis tested them:
+            # a controller its own model says diverges is run too (it is a point of the map)
+            max_model_radius=math.inf,
         )
         model = fe_model(rig, 2 * math.pi * scenario.speed_hz, config)
         return cls(rig, scenario, model, config)

@@ -114,6 +114,14 @@ class RunResult:
     omega : float
         Running speed at the end, rad/s.
     model : WaveletModel or None
+    refused : str
+        Why the controller was never set ACTIVE although the run asked for it: its closed loop
+        on its own model is (nearly) unstable (``ControllerConfig.max_model_radius``); the run
+        is then PID only. Empty otherwise.
+    model_radius : float or None
+        Closed-loop spectral radius of the controller on its own model
+        (:func:`~amb_controller.stability.own_model_radius`; None: no controller or none to
+        check).
 
     """
 
@@ -129,6 +137,8 @@ class RunResult:
     omega: float
     model: WaveletModel | None = None
     fault_events: list[dict] = field(default_factory=list)
+    refused: str = ""
+    model_radius: float | None = None
 
 
 # ---------------------------------------------------------------------------------------------
@@ -389,6 +399,10 @@ def run_closed_loop(
     """
     Run one scenario in lock step with the wavelet controller ACTIVE from period 0.
 
+    A controller whose closed loop on its own model is (nearly) unstable is not set ACTIVE
+    (:mod:`amb_controller.supervisor`, "A controller its own model says diverges"): the run is
+    PID only and :attr:`RunResult.refused` says why.
+
     Parameters
     ----------
     rig : amb_common.rig.Rig
@@ -441,12 +455,12 @@ def run_closed_loop(
     loop = _Loop(rig, scenario, config, model, seed, recorder, monitor, baseline)
     loop.engage_on = tuple(int(c) for c in engage_on)
     if controller is not None:
-        loop.pipeline.supervisor.set_controller(controller)
+        loop.pipeline.set_controller(controller)
     if engage_on and not fault_monitor:
         raise ControllerValueError("engage_on needs fault_monitor=True (events engage control)")
     if config.controller != "none" and not engage_on:
         ok, message = loop.pipeline.set_mode(Mode.ACTIVE)
-        if not ok:
+        if not ok and not loop.pipeline.supervisor.unsafe_reason():
             raise ControllerValueError(f"cannot activate the controller: {message}")
     speed = scenario.speed_hz
     n_periods = max(1, round(scenario.duration * speed))
@@ -471,6 +485,8 @@ def run_closed_loop(
         omega=float(blocks[-1].omega[-1]),
         model=loop.pipeline.model,
         fault_events=loop.fault_events,
+        refused=loop.pipeline.supervisor.unsafe_reason(),
+        model_radius=loop.pipeline.supervisor.radius,
     )
 
 

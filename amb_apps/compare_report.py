@@ -130,7 +130,9 @@ def _notes(key: str, rows: dict) -> list[str]:
         radius = m.get("model_radius")
         diverged = pid_peak is not None and m["peak"] > 5 * pid_peak
         run = f"peak {m['peak'] * 1e3:.2f} mm in the run" if diverged else ""
-        if radius is not None and radius >= 1:
+        if m.get("refused"):
+            lines.append(f"- {name}: not set ACTIVE, the row is PID only: {m['refused']}.")
+        elif radius is not None and radius >= 1:
             lines.append(
                 f"- {name}: exact closed-loop spectral radius {radius:.3f} >= 1 on its own FE "
                 f"model: divergence is predicted before the run ({run or 'not seen in the run'})."
@@ -177,7 +179,8 @@ def _notes(key: str, rows: dict) -> list[str]:
                 if good
                 else "."
             )
-            + " Do not engage an inner-sensor controller at this speed."
+            + " An inner-sensor controller refuses to go ACTIVE at this speed (its radius is "
+            "above max_model_radius) unless that check is raised above 1."
         )
     return lines
 

@@ -417,6 +417,7 @@ def comparison(
             m["residual_um"] = residual_after_1x(result) * 1e6
             m.update(harmonic_content(result))
             m["model_radius"] = radius
+            m["refused"] = result.refused
             if name.startswith("wavelet_reconf"):
                 spr = result.samples_per_rev
                 m["fault_events"] = [

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 import time
 from dataclasses import fields, replace
@@ -93,6 +94,13 @@ def build_parser() -> argparse.ArgumentParser:
         help="measured sensor channels 0..7 (default inner planes: x2,y2,x3,y3)",
     )
     ap.add_argument("--force-limit", type=float, default=None, help="N per axis (default rig)")
+    ap.add_argument(
+        "--max-model-radius",
+        type=float,
+        default=DEFAULTS["max_model_radius"],
+        help="largest closed-loop spectral radius on the controller's own model with which it "
+        "goes ACTIVE (else the run is PID only and says why); 0 = off",
+    )
     ap.add_argument("--model", default="fe", help="identify | fe | FILE (.npz)")
     ap.add_argument(
         "--window", type=int, default=2, help="synchronous: periods per influence update"
@@ -140,6 +148,7 @@ def config_from_args(args, spr: int, capacity: float):
         "inverse_order": args.order,
         "sensors": [int(c) for c in str(args.sensors).split(",") if c.strip()],
         "force_limit": capacity if args.force_limit is None else args.force_limit,
+        "max_model_radius": args.max_model_radius or math.inf,
     }
     if args.linear is not None:
         d["response"] = "linear"
@@ -219,8 +228,12 @@ def run(args) -> dict:
             "bag": None if recorder is None else str(out / "bag"),
             "bag_counts": None if recorder is None else dict(recorder.writer.counts),
             "wall_time": time.perf_counter() - t0,
+            "model_radius": result.model_radius,
+            "refused": result.refused,
         }
     )
+    if result.refused:
+        print(f"amb-sim: the controller was not set ACTIVE: {result.refused}", file=sys.stderr)
     (out / "metrics.json").write_text(json.dumps(metrics, indent=2, default=json_default))
     return metrics
 

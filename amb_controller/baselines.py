@@ -71,6 +71,7 @@ from amb_controller.influence_coefficient import InfluenceCoefficientController
 from amb_controller.inverse import dc_gain, pseudo_inverse_series
 from amb_controller.model_file import WaveletModel
 from amb_controller.pipeline import prescribed_response
+from amb_controller.stability import own_model_radius
 from amb_controller.status import status_fields
 from amb_controller.supervisor import Command, Mode, WaveletControlSupervisor
 from amb_controller.synthesis import ForceLimiter
@@ -300,7 +301,11 @@ class HarmonicPipeline:
             )
         )
         self.supervisor = WaveletControlSupervisor(
-            self.limiter, config.delay_periods, guard=guard, fault_actions=config.fault_actions
+            self.limiter,
+            config.delay_periods,
+            guard=guard,
+            fault_actions=config.fault_actions,
+            max_radius=config.max_model_radius,
         )
         if config.controller == "harmonic":
             controller = TransientController(
@@ -314,7 +319,9 @@ class HarmonicPipeline:
                 self.settings.window,
                 self.settings.rho,
             )
-        self.supervisor.set_controller(controller)
+        # the harmonic controller's closed loop on its own 1 x model; None for the synchronous
+        # one (open loop per window, eq. B.1: no realisation to close)
+        self.supervisor.set_controller(controller, own_model_radius(model.markov, controller))
         self._buffer = np.zeros((n, N_SENSORS))
         self._stats = {"commands_sent": 0, "commands_late": 0, "inputs_rejected": 0}
         self._compute_time = 0.0

@@ -23,6 +23,7 @@ from amb_common.names import N_AXES, SENSOR_NAMES
 from amb_common.topics import DELAY_PERIODS
 from amb_controller.basis import QUADRATURES
 from amb_controller.errors import ControllerValueError
+from amb_controller.stability import MAX_MODEL_RADIUS
 from amb_controller.supervisor import DEFAULT_FAULT_ACTIONS
 
 __all__ = [
@@ -174,6 +175,13 @@ class ControllerConfig:
         "bearing capacity (amb.force_limit of the rig)",
         allowed="4 limits > 0 N (one per axis)",
         runtime=True,
+    )
+    max_model_radius: float = param(
+        MAX_MODEL_RADIUS,
+        description="largest closed-loop spectral radius of the controller on its own model "
+        "with which it may go ACTIVE (amb_controller.stability.own_model_radius; above 1 lets "
+        "a loop its model predicts to diverge run: experiments only; inf = off)",
+        allowed="> 0 (inf = off)",
     )
     coefficient_bound: float = param(
         math.inf,
@@ -362,6 +370,8 @@ class ControllerConfig:
             _finite(f) and f > 0 for f in self.force_limit
         ):
             raise _fail("force_limit", list(self.force_limit))
+        if not (isinstance(self.max_model_radius, int | float) and self.max_model_radius > 0):
+            raise _fail("max_model_radius", self.max_model_radius)
         for name in ("coefficient_bound", "displacement_bound"):
             value = getattr(self, name)
             if not (isinstance(value, int | float) and value > 0):

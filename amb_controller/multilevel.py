@@ -35,7 +35,10 @@ run's with its reading in ``docs/controller_notes.md`` ("Multi-level").
 
 A level whose harmonic lies near a critical speed of the rig (docs/results.md#modal; e.g. 2 x
 of the second critical speed beside the third) has a nearly singular ``G_pp(1)``, and its
-loop may diverge: check ``stability.closed_loop`` on the model before engaging such a level.
+loop may diverge. The pipeline checks the closed loop on the coupled model before the
+controller may go ACTIVE (:func:`~amb_controller.stability.own_model_radius`; at the first
+critical speed, 32 samples/rev, i = 1, the per-level 1 x + 2 x + 4 x controller's radius there is
+1.001, so it stays OFF unless ``max_model_radius`` is raised).
 
 The state is explicit (one :class:`~amb_controller.transient.TransientState` per level) so
 that the supervisor's anti-windup hold and the pipeline's reset act on all levels at once.

@@ -70,6 +70,13 @@ to ``model_file_out`` or the request's ``model_file``). ``FaultEvent`` messages 
 ``/amb/fault/events`` trigger the configured fault actions (e.g. HOLD on auxiliary-bearing
 contact). All parameters are validated at start-up (``ControllerConfig``): an invalid value
 stops the node with exit status 2 and a message naming the parameter, the value and the range.
+
+A controller whose closed loop on its own model has spectral radius ``max_model_radius`` (0.98)
+or more is never set ACTIVE (:mod:`amb_controller.supervisor`, "A controller its own model says
+diverges"): ``start_mode: active`` then logs the error and the node runs OFF (the configuration
+is valid; the plant keeps its PID), a ``set_mode`` request is refused with the radius, and a
+model or parameter change that makes a running controller unsafe switches it OFF. The status's
+``message`` says why; ``/diagnostics`` carries ``closed_loop_radius``.
 """
 
 from __future__ import annotations
@@ -218,7 +225,11 @@ class WaveletControllerNode(Node):
         self._model_out = ""
         if start == "active":
             ok, why = self._pipe.set_mode(Mode.ACTIVE)
-            if not ok:
+            if not ok and self._pipe.supervisor.unsafe_reason():
+                # a valid configuration whose loop is unsafe: the plant keeps its PID and the
+                # lock step its zero commands; status and log say why (supervisor docstring)
+                self.get_logger().error(f"parameter 'start_mode' = 'active': {why}; staying OFF")
+            elif not ok:
                 raise ConfigurationError(f"parameter 'start_mode' = 'active': {why}")
         elif start == "identify":
             ok, why = self._pipe.start_identification()
@@ -276,7 +287,10 @@ class WaveletControllerNode(Node):
         pipe.limiter = ForceLimiter(pipe.control, np.array(config.force_limit), pipe.capacity)
         pipe.supervisor.limiter = pipe.limiter
         if pipe.model is not None:
+            running = pipe.supervisor.mode in (Mode.ACTIVE, Mode.HOLD)
             pipe.set_model(pipe.model)
+            if running and pipe.supervisor.mode == Mode.OFF:
+                self.get_logger().error(f"after the parameter change: {pipe.supervisor.message}")
         self.counts["config_changes"] += 1
 
     # ------------------------------------------------------------------ streams
@@ -480,8 +494,10 @@ class WaveletControllerNode(Node):
             or status["commands_late"] > 0  # the plant ran periods without our command
         )
         level = DiagnosticStatus.WARN if (problems or self._stale) else DiagnosticStatus.OK
+        radius = self._pipe.supervisor.radius
         values = {
             "mode": Mode(status["mode"]).name,
+            "closed_loop_radius": "none" if radius is None else f"{radius:.4f}",
             "measurements_stale": self._stale,
             "last_sample": self._last_processed,
             "commands_sent": status["commands_sent"],
@@ -516,6 +532,9 @@ class WaveletControllerNode(Node):
         if path:
             written = self._pipe.save_model(path)
             self.get_logger().info(f"identified model written to {written}")
+        refusal = self._pipe.supervisor.unsafe_reason()
+        if refusal:
+            self.get_logger().error(f"identified model: ACTIVE will be refused: {refusal}")
 
     # ------------------------------------------------------------------ services, events
     def _on_fault(self, msg: FaultEvent) -> None:
@@ -525,6 +544,8 @@ class WaveletControllerNode(Node):
     def _on_set_mode(self, request, response):
         response.accepted, response.message = self._pipe.set_mode(request.mode)
         response.mode = int(self._pipe.supervisor.mode)
+        if not response.accepted:
+            self.get_logger().warning(f"set_mode {request.mode} refused: {response.message}")
         return response
 
     def _on_identify(self, request, response):

@@ -71,10 +71,11 @@ PARAMETERS = tuple(f.name for f in parameter_fields(ControllerConfig))
 TUNABLES = tuple(f.name for f in parameter_fields(ControllerConfig) if f.metadata["runtime"])
 #: Node settings with a range (s): name -> (lowest, highest).
 SETTINGS = {f.name: f.metadata["floats"] for f in fields(NodeSettings) if f.metadata["floats"]}
+#: Fields whose inf (off) is 0 as a ROS parameter.
+INF_AS_ZERO = ("coefficient_bound", "displacement_bound", "max_model_radius")
 #: How a ROS parameter carries the values it cannot hold (inf, an empty list, a dict).
 ROS_FORMS = {
-    "coefficient_bound": "as a ROS parameter 0 = off",
-    "displacement_bound": "as a ROS parameter 0 = off",
+    **{name: "as a ROS parameter 0 = off" for name in INF_AS_ZERO},
     "series": "as a ROS parameter [0.0] = unused",
     "fault_actions": "as a ROS parameter 'TYPE:ACTION' strings, e.g. '2:hold'",
 }
@@ -82,7 +83,7 @@ ROS_FORMS = {
 
 def parameter_value(name: str, value):
     """A field's value as its ROS parameter (:func:`config_from_parameters` maps it back)."""
-    if name in ("coefficient_bound", "displacement_bound") and math.isinf(value):
+    if name in INF_AS_ZERO and math.isinf(value):
         return 0.0
     if name == "series" and not value:
         return [0.0]
@@ -102,7 +103,7 @@ def parameter_descriptor(f: dataclasses.Field) -> ParameterDescriptor:
 def config_from_parameters(values: dict) -> dict:
     """Map the node's parameter values onto ``ControllerConfig`` fields."""
     d = dict(values)
-    for bound in ("coefficient_bound", "displacement_bound"):
+    for bound in INF_AS_ZERO:
         if d[bound] == 0.0:
             d[bound] = math.inf
     if list(d["series"]) == [0.0]:

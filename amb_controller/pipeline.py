@@ -62,6 +62,7 @@ from amb_controller.identification import MarkovIdentifier, StepExperiment
 from amb_controller.inverse import dc_gain, pseudo_inverse_series
 from amb_controller.model_file import WaveletModel
 from amb_controller.response import PrescribedResponse
+from amb_controller.stability import own_model_radius
 from amb_controller.status import status_fields
 from amb_controller.steady_state import (
     ProportionalController,
@@ -175,7 +176,11 @@ class ControllerPipeline:
             )
         )
         self.supervisor = WaveletControlSupervisor(
-            self.limiter, config.delay_periods, guard=guard, fault_actions=config.fault_actions
+            self.limiter,
+            config.delay_periods,
+            guard=guard,
+            fault_actions=config.fault_actions,
+            max_radius=config.max_model_radius,
         )
         self._model: WaveletModel | None = None
         self._model_file = ""
@@ -235,9 +240,22 @@ class ControllerPipeline:
             self._model_file = str(model_file)
         controller = self._build_controller(model)
         if controller is not None:
-            self.supervisor.set_controller(controller)
+            self.set_controller(controller)
         else:
             self.supervisor.controller = None
+
+    def set_controller(self, controller) -> None:
+        """
+        Install ``controller`` (built elsewhere, e.g. multi-level) on the model in use.
+
+        Its closed-loop spectral radius on that model is computed here
+        (:func:`~amb_controller.stability.own_model_radius`, a few to tens of ms): at or above
+        ``max_model_radius`` it may not go ACTIVE, and a running one is switched OFF
+        (:class:`~amb_controller.supervisor.WaveletControlSupervisor`).
+        """
+        radius = None if self._model is None else own_model_radius(self._model.markov, controller)
+        self.supervisor.max_radius = self.config.max_model_radius
+        self.supervisor.set_controller(controller, radius)
 
     def _build_controller(self, model: WaveletModel):
         cfg = self.config

@@ -26,7 +26,7 @@ from __future__ import annotations
 import numpy as np
 
 from amb_controller.errors import ControllerValueError
-from amb_controller.lti import DiscreteStateSpace, feedback
+from amb_controller.lti import DiscreteStateSpace, feedback, fir_state_space
 from amb_controller.response import PrescribedResponse
 
 
@@ -270,3 +270,47 @@ def spectral_radius(system: DiscreteStateSpace) -> float:
     """Return the largest pole modulus of ``system`` (0 for a static system)."""
     poles = system.poles()
     return float(np.max(np.abs(poles))) if poles.size else 0.0
+
+
+#: Default largest closed-loop spectral radius on the controller's own model with which it may go
+#: ACTIVE (``ControllerConfig.max_model_radius``; :func:`own_model_radius`).
+MAX_MODEL_RADIUS = 0.98
+
+
+def own_model_radius(markov: np.ndarray, controller) -> float | None:
+    """
+    Return the exact closed-loop spectral radius of ``controller`` on the model ``markov``.
+
+    The controller's realisation (``-L``, from measured to applied coefficients, delay
+    included) closed around the FIR realisation of the model's Markov parameters ``G B_u``
+    (:func:`closed_loop`). This is the loop eq. 8.12 describes with the model in place of the
+    plant, including the truncation of the inverse (eq. 6.35) that the nominal poles of eq.
+    8.15 assume away: a radius >= 1 means the controller diverges on the very model it was
+    designed from, and a radius near 1 means an error the model cannot show (gain, phase,
+    speed) is enough to make it diverge on the plant.
+
+    The default limit, 0.98, is a loop mode that decays by 2 % per period: 114 periods
+    (revolutions) to fall to 10 %, against 4 revolutions for the PID loop alone to settle at the
+    first critical speed and 6 for the prescribed response ``w = v = 0.75`` (radius 2/3,
+    eq. 8.15). Such a controller adds nothing a user wants, and the few per cent of model error
+    an identification leaves (or a change of speed) move that pole across the unit circle.
+
+    Parameters
+    ----------
+    markov : numpy.ndarray
+        ``G^(0) .. G^(K)``, shape ``(K + 1, n_measured, n_control)`` (eq. 6.29).
+    controller : object
+        With ``state_space()`` (the transient controller, eq. 8.10, the proportional and
+        moderated ones, eq. 7.7 and 7.9, the multi-level one).
+
+    Returns
+    -------
+    float or None
+        Largest closed-loop pole modulus; ``None`` for a controller without a realisation
+        (the influence-coefficient baseline, open loop per window, eq. B.1).
+
+    """
+    realise = getattr(controller, "state_space", None)
+    if realise is None:
+        return None
+    return spectral_radius(closed_loop(fir_state_space(markov), realise()))

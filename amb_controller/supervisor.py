@@ -48,6 +48,22 @@ On contact, ramp-to-zero is the contact-safe setting. Leaving a ramped
 HOLD for ACTIVE resets the controller, because the force actually applied is no longer
 the one its integral state (``beta``, eq. 8.10) remembers.
 
+A controller its own model says diverges
+---------------------------------------
+An added controller must never make the rotor worse than the PID loop it is added to. The one
+check that needs no run is the closed loop of the controller on the model it was designed from
+(:func:`~amb_controller.stability.own_model_radius`, eq. 8.12 with the truncated inverse of
+eq. 6.35): with the four inner sensors at the third critical speed ``G(1)`` is nearly singular
+and that radius is 1.03, and every such controller diverged in the simulator (to tens of mm
+against the 0.75 mm auxiliary clearance). So a controller whose radius is at or above
+``max_radius`` (:data:`~amb_controller.stability.MAX_MODEL_RADIUS` = 0.98 by default) is not
+set ACTIVE: :meth:`WaveletControlSupervisor.set_mode` refuses with the radius and the limit,
+and :attr:`~WaveletControlSupervisor.message` (the status) says so. A new model or a
+run-time change of the prescribed response that makes a running controller unsafe switches
+it OFF with the same reason. The check is only as good as the model: a radius below the
+limit does not promise a stable loop on the plant (contacts, saturation and model error are
+outside it).
+
 Commands the plant did not apply
 --------------------------------
 The transient controller integrates (``beta`` has its pole at z = 1, eq. 8.10): each period
@@ -75,6 +91,7 @@ import numpy as np
 from amb_controller.errors import ControllerValueError, NotIdentifiedError
 from amb_controller.guard import DivergenceGuard
 from amb_controller.identification import IdentificationResult, MarkovIdentifier, StepExperiment
+from amb_controller.stability import MAX_MODEL_RADIUS
 from amb_controller.synthesis import ForceLimiter
 
 
@@ -180,6 +197,9 @@ class WaveletControlSupervisor:
     hold_ramp_periods : int, optional
         Periods over which HOLD ramps the held command linearly to zero (>= 0; 0: repeat
         the last command, hold-last). Module docstring, "Hold-last or ramp-to-zero".
+    max_radius : float, optional
+        Largest closed-loop spectral radius on the controller's own model with which it may
+        be ACTIVE (module docstring, "A controller its own model says diverges").
 
     """
 
@@ -191,6 +211,7 @@ class WaveletControlSupervisor:
         guard: DivergenceGuard | None = None,
         fault_actions: dict[int, str] | None = None,
         hold_ramp_periods: int = 0,
+        max_radius: float = MAX_MODEL_RADIUS,
     ) -> None:
         if int(delay) != delay or delay < 1:
             raise ControllerValueError(f"delay must be an integer >= 1 period, got {delay}")
@@ -198,7 +219,11 @@ class WaveletControlSupervisor:
             raise ControllerValueError(
                 f"hold_ramp_periods must be an integer >= 0 periods, got {hold_ramp_periods}"
             )
+        if not max_radius > 0:
+            raise ControllerValueError(f"max_radius must be > 0, got {max_radius}")
         self.hold_ramp_periods = int(hold_ramp_periods)
+        self.max_radius = float(max_radius)
+        self.radius: float | None = None
         self.limiter = limiter
         self.delay = int(delay)
         self.guard = guard
@@ -209,10 +234,10 @@ class WaveletControlSupervisor:
         self._steps: dict[int, _Step] = {}  # target period -> the step that made its command
         self._missing_reported: int | None = None
         self.controller = None
-        if controller is not None:
-            self.set_controller(controller)
         self.mode = Mode.OFF
         self.message = "off"
+        if controller is not None:
+            self.set_controller(controller)
         self.identification_result: IdentificationResult | None = None
         self._identification: _Identification | None = None
         self._sent: dict[int, np.ndarray] = {}
@@ -221,8 +246,21 @@ class WaveletControlSupervisor:
         self._held_periods = 0
 
     # ------------------------------------------------------------------ configuration
-    def set_controller(self, controller) -> None:
-        """Install a controller (its delay must equal the supervisor's)."""
+    def set_controller(self, controller, radius: float | None = None) -> None:
+        """
+        Install a controller (its delay must equal the supervisor's).
+
+        Parameters
+        ----------
+        controller : object
+            As the constructor's.
+        radius : float, optional
+            Its closed-loop spectral radius on its own model
+            (:func:`~amb_controller.stability.own_model_radius`; None: not known, not checked).
+            At or above ``max_radius`` it may not go ACTIVE, and a running one (ACTIVE or
+            HOLD) is switched OFF with the reason in :attr:`message`.
+
+        """
         if getattr(controller, "delay", None) != self.delay:
             raise ControllerValueError(
                 f"controller delay {getattr(controller, 'delay', None)} differs from the "
@@ -234,7 +272,24 @@ class WaveletControlSupervisor:
                 f"basis has {self.limiter.basis.n_coefficients}"
             )
         self.controller = controller
+        self.radius = None if radius is None else float(radius)
         self.reset_controller()
+        refusal = self.unsafe_reason()
+        if refusal and self.mode in (Mode.ACTIVE, Mode.HOLD):
+            self._identification = None
+            self._enter(Mode.OFF)
+            self.message = f"off: {refusal}"
+
+    def unsafe_reason(self) -> str:
+        """Why the installed controller may not go ACTIVE on its own model ('' if it may)."""
+        if self.radius is None or self.radius < self.max_radius:
+            return ""
+        return (
+            f"closed loop on its own model has spectral radius {self.radius:.3f} >= "
+            f"max_model_radius {self.max_radius:g}: it would "
+            + ("diverge" if self.radius >= 1.0 else "hardly decay")
+            + "; the PID loop carries on alone (identify again, change w, v, delay or sensors)"
+        )
 
     def set_mode(self, mode: Mode) -> tuple[bool, str]:
         """
@@ -252,6 +307,10 @@ class WaveletControlSupervisor:
         if mode == Mode.ACTIVE:
             if self.controller is None:
                 return False, "no controller model loaded: identify or load a model first"
+            refusal = self.unsafe_reason()
+            if refusal:
+                self.message = f"{self.mode.name.lower()}: ACTIVE refused: {refusal}"
+                return False, f"ACTIVE refused: {refusal}"
             if self.guard is not None and self.guard.tripped:
                 return False, f"divergence guard tripped ({self.guard.reason}); reset() first"
             if self.mode != Mode.HOLD or self._held_periods > 0:

@@ -145,6 +145,11 @@ def test_rows_whose_own_model_predicts_divergence_are_flagged():
     assert "no dynamic model" not in notes
     assert "wavelet_i1_8sensors: exact" not in text and "harmonic_i1 0.991" not in text
     assert _notes("mass_loss_1st", {"wavelet_i1": _row(1e-4, 3, 3, 1.0, radius=0.8)}) == []
+    refused = _row(1e-4, None, None, 1.0, radius=1.001)
+    refused["refused"] = "closed loop on its own model has spectral radius 1.001 >= ..."
+    notes = "\n".join(_notes("sync_150N_3rd", {"pid": rows["pid"], "wavelet_i1": refused}))
+    assert "wavelet_i1: not set ACTIVE, the row is PID only: closed loop on its own" in notes
+    assert "predicted before the run" not in notes
 
 
 def _pair_model():
@@ -256,3 +261,21 @@ def test_limit_row_replayed_over_the_run_keeps_the_programs_peak():
     assert lim.peak * (1 - 1e-6) <= m["peak"] <= lim.peak * 1.01
     assert m["contacts"] == 0
     assert m["peak_force"] <= matrix.force_limit * (1 + 1e-9)
+
+
+def test_controllers_their_own_model_says_diverge_run_as_pid_only_at_the_third_critical():
+    # issue 18, "never worse than PID": the inner-sensor eq.-8.10 controllers (wavelet and
+    # harmonic) diverged to tens of mm here; now they refuse to go ACTIVE and the run is PID's
+    from amb_apps.compare_cases import Matrix
+    from amb_apps.compare_runs import run_row
+    from amb_common.paths import config_file
+
+    matrix = Matrix(config_file("scenarios"), 32, None, True)
+    pid = run_row(matrix, "sync_150N_3rd", "pid")
+    assert pid.refused == ""
+    for name in ("wavelet_i1", "harmonic_i1"):
+        run = run_row(matrix, "sync_150N_3rd", name)
+        assert "spectral radius" in run.refused and "max_model_radius" in run.refused
+        assert not np.any(run.wavelet_force)
+        np.testing.assert_array_equal(run.displacement, pid.displacement)
+    assert run_row(matrix, "mass_loss_1st", "wavelet_i1").refused == ""

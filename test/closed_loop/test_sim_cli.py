@@ -83,3 +83,19 @@ def test_invalid_option_exits_2(tmp_path, capsys):
     code = sim_cli.main(["--scenario", str(SCENARIO), "--w", "1.5", "--out", str(tmp_path / "x")])
     assert code == 2
     assert "'w' = 1.5" in capsys.readouterr().err
+
+
+def test_a_controller_its_own_model_says_diverges_is_reported_and_the_check_can_be_off(
+    tmp_path, capsys
+):
+    # the inner-sensor model at the third critical speed is nearly singular (amb-compare notes)
+    third = SCENARIO.parent / "sync_force_150N_third_critical.yaml"
+    common = ["--scenario", str(third), "--samples-per-rev", str(SPR), "--duration", "0.2",
+              "--no-bag"]  # fmt: skip
+    assert sim_cli.main([*common, "--out", str(tmp_path / "checked")]) == 0
+    checked = json.loads((tmp_path / "checked" / "metrics.json").read_text())
+    assert checked["model_radius"] > 1.0 and "spectral radius" in checked["refused"]
+    assert "not set ACTIVE" in capsys.readouterr().err
+    assert sim_cli.main([*common, "--max-model-radius", "0", "--out", str(tmp_path / "off")]) == 0
+    off = json.loads((tmp_path / "off" / "metrics.json").read_text())
+    assert off["refused"] == "" and off["model_radius"] == checked["model_radius"]

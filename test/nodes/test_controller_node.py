@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from amb_msgs.msg import ControlCommand, ControllerStatus, Measurement
 from amb_msgs.srv import SetControllerMode, StartIdentification
-from reliability_helpers import Diagnostics
+from reliability_helpers import Diagnostics, call_service, set_parameters
 
 from amb_tools.streams import COMMAND_QOS, FRAME_CODES, QUAD_CODES
 from amb_wavelet.analysis import AnalysisFilterbank
@@ -151,3 +151,77 @@ def test_a_slow_filterbank_is_waited_for_while_its_coefficients_keep_coming(
     assert ros.spin_until(lambda: len(commands) == n_periods, 30.0), ctrl.log()
     assert [c.period_index for c in commands] == [k + DELAY for k in range(n_periods)]
     assert [c.hold for c in commands] == [False] * n_periods, ctrl.log()
+
+
+def _delay_model(path) -> str:
+    """A model of one period of delay on each coefficient, with its exact inverse (8 x 8)."""
+    from amb_controller.model_file import WaveletModel
+
+    n = 8  # 4 inner sensors x 2 quadratures at 1 x; 4 axes x 2 quadratures
+    markov = np.zeros((2, n, n))
+    markov[1] = 1e-5 * np.eye(n)
+    inverse = np.zeros((6, n, n))  # inverse_order 5, as configured
+    inverse[0] = 1e5 * np.eye(n)
+    model = WaveletModel(markov, inverse, "haar", SPR, 2 * np.pi * 20.0, (1,))
+    return str(model.save(path))
+
+
+@pytest.mark.slow
+def test_a_controller_unsafe_on_its_own_model_is_never_active(ros, node_process, tmp_path):
+    """Issue 18, never worse than PID: start, service and run-time change (supervisor docstring).
+
+    On the delay model, ``w = 0.75`` with ``v = 0.995`` puts a closed-loop pole at 0.995 (a
+    decay of 0.5 % per period, above ``max_model_radius`` 0.98), ``v = 0.75`` at 0.84.
+    """
+    ctrl = _start(
+        node_process,
+        controller="transient",
+        model_file=_delay_model(tmp_path / "delay.npz"),
+        start_mode="active",
+        v=0.995,
+    )
+    node = ros.node("amb_test_model_check")
+    commands: list[ControlCommand] = []
+    statuses: list[ControllerStatus] = []
+    node.create_subscription(ControlCommand, "/amb/control/command", commands.append, COMMAND_QOS)
+    node.create_subscription(ControllerStatus, "/amb/control/status", statuses.append, 10)
+    diagnostics = Diagnostics(node)
+    pm, pc = ros.stream_writers(node, SPR, ctrl)
+    _command_reader_matched(ros, node, ctrl)
+    stream = _stream(9)
+
+    def periods(first: int, last: int) -> None:
+        for m, c in stream[first * SPR : (last + 1) * SPR]:
+            if c is not None:
+                pc.publish(c)
+            pm.publish(m)
+        assert ros.spin_until(lambda: len(commands) == last + 1, 30.0), ctrl.log()
+        assert ros.spin_until(lambda: statuses and statuses[-1].period_index == last, 10.0)
+
+    periods(0, 2)  # started "active" with an unsafe loop: the node runs, OFF, and says why
+    assert ctrl.proc.poll() is None, ctrl.log()
+    assert statuses[-1].mode == ControllerStatus.MODE_OFF
+    assert "ACTIVE refused" in statuses[-1].message and "0.995" in statuses[-1].message
+    assert "staying OFF" in ctrl.log()
+    assert not any(any(c.force) for c in commands)
+    name = "wavelet_controller"
+    assert ros.spin_until(lambda: diagnostics.get(name, "closed_loop_radius") != "", 10.0)
+    assert float(diagnostics.get(name, "closed_loop_radius")) == pytest.approx(0.995, abs=1e-3)
+
+    set_mode = node.create_client(SetControllerMode, "/amb/control/set_mode")
+    assert set_mode.wait_for_service(timeout_sec=10.0)
+    active = SetControllerMode.Request(mode=ControllerStatus.MODE_ACTIVE)
+    refused = call_service(ros, set_mode, active)
+    assert not refused.accepted and "spectral radius 0.995" in refused.message
+
+    assert set_parameters(ros, node, name, {"v": 0.75})[0].successful
+    periods(3, 4)  # applied at a period boundary: the rebuilt controller is safe
+    accepted = call_service(ros, set_mode, active)
+    assert accepted.accepted, accepted.message
+    periods(5, 6)
+    assert statuses[-1].mode == ControllerStatus.MODE_ACTIVE
+    assert set_parameters(ros, node, name, {"v": 0.995})[0].successful
+    periods(7, 8)  # the running controller became unsafe: switched OFF, with the reason
+    assert statuses[-1].mode == ControllerStatus.MODE_OFF, ctrl.log()
+    assert statuses[-1].message.startswith("off: closed loop on its own model")
+    assert "after the parameter change" in ctrl.log()
