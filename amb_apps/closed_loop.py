@@ -49,12 +49,16 @@ import numpy as np
 from amb_common import topics
 from amb_common.names import SENSOR_NAMES
 from amb_controller.baselines import HarmonicPipeline
-from amb_controller.basis import control_basis
 from amb_controller.config import BASELINE_CONTROLLERS, ControllerConfig
 from amb_controller.errors import ControllerValueError, NotIdentifiedError
 from amb_controller.inverse import pseudo_inverse_series
 from amb_controller.model_file import WaveletModel
-from amb_controller.pipeline import ControllerPipeline, selected_measurement_basis
+from amb_controller.pipeline import (
+    ControllerPipeline,
+    control_waveform,
+    selected_control_basis,
+    selected_measurement_basis,
+)
 from amb_controller.supervisor import Command, Mode
 from amb_controller.wavelet_dynamics import wavelet_markov
 from amb_fault_monitor.config import MonitorConfig
@@ -169,7 +173,7 @@ def fe_model(rig, omega: float, config: ControllerConfig, n_terms: int = 60) -> 
     """
     cl = build_closed_loop(rig, omega)
     n = config.period_samples
-    cb = control_basis(config.wavelet, n, config.levels, 4, config.quadratures)
+    cb = selected_control_basis(config)
     mb = selected_measurement_basis(config)
     markov = wavelet_markov(
         cl.A, cl.B_u, cl.output(cl.plant.C_s), 2 * math.pi / omega, cb, mb, n_terms
@@ -572,7 +576,7 @@ class BagRecorder:
             self.TOPIC[topics.COMMAND],
             command_msg(
                 command, header, pipeline.control.labels, cfg.period_samples,
-                cfg.delay_periods, cfg.wavelet,
+                cfg.delay_periods, control_waveform(cfg),
             ),
         )  # fmt: skip
         self._write(self.TOPIC[topics.STATUS], controller_status_msg(pipeline.status(), header))

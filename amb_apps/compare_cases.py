@@ -25,7 +25,15 @@ SCENARIOS = {
     "sync_150N_3rd": "sync_force_150N_third_critical.yaml",
     "contact_case2": "mass_loss_contact_case2.yaml",
 }
-CONTROLLERS = ("pid", "wavelet_i1", "wavelet_i2", "harmonic_i1", "synchronous_i1")
+CONTROLLERS = (
+    "pid",
+    "wavelet_i1",
+    "wavelet_i2",
+    "wavelet_sin_i1",
+    "wavelet_sin_i2",
+    "harmonic_i1",
+    "synchronous_i1",
+)
 BASELINE_ROWS = ("harmonic_i1", "synchronous_i1")
 MULTILEVEL = ("wavelet_124_coupled", "wavelet_124_perlevel")
 ML_LEVELS = (1, 2, 3)
@@ -45,12 +53,16 @@ class Spec:
     controller: str
     delay: int = 1
     model: str = "fe"  # fe | harmonic | trials | none
+    output_basis: str = "wavelet"  # ControllerConfig.output_basis
 
 
 SPECS = {
     "pid": Spec("pid", "none", 1, "none"),
     "wavelet_i1": Spec("wavelet_i1", "transient", 1, "fe"),
     "wavelet_i2": Spec("wavelet_i2", "transient", 2, "fe"),
+    # eq. 8.10 on the Haar coefficients with a 1 x sinusoidal force (issue 18 item 3)
+    "wavelet_sin_i1": Spec("wavelet_sin_i1", "transient", 1, "fe", "sinusoid"),
+    "wavelet_sin_i2": Spec("wavelet_sin_i2", "transient", 2, "fe", "sinusoid"),
     "harmonic_i1": Spec("harmonic_i1", "harmonic", 1, "harmonic"),
     "synchronous_i1": Spec("synchronous_i1", "synchronous", 1, "trials"),
 }
@@ -103,6 +115,7 @@ class Matrix:
             gain=0.5,
             inverse_order=5,
             force_limit=(self.force_limit,) * 4,
+            output_basis=spec.output_basis,
             **overrides,
         )
 
@@ -118,6 +131,7 @@ class Matrix:
             config.delay_periods,
             config.levels,
             config.sensors,
+            config.output_basis,
         )
         if key not in self._models:
             omega = 2 * math.pi * hz

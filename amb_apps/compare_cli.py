@@ -11,6 +11,9 @@ Controllers (all at the same per-axis force limit, the rig's bearing capacity un
 * ``pid``: PID only (no added force);
 * ``wavelet_i1`` / ``wavelet_i2``: the chapter-8 transient controller (eq. 8.10), w = v =
   0.75, 5th-order inverse of the FE-route model, delay i = 1 and the thesis's i = 2;
+* ``wavelet_sin_i1`` / ``wavelet_sin_i2``: the same law on the same Haar coefficients with a
+  1 x sinusoidal force instead of the Haar square wave (``output_basis = "sinusoid"``, its
+  FE-route model from sinusoidal inputs to Haar coefficients): no 3 x, 5 x, 7 x force;
 * ``harmonic_i1``: sampled-harmonic transient control (Keogh et al. 2002), same w, v, order;
 * ``synchronous_i1``: adaptive influence-coefficient control (Burrows & Sahinkaya 1983,
   Knospe et al. 1995), T identified by trial injections, gain a = 0.5, 2-period window;

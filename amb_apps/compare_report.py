@@ -119,7 +119,31 @@ def verdict(table: dict, force_limit: float) -> list[str]:
                     f"peak ({w['peak'] * 1e5:.1f} um): odd harmonics ({odd} um), those of the "
                     "Haar square-wave force. A 1 x sinusoidal force (both baselines) adds none."
                 )
+        lines += _sinusoid_line(rows)
     return lines
+
+
+def _sinusoid_line(rows: dict) -> list[str]:
+    """``wavelet_sin_i1`` (eq. 8.10 with a sinusoidal force) against the baselines, one line."""
+    s = rows.get("wavelet_sin_i1")
+    if s is None:
+        return []
+    parts = []
+    for b in BASELINE_ROWS:
+        if b in rows:
+            r = rows[b]
+            parts.append(
+                f"{b} {r['peak'] * 1e6:.1f} um / {_fmt(r.get('revs_below_10pct_pid'), 1, 0)}"
+            )
+    return [
+        f"- wavelet_sin_i1 (the same law and coefficients, a 1 x sinusoidal force): peak "
+        f"{s['peak'] * 1e6:.1f} um, revolutions until below 10 % of PID's steady amplitude "
+        f"{_fmt(s.get('revs_below_10pct_pid'), 1, 0)}, non-1 x over the last 10 revolutions "
+        f"{s.get('non1x_um', float('nan')):.1f} um (wavelet_i1 "
+        f"{rows['wavelet_i1'].get('non1x_um', float('nan')):.1f}); baselines (peak / revs): "
+        + ", ".join(parts)
+        + "."
+    ]
 
 
 def _notes(key: str, rows: dict) -> list[str]:

@@ -42,7 +42,7 @@ from amb_apps.report_metrics import json_default
 from amb_common.config_fields import default_of
 from amb_common.rig import load_rig
 from amb_controller.baselines import BaselineSettings
-from amb_controller.config import CONTROLLERS, ControllerConfig
+from amb_controller.config import CONTROLLERS, OUTPUT_BASES, ControllerConfig
 from amb_controller.metrics import compute_metrics, inner_summary
 from amb_controller.model_file import WaveletModel
 from amb_plant_sim.scenario import load_scenario, resolve_samples_per_rev
@@ -87,6 +87,12 @@ def build_parser() -> argparse.ArgumentParser:
         help="inverse truncation order (eq. 6.35)",
     )
     ap.add_argument("--wavelet", default=DEFAULTS["wavelet"], help="PyWavelets name (orthogonal)")
+    ap.add_argument(
+        "--output-basis",
+        default=DEFAULTS["output_basis"],
+        choices=OUTPUT_BASES,
+        help="control force waveform: wavelet (the thesis) or sinusoid (1 x, no harmonics)",
+    )
     ap.add_argument("--samples-per-rev", type=int, default=None, help="default: scenario or 64")
     ap.add_argument(
         "--sensors",
@@ -149,6 +155,7 @@ def config_from_args(args, spr: int, capacity: float):
         "sensors": [int(c) for c in str(args.sensors).split(",") if c.strip()],
         "force_limit": capacity if args.force_limit is None else args.force_limit,
         "max_model_radius": args.max_model_radius or math.inf,
+        "output_basis": args.output_basis,
     }
     if args.linear is not None:
         d["response"] = "linear"

@@ -30,11 +30,13 @@ __all__ = [
     "BASELINE_CONTROLLERS",
     "CONTROLLERS",
     "FAULT_ACTIONS",
+    "OUTPUT_BASES",
     "RESPONSES",
     "ConfigError",
     "ControllerConfig",
 ]
 
+OUTPUT_BASES = ("wavelet", "sinusoid")
 CONTROLLERS = ("none", "proportional", "moderated", "transient", "synchronous", "harmonic")
 #: 1 x Fourier baselines, run by :class:`amb_controller.baselines.HarmonicPipeline`.
 BASELINE_CONTROLLERS = ("synchronous", "harmonic")
@@ -84,6 +86,14 @@ class ControllerConfig:
         (1,),
         description="thesis levels p used for measurement and control (1 = 1 x running speed)",
         allowed="distinct thesis levels p in 1..log2(samples_per_rev)",
+    )
+    output_basis: str = param(
+        "wavelet",
+        description="waveform of the control force: wavelet (the thesis: the control "
+        "wavelet's synthesis of the control coefficients) | sinusoid (the 1 x cosine and sine "
+        "per axis for the even and odd quadratures: the same control law without the "
+        "wavelet's harmonics; levels [1] only)",
+        allowed=f"one of {OUTPUT_BASES} (sinusoid with levels [1] only)",
     )
     quadratures: tuple[str, ...] = param(
         QUADRATURES,
@@ -328,6 +338,10 @@ class ControllerConfig:
             or len(set(self.levels)) != len(self.levels)
         ):
             raise _fail("levels", list(self.levels), f"distinct thesis levels p in 1..{r}")
+        if self.output_basis not in OUTPUT_BASES or (
+            self.output_basis == "sinusoid" and tuple(self.levels) != (1,)
+        ):
+            raise _fail("output_basis", self.output_basis)
         if (
             not self.quadratures
             or any(q not in QUADRATURES for q in self.quadratures)

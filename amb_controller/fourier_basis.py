@@ -41,6 +41,7 @@ __all__ = [
     "fourier_measurement_basis",
     "real_from_complex",
     "real_gain",
+    "sinusoid_control_basis",
 ]
 
 
@@ -76,6 +77,47 @@ def fourier_control_basis(samples_per_rev: int, n_axes: int = N_AXES) -> BasisSe
             weights[b * n_axes + axis, axis] = wave
             labels.append(f"h1/{name}/c{axis}")
     return BasisSet(weights, 0, tuple(labels))
+
+
+def sinusoid_control_basis(
+    samples_per_rev: int, n_axes: int = N_AXES, quadratures=("even", "odd")
+) -> BasisSet:
+    """
+    Return the 1 x force waveforms in the wavelet controller's coefficient layout.
+
+    The waveforms of :func:`fourier_control_basis` (``sqrt(2/N) cos`` and ``sqrt(2/N) sin``
+    per axis), labelled as the thesis level p = 1 of :func:`amb_controller.basis.control_basis`:
+    ``p1/q1/even/c{axis}`` for the cosine and ``p1/q1/odd/c{axis}`` for the sine (the sine is
+    the cosine a quarter period later, as the odd quadrature is the even one, section 4.3).
+    With it the transient controller measures wavelet coefficients and forces with a sinusoid:
+    the same control law (eq. 8.10) without the odd harmonics of the Haar square wave.
+
+    Parameters
+    ----------
+    samples_per_rev : int
+        Samples per period N.
+    n_axes : int
+        Bearing axes.
+    quadratures : sequence of {"even", "odd"}
+        Which of the cosine (even) and sine (odd) to use, in this order.
+
+    Returns
+    -------
+    BasisSet
+        ``len(quadratures) n_axes`` coefficients, quadrature-major then axis; N per
+        N sqrt(samples), ``offset = 0``.
+
+    """
+    cos, sin = _harmonic(samples_per_rev)
+    waves = {"even": cos, "odd": sin}
+    rows, labels = [], []
+    for quad in quadratures:
+        for axis in range(n_axes):
+            w = np.zeros((n_axes, samples_per_rev))
+            w[axis] = waves[quad]
+            rows.append(w)
+            labels.append(f"p1/q1/{quad}/c{axis}")
+    return BasisSet(np.array(rows), 0, tuple(labels))
 
 
 def fourier_measurement_basis(samples_per_rev: int, sensors) -> BasisSet:

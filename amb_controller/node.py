@@ -117,7 +117,7 @@ from amb_controller.node_params import (
     parameter_descriptor,
     parameter_value,
 )
-from amb_controller.pipeline import ControllerPipeline
+from amb_controller.pipeline import ControllerPipeline, control_waveform
 from amb_controller.supervisor import Mode
 from amb_controller.synthesis import ForceLimiter
 from amb_tools.backlog import backlog_counts, declare_catch_up
@@ -462,7 +462,7 @@ class WaveletControllerNode(Node):
         n = self._pipe.samples_per_period
         header = m.header.to_msg()
         try:
-            out = command_msg(command, header, labels, n, cfg.delay_periods, cfg.wavelet)
+            out = command_msg(command, header, labels, n, cfg.delay_periods, control_waveform(cfg))
         except MessageError as exc:
             self.counts["nonfinite_commands"] += 1
             self._last_reason = f"command for period {command.target_period}: {exc}; sent zero"
@@ -473,7 +473,7 @@ class WaveletControllerNode(Node):
                 force=np.zeros((4, n)),
                 hold=True,
             )
-            out = command_msg(zero, header, labels, n, cfg.delay_periods, cfg.wavelet)
+            out = command_msg(zero, header, labels, n, cfg.delay_periods, control_waveform(cfg))
         self._cmd_pub.publish(out)
         try:
             self._status_pub.publish(controller_status_msg(self._pipe.status(), header))

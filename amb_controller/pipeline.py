@@ -57,6 +57,7 @@ from amb_controller.config import (
     ControllerConfig,
 )
 from amb_controller.errors import ControllerValueError
+from amb_controller.fourier_basis import sinusoid_control_basis
 from amb_controller.guard import DivergenceGuard, GuardConfig
 from amb_controller.identification import MarkovIdentifier, StepExperiment
 from amb_controller.inverse import dc_gain, pseudo_inverse_series
@@ -77,8 +78,28 @@ from amb_wavelet.frontend import ChannelFrontEnd
 __all__ = [
     "ControllerPipeline",
     "prescribed_response",
+    "selected_control_basis",
     "selected_measurement_basis",
 ]
+
+
+def selected_control_basis(config: ControllerConfig) -> BasisSet:
+    """
+    Control-coefficient basis of the configuration (its waveforms and labels).
+
+    ``output_basis = "wavelet"``: :func:`amb_controller.basis.control_basis` of the configured
+    wavelet, levels and quadratures (the thesis); ``"sinusoid"``: the 1 x cosine / sine per
+    axis in the same layout (:func:`amb_controller.fourier_basis.sinusoid_control_basis`).
+    """
+    n = config.period_samples
+    if config.output_basis == "sinusoid":
+        return sinusoid_control_basis(n, N_AXES, config.quadratures)
+    return control_basis(config.wavelet, n, config.levels, N_AXES, config.quadratures)
+
+
+def control_waveform(config: ControllerConfig) -> str:
+    """The control force's waveform (``ControlCommand.wavelet``): the wavelet, or sinusoid."""
+    return "sinusoid" if config.output_basis == "sinusoid" else config.wavelet
 
 
 def selected_measurement_basis(config: ControllerConfig) -> BasisSet:
@@ -138,7 +159,7 @@ class ControllerPipeline:
         n = config.period_samples
         self.samples_per_period = n
         self._r = n.bit_length() - 1
-        self.control = control_basis(config.wavelet, n, config.levels, N_AXES, config.quadratures)
+        self.control = selected_control_basis(config)
         self.measured = selected_measurement_basis(config)
         if channel_labels is None:
             channel_labels = ChannelFrontEnd(config.samples_per_rev).labels

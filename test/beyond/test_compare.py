@@ -121,6 +121,17 @@ def test_verdict_says_where_the_wavelet_controller_wins_and_loses_and_why():
     assert "odd harmonics (3x 6.6, 5x 2.2, 7x 2.5 um)" in text
     assert "the limit was not reached" in text
     assert "sync_150N_3rd" not in text  # only the mass-loss cases carry the target
+    assert "wavelet_sin_i1" not in text
+    sin = _row(90.1e-6, 12, 11, 0.1)
+    sin["revs_below_10pct_pid"] = 11
+    table["mass_loss_1st"]["wavelet_sin_i1"] = sin
+    table["mass_loss_1st"]["harmonic_i1"]["revs_below_10pct_pid"] = 11
+    text = "\n".join(verdict(table, 1000.0))
+    assert (
+        "wavelet_sin_i1 (the same law and coefficients, a 1 x sinusoidal force): peak 90.1" in text
+    )
+    assert "non-1 x over the last 10 revolutions 0.1 um (wavelet_i1 12.2)" in text
+    assert "harmonic_i1 91.1 um / 11, synchronous_i1 111.4 um / not reached" in text
     table["mass_loss_1st"]["wavelet_i1"]["peak_force"] = 1000.0
     assert "the limit was reached" in "\n".join(verdict(table, 1000.0))
 

@@ -4,6 +4,7 @@ import math
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from amb_apps.closed_loop import fe_model, identify_model, run_closed_loop
 from amb_common.rig import load_rig
@@ -14,10 +15,11 @@ from amb_plant_sim.scenario import load_scenario
 SCENARIO = Path(__file__).resolve().parents[2] / "config/scenarios/mass_loss_first_critical.yaml"
 
 
-def test_identified_model_matches_fe_route_and_controls_the_mass_loss():
+@pytest.mark.parametrize("output_basis", ["wavelet", "sinusoid"])
+def test_identified_model_matches_fe_route_and_controls_the_mass_loss(output_basis):
     rig = load_rig()
     scenario = load_scenario(SCENARIO, rig)
-    cfg = ControllerConfig(samples_per_rev=64)
+    cfg = ControllerConfig(samples_per_rev=64, output_basis=output_basis)
     identified = identify_model(rig, scenario, cfg)
     assert identified.source == "identification"
     # reference: the FE closed loop projected on the same wavelets (eq. 6.19, 6.34); the
