@@ -59,7 +59,12 @@ from amb_controller.baselines import perturb_model
 from amb_controller.basis import control_basis
 from amb_controller.influence_coefficient import InfluenceCoefficientController
 from amb_controller.lti import fir_state_space
-from amb_controller.metrics import INNER, steady_sync_amplitude
+from amb_controller.metrics import (
+    INNER,
+    inner_revolution_peaks,
+    revolutions_below,
+    steady_sync_amplitude,
+)
 from amb_controller.multilevel import LevelResponse, MultiLevelController, block_diagonal_model
 from amb_controller.pipeline import prescribed_response, selected_measurement_basis
 from amb_controller.response import PrescribedResponse
@@ -92,12 +97,9 @@ def run_metrics(result, speed_hz: float, pid_steady: float | None = None) -> dic
     spr = result.samples_per_rev
     x = result.displacement[:, list(INNER)]
     k_f = min(math.floor(result.fault_time * speed_hz + 1e-9), len(x) // spr - 1)
-    per_rev = np.abs(x[: (len(x) // spr) * spr]).reshape(-1, spr, x.shape[1]).max(axis=(1, 2))
-    after = per_rev[k_f:]
+    after = inner_revolution_peaks(result.displacement, spr, k_f)
     peak = float(after.max())
-    above = np.flatnonzero(after > 0.1 * peak)
-    revs = int(above[-1]) + 1 if above.size else 0
-    revs_to_10 = None if revs >= len(after) else revs
+    revs_to_10 = revolutions_below(after, 0.1 * peak)
     n_rev = len(x) // spr
     amp_1x = np.abs(np.fft.rfft(x[: n_rev * spr].reshape(n_rev, spr, -1), axis=1)[:, 1])
     after_1x = amp_1x[k_f:].max(axis=1) * 2 / spr  # per-revolution 1 x amplitude (m)
@@ -111,9 +113,7 @@ def run_metrics(result, speed_hz: float, pid_steady: float | None = None) -> dic
     contacts = int(np.count_nonzero(np.diff(contact_any.astype(int), prepend=0) == 1))
     below_pid = None
     if pid_steady is not None and pid_steady > 0:
-        over = np.flatnonzero(after > 0.1 * pid_steady)
-        n_over = int(over[-1]) + 1 if over.size else 0
-        below_pid = None if n_over >= len(after) else n_over
+        below_pid = revolutions_below(after, 0.1 * pid_steady)
     att = None
     if pid_steady is not None and pid_steady > 0 and steady > 0:
         att = 20 * math.log10(steady / pid_steady)

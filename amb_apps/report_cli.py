@@ -36,6 +36,7 @@ from amb_apps.report_metrics import (
     json_default,
     scenario_fault,
 )
+from amb_controller.metrics import revolutions_below
 from amb_tools.bag_read import read_bag
 
 
@@ -128,6 +129,13 @@ def comparison_table(labels: list[str], metrics: list[dict]) -> str:
             [inner_summary(m)["settling"] for m in metrics],
         )
     )
+    if any(m.get("revs_below_10pct_pid") is not None for m in metrics):
+        rows.append(
+            (
+                "revolutions until below 10 % of PID only's steady 1 x (inner peak)",
+                [m.get("revs_below_10pct_pid") for m in metrics],
+            )
+        )
     for b in ("1", "2"):
         rows.append(
             (
@@ -164,11 +172,42 @@ def comparison_table(labels: list[str], metrics: list[dict]) -> str:
         is_um = "(µm)" in name
         scale = 1e6 if is_um else 1.0
         cells = [_fmt(v, scale, 1) for v in vals]
+        if name.startswith("revolutions until below"):
+            cells = ["not reached" if v is None else str(v) for v in vals]
         if two:
             a, b = vals
             cells.append("n/a" if a in (None, 0) or b is None else f"{b / a:.3f}")
         lines.append(f"| {name} | " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
+
+
+def add_below_pid(metrics: list[dict]) -> None:
+    """
+    Add ``revs_below_10pct_pid`` to every bag's metrics, when one bag is PID only.
+
+    The revolutions after the fault period until the inner sensors' per-revolution peak stays
+    below 10 % of the PID-only bag's steady 1 x amplitude (largest of x2, y2, x3, y3;
+    :func:`amb_controller.metrics.revolutions_below`); ``None``: not within the run. Without
+    exactly one PID-only bag (``controller`` ``none``), or without the measurements, the
+    field is ``None`` and ``revs_below_10pct_pid_source`` says why.
+    """
+    pid = [m for m in metrics if (m.get("controller") or {}).get("controller") == "none"]
+    why = ""
+    if len(pid) != 1:
+        why = f"{len(pid)} PID-only bags (controller none) among the bags; needs exactly one"
+    elif inner_summary(pid[0])["steady_1x"] is None:
+        why = "the PID-only bag has no measurements"
+    for m in metrics:
+        peaks = m.get("inner_revolution_peaks")
+        if why or peaks is None:
+            m["revs_below_10pct_pid"] = None
+            m["revs_below_10pct_pid_source"] = why or "no measurements in this bag"
+            continue
+        level = 0.1 * inner_summary(pid[0])["steady_1x"]
+        m["revs_below_10pct_pid"] = revolutions_below(peaks, level)
+        m["revs_below_10pct_pid_source"] = (
+            f"inner peak per revolution below 10 % of PID only's steady 1 x ({level * 1e6:.2f} um)"
+        )
 
 
 def _get(m: dict, *keys):
@@ -278,12 +317,13 @@ def make_report(
         m["label"] = label
         folder = out / slug(label, taken)
         folder.mkdir(exist_ok=True)
-        path = folder / "metrics.json"
-        path.write_text(json.dumps(m, indent=2, default=json_default))
         known = fault.source in ("user", "scenario", "first_fault_event")
         runs.append(rf.Run(label, data, fault.time if known else None, fault.source))
         all_metrics.append(m)
-        metric_paths.append(path)
+        metric_paths.append(folder / "metrics.json")
+    add_below_pid(all_metrics)
+    for m, path in zip(all_metrics, metric_paths, strict=True):
+        path.write_text(json.dumps(m, indent=2, default=json_default))
     figures = [
         rf.displacement_figure(runs, out / "displacement.png"),
         rf.one_x_figure(runs, out / "coefficients_1x.png"),

@@ -45,6 +45,9 @@ NOT_IN_BAG = {
     "model_source": "the controller's model source is not published",
     "seed": "the simulator's noise seed is not published",
     "wall_time": "amb-sim's run time is not published",
+    "model_radius": "the closed-loop radius on the controller's own model is on /diagnostics "
+    "(closed_loop_radius) of a node run, not in amb-sim's bag",
+    "refused": "a refusal to go ACTIVE is in the ControllerStatus message text, not a field",
     "controller": "only controller name, mode, delay, wavelet and periods are published "
     "(ControllerStatus, ControlCommand, WaveletCoefficients); gains are not",
 }
@@ -199,6 +202,7 @@ def bag_metrics(
                     }
                     for b in range(2)
                 }
+            out["inner_revolution_peaks"] = None
             for name in SENSOR_NAMES:
                 out["sensors"][name]["peak_after_fault"] = None
                 out["sensors"][name]["steady_1x_amplitude"] = None

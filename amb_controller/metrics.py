@@ -18,6 +18,11 @@ Definitions (decisions; the thesis judges its figures by eye)
   defined also when the controller drives ``P_final`` to about zero).
 * **forces** per bearing: largest ``hypot(f_x, f_y)`` of the wavelet force and of the total
   AMB control force ``K_i i`` over the whole run (N).
+* **inner revolution peaks**: ``max |x|`` over the inner sensors (x2, y2, x3, y3) in each
+  revolution from the fault's ``k_f`` on (m); :func:`revolutions_below` counts the revolutions
+  until they stay below a level (issue 18: below 10 % of PID only's steady 1 x amplitude, a
+  figure that needs the PID-only run beside this one, so ``amb-report`` and ``amb-compare``
+  compute it).
 * **contact count**: number of contact onsets (rising edges of "any clearance bearing in
   contact") over the run. This is simulator truth (``MeasurementBlock.truth``), which a
   rig would not have; it is reported as such.
@@ -34,6 +39,45 @@ from amb_common.names import SENSOR_NAMES
 INNER = (2, 3, 4, 5)
 STEADY_REVS = 10
 SETTLE_BAND = 0.05
+
+
+def inner_revolution_peaks(
+    displacement: np.ndarray, samples_per_rev: int, fault_period: int
+) -> np.ndarray:
+    """
+    Return the largest inner-sensor ``|x|`` of each revolution from ``fault_period`` on (m).
+
+    Parameters
+    ----------
+    displacement : numpy.ndarray
+        ``(n, 8)`` m; whole revolutions are used (a partial last one is dropped).
+    samples_per_rev : int
+    fault_period : int
+        Revolution of the fault (``k_f``).
+
+    Returns
+    -------
+    numpy.ndarray
+        One value per revolution ``k_f, k_f + 1, ...``.
+
+    """
+    spr = int(samples_per_rev)
+    x = np.asarray(displacement)[:, list(INNER)]
+    n_rev = len(x) // spr
+    per_rev = np.abs(x[: n_rev * spr]).reshape(n_rev, spr, len(INNER)).max(axis=(1, 2))
+    return per_rev[fault_period:]
+
+
+def revolutions_below(peaks, level: float) -> int | None:
+    """
+    Return the revolutions from the first of ``peaks`` until every later one is <= ``level``.
+
+    0 if all are; ``None`` if the last one is above it (not reached within the run).
+    """
+    peaks = np.asarray(peaks, dtype=float)
+    above = np.flatnonzero(peaks > level)
+    n = int(above[-1]) + 1 if above.size else 0
+    return None if n >= len(peaks) else n
 
 
 def steady_sync_amplitude(displacement: np.ndarray, samples_per_rev: int, revs: int = 10):
@@ -143,6 +187,12 @@ def compute_metrics(result, speed_hz: float) -> dict:
             }
             for b in range(2)
         },
+        "inner_revolution_peaks": [
+            float(v)
+            for v in inner_revolution_peaks(
+                result.displacement, result.samples_per_rev, fault_period
+            )
+        ],
         "contact_count": onsets,
         "contact_source": "simulator truth (not measurable on a rig)",
         "fault_events": list(result.fault_events),

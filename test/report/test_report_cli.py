@@ -262,3 +262,37 @@ def _at_the_root(metrics: dict, ns: str, bag: Path) -> dict:
     out["bag_counts"] = {t.removeprefix(ns): n for t, n in metrics["bag_counts"].items()}
     out["missing_topics"] = [t.removeprefix(ns) for t in metrics["missing_topics"]]
     return out
+
+
+def test_revolutions_below_10_percent_of_pid_counted_from_the_displacement(
+    report, sim_pid, sim_wavelet
+) -> None:
+    # reference: the bag's inner displacement, revolution by revolution, against 10 % of the
+    # PID-only run's steady 1 x amplitude as amb-sim computed it
+    ours = json.loads((report / "PID_wavelet" / "metrics.json").read_text())
+    pid = json.loads((sim_pid / "metrics.json").read_text())
+    level = 0.1 * max(pid["sensors"][n]["steady_1x_amplitude"] for n in ("x2", "y2", "x3", "y3"))
+    data = read_bag(sim_wavelet / "bag")
+    spr = data.samples_per_rev
+    x = data.measurements.displacement[:, 2:6]
+    k_f = ours["fault_period"]
+    peaks = [np.abs(x[k * spr : (k + 1) * spr]).max() for k in range(k_f, len(x) // spr)]
+    above = [i for i, p in enumerate(peaks) if p > level]
+    expected = None if above and above[-1] == len(peaks) - 1 else (above[-1] + 1 if above else 0)
+    assert ours["revs_below_10pct_pid"] == expected
+    assert "10 % of PID only's steady 1 x" in ours["revs_below_10pct_pid_source"]
+    row = next(
+        ln for ln in (report / "comparison.md").read_text().splitlines()
+        if ln.startswith("| revolutions until below 10 % of PID")
+    )  # fmt: skip
+    cells = [c.strip() for c in row.strip("|").split("|")]
+    assert cells[1] == "not reached"  # PID only stays at its steady amplitude
+    assert cells[2] == ("not reached" if expected is None else str(expected))
+
+
+def test_revolutions_below_pid_need_exactly_one_pid_bag() -> None:
+    bag = {"controller": {"controller": "transient"}, "inner_revolution_peaks": [1e-4, 1e-6]}
+    metrics = [dict(bag), dict(bag)]
+    report_cli.add_below_pid(metrics)
+    assert metrics[0]["revs_below_10pct_pid"] is None
+    assert "0 PID-only bags" in metrics[0]["revs_below_10pct_pid_source"]
