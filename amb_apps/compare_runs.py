@@ -23,8 +23,12 @@ Metrics (per run; inner sensors x2, y2, x3, y3 unless said)
   each revolution's own mean and 1 x, and the largest 2 x, 3 x, 5 x, 7 x amplitudes (um)
   (:func:`harmonic_content`; ``residual_um``, a 1 x fit over all 10 revolutions, also
   counts a 1 x still decaying in a short ``--quick`` run).
-* ``model_radius``: exact closed-loop spectral radius of the row's eq.-8.10 controller on
-  its own FE model (:func:`model_radius`), before the run; >= 1 predicts divergence.
+* ``model_radius``: exact closed-loop spectral radius of the row's controller on its own
+  model, as the run's pipeline checked it before going ACTIVE
+  (:func:`amb_controller.stability.own_model_radius`; :func:`model_radius` without a run):
+  >= 1 predicts divergence; at or above ``max_model_radius`` (0.98) the row is PID only
+  (``refused`` says why). ``None`` for PID, the limit rows and the synchronous baseline (no
+  dynamic model).
 * ``peak_to_limit``: ``peak`` over the ``limit_i<delay>`` row's peak of the same scenario
   at the row's own delay (``None`` where no limit exists).
 
@@ -356,8 +360,9 @@ def _row_task(task: tuple) -> tuple:
         result = run_row(matrix, key, name)
     except BoundExceededError as exc:
         return None, None, time.perf_counter() - t0, str(exc)
-    radius = model_radius(matrix, name, key)
-    return result, radius, time.perf_counter() - t0, None
+    # the radius the run's pipeline checked (every row with a realisable controller, the
+    # multi-level ones included); model_radius() computes the same without a run
+    return result, result.model_radius, time.perf_counter() - t0, None
 
 
 def comparison(

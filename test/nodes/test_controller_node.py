@@ -225,3 +225,36 @@ def test_a_controller_unsafe_on_its_own_model_is_never_active(ros, node_process,
     assert statuses[-1].mode == ControllerStatus.MODE_OFF, ctrl.log()
     assert statuses[-1].message.startswith("off: closed loop on its own model")
     assert "after the parameter change" in ctrl.log()
+
+
+@pytest.mark.slow
+def test_a_sinusoidal_output_basis_sends_a_pure_1x_force(ros, node_process, tmp_path):
+    """``output_basis: sinusoid``: the force of every command is a 1 x sinusoid per axis.
+
+    Reference: numpy's FFT of the force samples in the ControlCommand messages.
+    """
+    ctrl = _start(
+        node_process,
+        controller="transient",
+        output_basis="sinusoid",
+        model_file=_delay_model(tmp_path / "delay.npz"),
+        start_mode="active",
+    )
+    node = ros.node("amb_test_sinusoid")
+    commands: list[ControlCommand] = []
+    node.create_subscription(ControlCommand, "/amb/control/command", commands.append, COMMAND_QOS)
+    pm, pc = ros.stream_writers(node, SPR, ctrl)
+    _command_reader_matched(ros, node, ctrl)
+    n_periods = 5
+    for m, c in _stream(n_periods):
+        if c is not None:
+            pc.publish(c)
+        pm.publish(m)
+    assert ros.spin_until(lambda: len(commands) == n_periods, 30.0), ctrl.log()
+    assert {c.wavelet for c in commands} == {"sinusoid"}
+    force = np.array([c.force for c in commands]).reshape(n_periods, 4, SPR)
+    spectrum = np.abs(np.fft.rfft(force, axis=2))
+    assert spectrum[:, :, 1].max() * 2 / SPR > 1.0, "a force of more than 1 N acts"
+    assert spectrum[:, :, [0, *range(2, SPR // 2 + 1)]].max() < 1e-9 * spectrum[:, :, 1].max()
+    quads = {(a.level, a.quadrature) for c in commands for a in c.coefficients}
+    assert {level for level, _ in quads} == {1} and len(quads) == 2  # cosine and sine
