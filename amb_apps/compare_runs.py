@@ -447,14 +447,7 @@ ROBUSTNESS_CASES = {
     "speed +10%": {"speed": 1.1},
     "speed -10%": {"speed": 0.9},
 }
-ROBUSTNESS_ROWS = (
-    "wavelet_i1",
-    "wavelet_i2",
-    "wavelet_sin_i1",
-    "wavelet_sin_i2",
-    "harmonic_i1",
-    "synchronous_i1",
-)
+ROBUSTNESS_ROWS = tuple(name for name in CONTROLLERS if name != "pid")
 
 
 def _robustness_task(task: tuple) -> dict:
