@@ -15,7 +15,4 @@ export RMW_IMPLEMENTATION="${RMW_IMPLEMENTATION:-rmw_fastrtps_cpp}"
 # the other nodes on a 2-core machine (docs/results.md#plant-bench: one thread against nproc).
 export OPENBLAS_NUM_THREADS="${OPENBLAS_NUM_THREADS:-1}"
 export PATH="$_amb_root/install/amb_wavelet_control/lib/amb_wavelet_control:$PATH"
-# Fast DDS's shared-memory transport with a patient port health check (config/fastdds_profile.xml
-# says why); a profile of your own takes precedence.
-export FASTRTPS_DEFAULT_PROFILES_FILE="${FASTRTPS_DEFAULT_PROFILES_FILE:-$_amb_root/config/fastdds_profile.xml}"
 unset _amb_root
