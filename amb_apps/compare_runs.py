@@ -62,7 +62,6 @@ from amb_common.rig import load_rig
 from amb_controller.baselines import perturb_model
 from amb_controller.basis import control_basis
 from amb_controller.influence_coefficient import InfluenceCoefficientController
-from amb_controller.lti import fir_state_space
 from amb_controller.metrics import (
     INNER,
     inner_revolution_peaks,
@@ -72,7 +71,7 @@ from amb_controller.metrics import (
 from amb_controller.multilevel import LevelResponse, MultiLevelController, block_diagonal_model
 from amb_controller.pipeline import prescribed_response, selected_measurement_basis
 from amb_controller.response import PrescribedResponse
-from amb_controller.stability import closed_loop, spectral_radius
+from amb_controller.stability import own_model_radius
 from amb_controller.supervisor import Mode
 from amb_controller.synthesis import ForceLimiter
 from amb_controller.transient import TransientController
@@ -152,9 +151,10 @@ def model_radius(matrix: Matrix, name: str, key: str) -> float | None:
 
     The eq.-8.10 controller (wavelet or harmonic, delay and ``alpha`` of the run) closed
     around the FIR realisation of the model's Markov parameters
-    (:func:`~amb_controller.stability.closed_loop`): >= 1 predicts divergence on the FE
+    (:func:`~amb_controller.stability.own_model_radius`, as the pipeline checks it): >= 1
+    predicts divergence on the FE
     model itself, before any run. ``None`` for PID, the synchronous baseline (no dynamic
-    model) and the multi-level rows (their radii are in :mod:`amb_controller.multilevel`).
+    model) and the multi-level rows (their runs' pipelines report theirs).
     """
     scenario = matrix.scenarios[key]
     if name == "wavelet_i1_8sensors":
@@ -169,7 +169,7 @@ def model_radius(matrix: Matrix, name: str, key: str) -> float | None:
     controller = TransientController(
         model.inverse, prescribed_response(config), config.delay_periods
     )
-    return spectral_radius(closed_loop(fir_state_space(model.markov), controller.state_space()))
+    return own_model_radius(model.markov, controller)
 
 
 def harmonic_content(result, revs: int = 10) -> dict:

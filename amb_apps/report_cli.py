@@ -192,10 +192,10 @@ def add_below_pid(metrics: list[dict]) -> None:
     field is ``None`` and ``revs_below_10pct_pid_source`` says why.
     """
     pid = [m for m in metrics if (m.get("controller") or {}).get("controller") == "none"]
-    why = ""
+    why, steady = "", None
     if len(pid) != 1:
         why = f"{len(pid)} PID-only bags (controller none) among the bags; needs exactly one"
-    elif inner_summary(pid[0])["steady_1x"] is None:
+    elif (steady := inner_summary(pid[0])["steady_1x"]) is None:
         why = "the PID-only bag has no measurements"
     for m in metrics:
         peaks = m.get("inner_revolution_peaks")
@@ -203,7 +203,7 @@ def add_below_pid(metrics: list[dict]) -> None:
             m["revs_below_10pct_pid"] = None
             m["revs_below_10pct_pid_source"] = why or "no measurements in this bag"
             continue
-        level = 0.1 * inner_summary(pid[0])["steady_1x"]
+        level = 0.1 * steady
         m["revs_below_10pct_pid"] = revolutions_below(peaks, level)
         m["revs_below_10pct_pid_source"] = (
             f"inner peak per revolution below 10 % of PID only's steady 1 x ({level * 1e6:.2f} um)"

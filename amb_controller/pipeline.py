@@ -275,7 +275,6 @@ class ControllerPipeline:
         (:class:`~amb_controller.supervisor.WaveletControlSupervisor`).
         """
         radius = None if self._model is None else own_model_radius(self._model.markov, controller)
-        self.supervisor.max_radius = self.config.max_model_radius
         self.supervisor.set_controller(controller, radius)
 
     def _build_controller(self, model: WaveletModel):

@@ -276,8 +276,7 @@ class WaveletControlSupervisor:
         self.reset_controller()
         refusal = self.unsafe_reason()
         if refusal and self.mode in (Mode.ACTIVE, Mode.HOLD):
-            self._identification = None
-            self._enter(Mode.OFF)
+            self.set_mode(Mode.OFF)
             self.message = f"off: {refusal}"
 
     def unsafe_reason(self) -> str:
