@@ -37,7 +37,15 @@ __all__ = [
 ]
 
 OUTPUT_BASES = ("wavelet", "sinusoid")
-CONTROLLERS = ("none", "proportional", "moderated", "transient", "synchronous", "harmonic")
+CONTROLLERS = (
+    "none",
+    "proportional",
+    "moderated",
+    "transient",
+    "predictive",
+    "synchronous",
+    "harmonic",
+)
 #: 1 x Fourier baselines, run by :class:`amb_controller.baselines.HarmonicPipeline`.
 BASELINE_CONTROLLERS = ("synchronous", "harmonic")
 RESPONSES = ("exponential", "linear", "series")
@@ -126,8 +134,9 @@ class ControllerConfig:
     controller: str = param(
         "transient",
         description="none | proportional (eq. 7.7) | moderated (eq. 7.9) | transient "
-        "(eq. 8.10); synchronous and harmonic are the 1 x Fourier baselines, run by "
-        "amb_controller.baselines.HarmonicPipeline, not by ControllerPipeline",
+        "(eq. 8.10) | predictive (receding horizon on the Markov parameters, "
+        "amb_controller.predictive); synchronous and harmonic are the 1 x Fourier "
+        "baselines, run by amb_controller.baselines.HarmonicPipeline, not by ControllerPipeline",
         allowed=f"one of {CONTROLLERS}",
     )
     response: str = param(
@@ -178,6 +187,31 @@ class ControllerConfig:
         10.0,
         description="weight of B(1) G(1) = I in the steady-state predictor's inverse (eq. 7.6)",
         allowed=">= 0",
+    )
+    horizon: int = param(
+        20,
+        description="predictive controller: prediction horizon P, periods (cost (P3) of "
+        "amb_controller.predictive)",
+        allowed="an integer in 1..200 periods, >= moves",
+    )
+    moves: int = param(
+        3,
+        description="predictive controller: control moves C optimised per period (the last "
+        "held to the horizon; 1 = mean-level control)",
+        allowed="an integer in 1..horizon",
+    )
+    move_weight: float = param(
+        0.25,
+        description="predictive controller: weight of the command's change per period relative "
+        "to the model's steady gain sigma_max(G(1)), dimensionless (0 = fastest)",
+        allowed="finite, >= 0",
+    )
+    input_weight: float = param(
+        0.03,
+        description="predictive controller: weight of the command itself relative to the "
+        "model's steady gain sigma_max(G(1)), dimensionless (a Tikhonov term: directions of "
+        "G(1) weaker than it are not driven; 0 = offset-free)",
+        allowed="finite, >= 0",
     )
     force_limit: tuple[float, ...] = param(
         (1000.0, 1000.0, 1000.0, 1000.0),
@@ -380,6 +414,13 @@ class ControllerConfig:
             raise _fail("inverse_regularisation", self.inverse_regularisation)
         if not (_finite(self.predictor_dc_weight) and self.predictor_dc_weight >= 0):
             raise _fail("predictor_dc_weight", self.predictor_dc_weight)
+        if not _is_int(self.horizon) or not 1 <= self.horizon <= 200:
+            raise _fail("horizon", self.horizon)
+        if not _is_int(self.moves) or not 1 <= self.moves <= self.horizon:
+            raise _fail("moves", self.moves, f"an integer in 1..horizon = {self.horizon}")
+        for name in ("move_weight", "input_weight"):
+            if not (_finite(getattr(self, name)) and getattr(self, name) >= 0):
+                raise _fail(name, getattr(self, name))
         if len(self.force_limit) != N_AXES or not all(
             _finite(f) and f > 0 for f in self.force_limit
         ):

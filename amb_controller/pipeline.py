@@ -62,6 +62,7 @@ from amb_controller.guard import DivergenceGuard, GuardConfig
 from amb_controller.identification import MarkovIdentifier, StepExperiment
 from amb_controller.inverse import dc_gain, pseudo_inverse_series
 from amb_controller.model_file import WaveletModel
+from amb_controller.predictive import PredictiveController
 from amb_controller.response import PrescribedResponse
 from amb_controller.stability import own_model_radius
 from amb_controller.status import status_fields
@@ -289,6 +290,10 @@ class ControllerPipeline:
             )
         if cfg.controller == "transient":
             return TransientController(model.inverse, prescribed_response(cfg), i)
+        if cfg.controller == "predictive":
+            return PredictiveController(
+                model.markov, i, cfg.horizon, cfg.moves, cfg.move_weight, cfg.input_weight
+            )
         gain = cfg.gain * np.linalg.pinv(dc_gain(model.markov))
         predictor = None
         if cfg.controller == "moderated":

@@ -79,6 +79,11 @@ which the delay ``i > 1`` has already made, are made again from it (their comman
 already sent and stand; only the state is corrected). The integrators then hold the force
 that last acted, and a new controller whose commands never arrived stays at its initial
 state, so its first applied command is the prescribed response to the disturbance as it is.
+
+A controller with ``tracks_applied`` (the predictive one, :mod:`amb_controller.predictive`) has
+no integrator to wind up: it estimates the disturbance from the inputs the plant applied. It is
+told them instead (``record_applied``: the limited command, the HOLD command, zero for a lost
+one) and is neither held on saturation nor replayed.
 """
 
 from __future__ import annotations
@@ -364,6 +369,10 @@ class WaveletControlSupervisor:
         self._sent.clear()
         self._last = np.zeros(self.limiter.basis.n_coefficients)
 
+    def _tracks_applied(self) -> bool:
+        """Whether the controller takes the applied inputs (predictive) instead of a hold."""
+        return bool(getattr(self.controller, "tracks_applied", False))
+
     def reset_controller(self) -> None:
         """Reset the controller's state (integrators and history to zero)."""
         self.controller.reset()
@@ -402,6 +411,9 @@ class WaveletControlSupervisor:
         self._sent[p] = np.zeros(self.limiter.basis.n_coefficients)
         step = self._steps.pop(p, None)
         if step is None or self.controller is None:
+            return sent
+        if self._tracks_applied():  # its estimate uses the applied inputs: tell it, no replay
+            self.controller.record_applied(p, self._sent[p])
             return sent
         self.controller.set_state(step.state_before)
         self.controller.skip(step.period)
@@ -470,8 +482,9 @@ class WaveletControlSupervisor:
             coefficients = self.controller.step(k, measured).coefficients
             result = self.limiter.apply(coefficients)
             if result.saturated.any():
-                self.controller.set_state(saved)  # anti-windup: hold the state
-                self.controller.skip(k)
+                if not self._tracks_applied():
+                    self.controller.set_state(saved)  # anti-windup: hold the state
+                    self.controller.skip(k)
                 hold = True
         elif self.mode == Mode.HOLD:
             hold = True
@@ -486,6 +499,8 @@ class WaveletControlSupervisor:
             self._steps.clear()  # the controller was reset or is not running
         if result is None:
             result = self.limiter.apply(coefficients)
+        if saved is not None and not guard_tripped and self._tracks_applied():
+            self.controller.record_applied(target, result.coefficients)
         self._last = result.coefficients
         self._sent[target] = result.coefficients
         for old in [p for p in self._sent if p < k - self.delay - 1]:

@@ -258,3 +258,59 @@ def test_a_sinusoidal_output_basis_sends_a_pure_1x_force(ros, node_process, tmp_
     assert spectrum[:, :, [0, *range(2, SPR // 2 + 1)]].max() < 1e-9 * spectrum[:, :, 1].max()
     quads = {(a.level, a.quadrature) for c in commands for a in c.coefficients}
     assert {level for level, _ in quads} == {1} and len(quads) == 2  # cosine and sine
+
+
+@pytest.mark.slow
+def test_the_predictive_controller_runs_in_the_node_with_its_parameters(
+    ros, node_process, tmp_path
+):
+    """``controller: predictive`` with non-default horizon, moves and weights (issue 18 item 2).
+
+    Reference: the ROS-free pipeline (tested against closed forms in
+    test/controller/test_predictive.py) fed the same samples with the same configuration; the
+    node must pass every parameter through and send exactly its commands.
+    """
+    from amb_controller.config import ControllerConfig
+    from amb_controller.model_file import WaveletModel
+    from amb_controller.pipeline import ControllerPipeline
+    from amb_controller.supervisor import Mode
+
+    params = {
+        "controller": "predictive",
+        "output_basis": "sinusoid",
+        "horizon": 6,
+        "moves": 2,
+        "move_weight": 0.5,
+        "input_weight": 0.1,
+    }
+    model_file = _delay_model(tmp_path / "delay.npz")
+    ctrl = _start(node_process, model_file=model_file, start_mode="active", **params)
+    node = ros.node("amb_test_predictive")
+    commands: list[ControlCommand] = []
+    node.create_subscription(ControlCommand, "/amb/control/command", commands.append, COMMAND_QOS)
+    pm, pc = ros.stream_writers(node, SPR, ctrl)
+    _command_reader_matched(ros, node, ctrl)
+    n_periods = 6
+    stream = _stream(n_periods)
+    for m, c in stream:
+        if c is not None:
+            pc.publish(c)
+        pm.publish(m)
+    assert ros.spin_until(lambda: len(commands) == n_periods, 30.0), ctrl.log()
+
+    config = ControllerConfig(samples_per_rev=SPR, delay_periods=DELAY, **params)
+    front = ChannelFrontEnd(SPR)
+    pipe = ControllerPipeline(config, 1000.0, WaveletModel.load(model_file), front.labels)
+    assert pipe.set_mode(Mode.ACTIVE)[0]
+    bank = AnalysisFilterbank("haar", 5, front.n_channels)
+    expected = []
+    for m, _ in stream:
+        records = bank.step(front.step(m.displacement, m.rotor_angle), m.sample_index)
+        out = pipe.on_sample(m.sample_index, records, m.displacement, m.rotor_speed)
+        if out is not None:
+            expected.append(np.ravel(out.force))
+    got = np.array([c.force for c in sorted(commands, key=lambda c: c.period_index)])
+    expected = np.array(expected)
+    assert np.abs(expected).max() > 1.0, "the reference commands a force of more than 1 N"
+    np.testing.assert_allclose(got, expected, rtol=0, atol=1e-9 * np.abs(expected).max())
+    assert {c.wavelet for c in commands} == {"sinusoid"}
