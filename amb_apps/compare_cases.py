@@ -31,6 +31,8 @@ CONTROLLERS = (
     "wavelet_i2",
     "wavelet_sin_i1",
     "wavelet_sin_i2",
+    "predictive_i1",
+    "predictive_i2",
     "harmonic_i1",
     "synchronous_i1",
 )
@@ -63,6 +65,9 @@ SPECS = {
     # eq. 8.10 on the Haar coefficients with a 1 x sinusoidal force (issue 18 item 3)
     "wavelet_sin_i1": Spec("wavelet_sin_i1", "transient", 1, "fe", "sinusoid"),
     "wavelet_sin_i2": Spec("wavelet_sin_i2", "transient", 2, "fe", "sinusoid"),
+    # receding horizon on the same coefficients and model, sinusoidal force (item 2)
+    "predictive_i1": Spec("predictive_i1", "predictive", 1, "fe", "sinusoid"),
+    "predictive_i2": Spec("predictive_i2", "predictive", 2, "fe", "sinusoid"),
     "harmonic_i1": Spec("harmonic_i1", "harmonic", 1, "harmonic"),
     "synchronous_i1": Spec("synchronous_i1", "synchronous", 1, "trials"),
 }

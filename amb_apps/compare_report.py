@@ -120,6 +120,62 @@ def verdict(table: dict, force_limit: float) -> list[str]:
                     "Haar square-wave force. A 1 x sinusoidal force (both baselines) adds none."
                 )
         lines += _sinusoid_line(rows)
+        lines += _predictive_lines(rows)
+    return lines
+
+
+def _predictive_lines(rows: dict) -> list[str]:
+    """``predictive_i1`` / ``_i2`` against every other controller at the same delay."""
+    lines = []
+    pid_steady = rows.get("pid", {}).get("steady_1x")
+    for i in (1, 2):
+        p = rows.get(f"predictive_i{i}")
+        if p is None:
+            continue
+        others = [
+            n
+            for n in rows
+            if n not in ("pid", f"predictive_i{i}")
+            and not n.startswith("limit_")
+            and n.endswith(f"_i{i}")
+        ]
+        peak_wins = [n for n in others if p["peak"] < rows[n]["peak"]]
+        mine = p.get("revs_below_10pct_pid")
+        revs_wins = [
+            n
+            for n in others
+            if mine is not None
+            and (
+                rows[n].get("revs_below_10pct_pid") is None
+                or mine < rows[n]["revs_below_10pct_pid"]
+            )
+        ]
+        ratio = p.get("peak_to_limit")
+        steady = (
+            f", steady 1 x {p['steady_1x'] / pid_steady * 100:.1f} % of PID only's"
+            if pid_steady
+            else ""
+        )
+        lines.append(
+            f"- predictive_i{i} (receding horizon on the same coefficients, sinusoidal force): "
+            f"peak {p['peak'] * 1e6:.1f} um"
+            + (f" ({ratio:.2f} x limit_i{i})" if ratio is not None else "")
+            + f", below 10 % of PID's steady amplitude after {_fmt(mine, 1, 0)} revolutions"
+            + steady
+            + f"; lower peak than {len(peak_wins)} of {len(others)} rows at i = {i}"
+            + (
+                f" (not {', '.join(n for n in others if n not in peak_wins)})"
+                if len(peak_wins) < len(others)
+                else ""
+            )
+            + f", sooner below than {len(revs_wins)} of {len(others)}"
+            + (
+                f" (not {', '.join(n for n in others if n not in revs_wins)})"
+                if len(revs_wins) < len(others)
+                else ""
+            )
+            + "."
+        )
     return lines
 
 

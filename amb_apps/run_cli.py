@@ -163,7 +163,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--controller",
         default=None,
-        help="wavelet_controller.controller (none | proportional | moderated | transient)",
+        help="wavelet_controller.controller (none | proportional | moderated | transient | "
+        "predictive)",
     )
     p.add_argument(
         "--without",

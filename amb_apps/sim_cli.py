@@ -86,6 +86,21 @@ def build_parser() -> argparse.ArgumentParser:
         default=DEFAULTS["inverse_order"],
         help="inverse truncation order (eq. 6.35)",
     )
+    ap.add_argument(
+        "--horizon",
+        type=int,
+        default=DEFAULTS["horizon"],
+        help="predictive: prediction horizon P, periods (amb_controller.predictive)",
+    )
+    ap.add_argument(
+        "--moves", type=int, default=DEFAULTS["moves"], help="predictive: control moves C"
+    )
+    ap.add_argument(
+        "--move-weight",
+        type=float,
+        default=DEFAULTS["move_weight"],
+        help="predictive: dimensionless weight of the command's change per period",
+    )
     ap.add_argument("--wavelet", default=DEFAULTS["wavelet"], help="PyWavelets name (orthogonal)")
     ap.add_argument(
         "--output-basis",
@@ -152,6 +167,9 @@ def config_from_args(args, spr: int, capacity: float):
         "gain": args.k,
         "delay_periods": args.delay,
         "inverse_order": args.order,
+        "horizon": args.horizon,
+        "moves": args.moves,
+        "move_weight": args.move_weight,
         "sensors": [int(c) for c in str(args.sensors).split(",") if c.strip()],
         "force_limit": capacity if args.force_limit is None else args.force_limit,
         "max_model_radius": args.max_model_radius or math.inf,

@@ -12,6 +12,7 @@ inverse           truncated least-squares pseudo-inverse series B^(k) (eq. 6.35)
 steady_state      steady-state prediction, proportional and moderated controllers (ch. 7)
 response          prescribed transient responses alpha(z) (eq. 8.6-8.7)
 transient         transient controller difference equation (eq. 8.10)
+predictive        receding-horizon controller on the Markov parameters (no model inverse)
 stability         gamma, criterion (8.15-8.16), (w, v) maps (fig. 8.3), exact loop poles
 lti               small discrete state-space toolkit
 synthesis         coefficients -> force samples, per-axis force limit

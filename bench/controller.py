@@ -3,11 +3,13 @@ Benchmark: time to compute one wavelet control command, as a fraction of the per
 
 Cases: MIMO over 4 bearing axes and 8 sensor channels, even and odd quadrature, 1 level
 (p = 1: 16 measured / 8 control coefficients) and 3 levels (p = 1, 2, 3: 112 / 56),
-truncated inverse of order 5 and 10, delay 2. Timed: ``TransientController.step``
-alone and the full ``WaveletControlSupervisor.step`` (controller + synthesis of the
-force samples + saturation). Reported: median and 99th percentile over many periods,
-and the median as a fraction of the control period at 11 Hz and 67 Hz running speed
-(one revolution per period).
+delay 2: the transient controller (eq. 8.10) with a truncated inverse of order 5 and 10, and
+the predictive controller (:mod:`amb_controller.predictive`, Markov order 12, horizon 20, 3
+moves). Timed: the controller's ``step`` alone and the full ``WaveletControlSupervisor.step``
+(controller + synthesis of the force samples + saturation). Reported: median and 99th
+percentile over many periods, the median as a fraction of the control period at 11 Hz and
+67 Hz running speed (one revolution per period), and the p99 as a fraction at 67 Hz (issue
+18's target: <= 5 %).
 
 Run from the repository root: ``PYTHONPATH=. python bench/controller.py [--periods N]``.
 """
@@ -20,12 +22,15 @@ import time
 import numpy as np
 
 from amb_controller.basis import control_basis
+from amb_controller.predictive import PredictiveController
 from amb_controller.response import PrescribedResponse
 from amb_controller.supervisor import Mode, WaveletControlSupervisor
 from amb_controller.synthesis import ForceLimiter
 from amb_controller.transient import TransientController
 
 SPEEDS_HZ = (11.0, 67.0)
+#: Markov order M of the predictive cases (identification_order's default)
+PREDICTIVE_ORDER = 12
 
 
 def _time_steps(step, measured: np.ndarray) -> np.ndarray:
@@ -46,29 +51,42 @@ def main() -> None:
     rng = np.random.default_rng(0)
     alpha = PrescribedResponse.exponential(0.75, 0.75)
     print(
-        f"{'levels':>6} {'order':>5} {'n_y':>4} {'n_u':>4} {'part':>10} "
+        f"{'law':>10} {'levels':>6} {'order':>5} {'n_y':>4} {'n_u':>4} {'part':>10} "
         f"{'median us':>10} {'p99 us':>8} "
         + " ".join(f"{'frac@' + format(f, 'g') + 'Hz':>11}" for f in SPEEDS_HZ)
+        + f" {'p99@67Hz':>9}"
     )
     for levels in ((1,), (1, 2, 3)):
         basis = control_basis("haar", args.samples_per_rev, levels, n_axes=4)
         n_u = basis.n_coefficients
         n_y = 2 * n_u  # 8 sensors vs 4 axes
+        measured = rng.normal(size=(args.periods, n_y)) * 1e-6
+        cases = []
         for order in (5, 10):
             inverse = rng.normal(size=(order + 1, n_u, n_y)) * 1e3
-            measured = rng.normal(size=(args.periods, n_y)) * 1e-6
-            ctrl = TransientController(inverse, alpha, delay=2)
-            ctrl_times = _time_steps(ctrl.step, measured)
+            cases.append(
+                ("transient", order, lambda inv=inverse: TransientController(inv, alpha, 2))
+            )
+        markov = rng.normal(size=(PREDICTIVE_ORDER + 1, n_y, n_u)) * 1e-6
+        cases.append(
+            (
+                "predictive",
+                PREDICTIVE_ORDER,
+                lambda m=markov: PredictiveController(m, 2, 20, 3, 0.25, 0.03),
+            )
+        )
+        for law, order, make in cases:
+            ctrl_times = _time_steps(make().step, measured)
             limiter = ForceLimiter(basis, limit=1e9, capacity=1e9)
-            sup = WaveletControlSupervisor(limiter, 2, TransientController(inverse, alpha, 2))
+            sup = WaveletControlSupervisor(limiter, 2, make())
             sup.set_mode(Mode.ACTIVE)
             sup_times = _time_steps(sup.step, measured)
             for part, times in (("controller", ctrl_times), ("supervisor", sup_times)):
                 med, p99 = np.median(times), np.percentile(times, 99)
                 fracs = " ".join(f"{med * f:11.2e}" for f in SPEEDS_HZ)
                 print(
-                    f"{len(levels):>6} {order:>5} {n_y:>4} {n_u:>4} {part:>10} "
-                    f"{med * 1e6:10.1f} {p99 * 1e6:8.1f} {fracs}"
+                    f"{law:>10} {len(levels):>6} {order:>5} {n_y:>4} {n_u:>4} {part:>10} "
+                    f"{med * 1e6:10.1f} {p99 * 1e6:8.1f} {fracs} {p99 * 67.0:9.2e}"
                 )
 
 

@@ -134,6 +134,23 @@ def test_verdict_says_where_the_wavelet_controller_wins_and_loses_and_why():
     assert "harmonic_i1 91.1 um / 11, synchronous_i1 111.4 um / not reached" in text
     table["mass_loss_1st"]["wavelet_i1"]["peak_force"] = 1000.0
     assert "the limit was reached" in "\n".join(verdict(table, 1000.0))
+    rows = table["mass_loss_1st"]
+    rows["pid"]["steady_1x"] = 140e-6
+    rows["wavelet_i1"]["revs_below_10pct_pid"] = None
+    pred = _row(88.0e-6, 5, 5, 0.1)
+    pred.update(revs_below_10pct_pid=5, steady_1x=0.7e-6, peak_to_limit=3.52)
+    rows["predictive_i1"] = pred
+    text = "\n".join(verdict(table, 1000.0))
+    assert "predictive_i1 (receding horizon" in text and "peak 88.0 um (3.52 x limit_i1)" in text
+    assert "after 5 revolutions, steady 1 x 0.5 % of PID only's" in text
+    # 88.0 beats wavelet_i1 (94.7) and synchronous_i1 (111.4), not harmonic_i1 (91.1 > 88: it
+    # does) nor wavelet_sin_i1 (90.1 > 88: it does); every row is slower than 5 revolutions
+    assert "lower peak than 4 of 4 rows at i = 1, sooner below than 4 of 4." in text
+    rows["harmonic_i1"]["peak"] = 80e-6
+    rows["harmonic_i1"]["revs_below_10pct_pid"] = 4
+    text = "\n".join(verdict(table, 1000.0))
+    assert "lower peak than 3 of 4 rows at i = 1 (not harmonic_i1)" in text
+    assert "sooner below than 3 of 4 (not harmonic_i1)." in text
 
 
 def test_rows_whose_own_model_predicts_divergence_are_flagged():
