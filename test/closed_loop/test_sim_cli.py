@@ -99,3 +99,16 @@ def test_a_controller_its_own_model_says_diverges_is_reported_and_the_check_can_
     assert sim_cli.main([*common, "--max-model-radius", "0", "--out", str(tmp_path / "off")]) == 0
     off = json.loads((tmp_path / "off" / "metrics.json").read_text())
     assert off["refused"] == "" and off["model_radius"] == checked["model_radius"]
+
+
+def test_the_predictive_options_reach_its_configuration(tmp_path, capsys):
+    common = ["--scenario", str(SCENARIO), "--samples-per-rev", str(SPR), "--duration", "0.2",
+              "--no-bag", "--controller", "predictive", "--output-basis", "sinusoid"]  # fmt: skip
+    bad = sim_cli.main([*common, "--horizon", "4", "--moves", "5", "--out", str(tmp_path / "x")])
+    assert bad == 2 and "'moves' = 5" in capsys.readouterr().err
+    bad = sim_cli.main([*common, "--move-weight", "-1", "--out", str(tmp_path / "y")])
+    assert bad == 2 and "'move_weight' = -1" in capsys.readouterr().err
+    out = tmp_path / "ok"
+    assert sim_cli.main([*common, "--horizon", "8", "--moves", "2", "--out", str(out)]) == 0
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["refused"] == "" and 0.0 < metrics["model_radius"] < 0.98
