@@ -4,8 +4,8 @@
 #   1. on-line identification of the wavelet-domain model at that speed (section 6.4),
 #   2. 430 g cm mass loss at the non-driven-end disk, PID only,
 #   3. the same with PID + wavelet transient control (w = v = 0.75, delay 2, Haar, p = 1),
-#   4. the same law with a sinusoidal force (output_basis sinusoid, identified on-line too):
-#      no Haar square-wave harmonics (issue 18),
+#   4. the receding-horizon (predictive) controller on the same Haar coefficients with a
+#      sinusoidal force (output_basis sinusoid, its model identified on-line too; issue 18),
 #   5. one report comparing the three bags (figures, metrics.json, comparison.md).
 # Every step is amb-run: plant_sim, wavelet_filterbank, fault_monitor, wavelet_controller and
 # the recorder as separate processes, lock-step, parameters from config/amb_params.yaml.
@@ -32,7 +32,7 @@ amb-run --scenario "$SCENARIO" --out "$OUT/transient" --controller transient \
   --set "wavelet_controller.model_file:=$PWD/$OUT/model.npz" \
   --set wavelet_controller.start_mode:=active
 
-echo "[demo] 4/6 on-line identification for the sinusoidal force (PID only, ~30 s simulated)"
+echo "[demo] 4/6 on-line identification for the sinusoidal force of the predictive controller (PID only, ~30 s simulated)"
 amb-run --scenario identification_first_critical.yaml --out "$OUT/identification_sinusoid" \
   --controller transient --without fault_monitor \
   --set wavelet_controller.output_basis:=sinusoid \
@@ -40,21 +40,21 @@ amb-run --scenario identification_first_critical.yaml --out "$OUT/identification
   --set "wavelet_controller.model_file_out:=$PWD/$OUT/model_sinusoid.npz"
 [ -f "$OUT/model_sinusoid.npz" ] || { echo "[demo] identification wrote no model: see $OUT/identification_sinusoid/logs" >&2; exit 1; }
 
-echo "[demo] 5/6 mass loss, PID + wavelet transient control with a sinusoidal force"
-amb-run --scenario "$SCENARIO" --out "$OUT/sinusoid" --controller transient \
+echo "[demo] 5/6 mass loss, PID + predictive control (identified model, sinusoidal force)"
+amb-run --scenario "$SCENARIO" --out "$OUT/predictive" --controller predictive \
   --set wavelet_controller.output_basis:=sinusoid \
   --set "wavelet_controller.model_file:=$PWD/$OUT/model_sinusoid.npz" \
   --set wavelet_controller.start_mode:=active
 
 echo "[demo] 6/6 report"
 if command -v amb-report >/dev/null 2>&1; then
-  amb-report "$OUT/pid_only/bag" "$OUT/transient/bag" "$OUT/sinusoid/bag" \
-    --labels "PID only,PID + wavelet transient,PID + wavelet transient (sinusoidal force)" \
+  amb-report "$OUT/pid_only/bag" "$OUT/transient/bag" "$OUT/predictive/bag" \
+    --labels "PID only,PID + wavelet transient (thesis),PID + predictive (sinusoidal force)" \
     --scenario "config/scenarios/$SCENARIO" --out "$OUT/report"
   echo
   [ -f "$OUT/report/comparison.md" ] && cat "$OUT/report/comparison.md"
   echo "[demo] report: $OUT/report/report.md (figures and metrics.json beside it)"
 else
-  echo "[demo] amb-report is not built yet: bags are in $OUT/pid_only/bag, $OUT/transient/bag and $OUT/sinusoid/bag"
+  echo "[demo] amb-report is not built yet: bags are in $OUT/pid_only/bag, $OUT/transient/bag and $OUT/predictive/bag"
 fi
 echo "[demo] done in $(( $(date +%s) - start )) s"
