@@ -47,7 +47,25 @@ def main() -> None:
         help="comma-separated horizon:moves:move_weight:input_weight:delay",
     )
     ap.add_argument("--full", action="store_true", help="the scenarios' full durations")
+    ap.add_argument(
+        "--input-noise",
+        type=float,
+        default=None,
+        help="run the input-disturbance experiment (tools/predictive_input_disturbance.py) "
+        "with this dimensionless measurement noise instead of the shipped law",
+    )
     args = ap.parse_args()
+    if args.input_noise is not None:
+        from predictive_input_disturbance import InputDisturbanceController
+
+        import amb_controller.pipeline as pipeline
+
+        def build(markov, delay, horizon, moves, move_w, input_w):
+            return InputDisturbanceController(
+                markov, delay, horizon, moves, move_w, input_w, args.input_noise
+            )
+
+        pipeline.PredictiveController = build
     matrix = Matrix(Path("config/scenarios"), None, None, not args.full)
     for key in args.scenarios.split(","):
         scenario = matrix.scenarios[key]
