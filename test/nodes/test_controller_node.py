@@ -58,6 +58,22 @@ def _command_reader_matched(ros, node, ctrl) -> None:
     ), ctrl.log()
 
 
+def _run_periods(ros, ctrl, name: str, n_periods: int):
+    """Feed ``n_periods`` of :func:`_stream` to ``ctrl``; return its commands and the stream."""
+    node = ros.node(name)
+    commands: list[ControlCommand] = []
+    node.create_subscription(ControlCommand, "/amb/control/command", commands.append, COMMAND_QOS)
+    pm, pc = ros.stream_writers(node, SPR, ctrl)
+    _command_reader_matched(ros, node, ctrl)
+    stream = _stream(n_periods)
+    for m, c in stream:
+        if c is not None:
+            pc.publish(c)
+        pm.publish(m)
+    assert ros.spin_until(lambda: len(commands) == n_periods, 30.0), ctrl.log()
+    return commands, stream
+
+
 def test_one_command_per_period_and_mode_services(ros, node_process) -> None:
     ctrl = _start(node_process, controller="transient")
     node = ros.node("amb_test_driver")
@@ -240,17 +256,8 @@ def test_a_sinusoidal_output_basis_sends_a_pure_1x_force(ros, node_process, tmp_
         model_file=_delay_model(tmp_path / "delay.npz"),
         start_mode="active",
     )
-    node = ros.node("amb_test_sinusoid")
-    commands: list[ControlCommand] = []
-    node.create_subscription(ControlCommand, "/amb/control/command", commands.append, COMMAND_QOS)
-    pm, pc = ros.stream_writers(node, SPR, ctrl)
-    _command_reader_matched(ros, node, ctrl)
     n_periods = 5
-    for m, c in _stream(n_periods):
-        if c is not None:
-            pc.publish(c)
-        pm.publish(m)
-    assert ros.spin_until(lambda: len(commands) == n_periods, 30.0), ctrl.log()
+    commands, _ = _run_periods(ros, ctrl, "amb_test_sinusoid", n_periods)
     assert {c.wavelet for c in commands} == {"sinusoid"}
     force = np.array([c.force for c in commands]).reshape(n_periods, 4, SPR)
     spectrum = np.abs(np.fft.rfft(force, axis=2))
@@ -285,18 +292,8 @@ def test_the_predictive_controller_runs_in_the_node_with_its_parameters(
     }
     model_file = _delay_model(tmp_path / "delay.npz")
     ctrl = _start(node_process, model_file=model_file, start_mode="active", **params)
-    node = ros.node("amb_test_predictive")
-    commands: list[ControlCommand] = []
-    node.create_subscription(ControlCommand, "/amb/control/command", commands.append, COMMAND_QOS)
-    pm, pc = ros.stream_writers(node, SPR, ctrl)
-    _command_reader_matched(ros, node, ctrl)
     n_periods = 6
-    stream = _stream(n_periods)
-    for m, c in stream:
-        if c is not None:
-            pc.publish(c)
-        pm.publish(m)
-    assert ros.spin_until(lambda: len(commands) == n_periods, 30.0), ctrl.log()
+    commands, stream = _run_periods(ros, ctrl, "amb_test_predictive", n_periods)
 
     config = ControllerConfig(samples_per_rev=SPR, delay_periods=DELAY, **params)
     front = ChannelFrontEnd(SPR)
