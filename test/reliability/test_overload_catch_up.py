@@ -14,8 +14,11 @@ command in one idle run of 2026-12-02, and periods 4-11 after it in one run with
 busy (2026-12-03): the resent samples came in batches below the bound and were worked through
 in order.
 
-Reference: the plant's own ``STATUS_COMMAND_MISSING`` flag on every sample (set when a period
-starts without its command) and the consumers' ``backlog_dropped`` counts on ``/diagnostics``.
+Reference: the plant's own ``STATUS_COMMAND_MISSING`` flag on every sample (set on every sample
+of a period that starts without its command) and the consumers' ``backlog_dropped`` counts on
+``/diagnostics``. A period is judged by any of its samples the test's observer received (with
+one core busy the observer itself lost samples once, 2026-12-02: a reliable reader gets only
+what the writer still keeps).
 Times are the plant's: each period starts at its first sample's stamp (the realtime plant's
 clock, wall seconds from its start), and the release is put on that clock by the smallest
 arrival-minus-stamp of the observed samples (a test process held by a loaded machine receives
@@ -109,10 +112,18 @@ def test_the_chain_catches_up_within_two_periods_after_an_overload(
     ros.spin_for(0.5)  # the last diagnostics
 
     index, status, stamp, arrival = (np.array(c) for c in zip(*samples, strict=True))
-    assert np.array_equal(index, np.arange(index.size)), "the observer lost samples"
-    starts = index % SPR == 0
-    missing = status[starts] & Measurement.STATUS_COMMAND_MISSING != 0
-    period_start = stamp[starts]  # s, the plant's clock
+    assert np.all(np.diff(index) > 0), "the observer received samples out of order"
+    # a period is judged by any of its samples the observer received: the plant flags every
+    # sample of a period that started without its command, and stamps sample n at n / fs
+    # from its start; so a test process held by a loaded machine, whose reliable reader loses
+    # samples the plant's writer no longer keeps, still judges every period it saw a sample of
+    periods, first = np.unique(index // SPR, return_index=True)
+    assert np.array_equal(periods, np.arange(periods[0], periods[-1] + 1)), (
+        "the observer received no sample of periods "
+        f"{sorted(set(range(periods[0], periods[-1] + 1)) - set(periods.tolist()))}"
+    )
+    missing = status[first] & Measurement.STATUS_COMMAND_MISSING != 0
+    period_start = stamp[first] - (index[first] % SPR) * PERIOD / SPR  # s, the plant's clock
     released -= np.min(arrival - stamp)  # on the plant's clock (late by the transport, < 1 ms)
     during = (period_start > released - STOP + PERIOD) & (period_start < released)
     assert missing[during].all(), "the stop cost the commands of its periods"
