@@ -25,6 +25,7 @@ from pathlib import Path
 from amb_apps.closed_loop import run_closed_loop
 from amb_apps.compare_cases import SCENARIOS, SPECS, Matrix, Spec
 from amb_apps.compare_runs import run_metrics
+from amb_plant_sim.scenario import load_scenario
 
 
 def _setting(text: str) -> tuple[int, int, float, float, int]:
@@ -39,7 +40,11 @@ def _setting(text: str) -> tuple[int, int, float, float, int]:
 def main() -> None:
     """Run the sweep and print one line per scenario and setting."""
     ap = argparse.ArgumentParser(description=__doc__.strip().splitlines()[0])
-    ap.add_argument("--scenarios", default=",".join(SCENARIOS), help="amb-compare scenario keys")
+    ap.add_argument(
+        "--scenarios",
+        default=",".join(SCENARIOS),
+        help="amb-compare scenario keys, or scenario files of config/scenarios",
+    )
     ap.add_argument(
         "--settings",
         type=lambda s: [_setting(t) for t in s.split(",")],
@@ -68,8 +73,13 @@ def main() -> None:
         pipeline.PredictiveController = build
     matrix = Matrix(Path("config/scenarios"), None, None, not args.full)
     for key in args.scenarios.split(","):
-        scenario = matrix.scenarios[key]
-        pid = run_metrics(matrix.run(SPECS["pid"], key), scenario.speed_hz)
+        scenario = matrix.scenarios.get(key)
+        if scenario is None:  # a scenario file of config/scenarios, its full duration
+            scenario = load_scenario(Path("config/scenarios") / key, matrix.rig)
+        pid_config = matrix.config(SPECS["pid"], scenario)
+        pid = run_metrics(
+            run_closed_loop(matrix.rig, scenario, pid_config, None), scenario.speed_hz
+        )
         print(
             f"{key}: PID only peak {pid['peak'] * 1e6:.1f} um, steady 1 x "
             f"{pid['steady_1x'] * 1e6:.2f} um, {pid['contacts']} contact onsets",
