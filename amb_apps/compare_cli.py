@@ -16,8 +16,8 @@ Controllers (all at the same per-axis force limit, the rig's bearing capacity un
   FE-route model from sinusoidal inputs to Haar coefficients): no 3 x, 5 x, 7 x force;
 * ``predictive_i1`` / ``predictive_i2``: the receding-horizon controller on the same Haar
   coefficients and FE-route model with a 1 x sinusoidal force (issue 18 item 2,
-  :mod:`amb_controller.predictive`), the configuration's defaults (horizon 20, 3 moves, move
-  weight 0.25, input weight 0.03);
+  :mod:`amb_controller.predictive`) with ``ControllerConfig``'s default horizon, moves and
+  weights;
 * ``harmonic_i1``: sampled-harmonic transient control (Keogh et al. 2002), same w, v, order;
 * ``synchronous_i1``: adaptive influence-coefficient control (Burrows & Sahinkaya 1983,
   Knospe et al. 1995), T identified by trial injections, gain a = 0.5, 2-period window;

@@ -90,7 +90,7 @@ def predictive_gain(
     horizon: int,
     moves: int,
     move_weight: float,
-    input_weight: float = 0.0,
+    input_weight: float,
 ) -> np.ndarray:
     """
     Return the gain ``K`` of (P4): ``u[k+i] = K [q[k]; u[k+i-1]; ..; u[k-M]]``.
@@ -197,7 +197,8 @@ class PredictiveController:
     delay : int
         Evaluation delay ``i`` >= 1, periods.
     horizon, moves, move_weight, input_weight
-        ``P``, ``C`` and the dimensionless weights of (P3) (:func:`predictive_gain`).
+        ``P``, ``C`` and the dimensionless weights of (P3) (:func:`predictive_gain`; their
+        defaults and ranges: :class:`~amb_controller.config.ControllerConfig`).
 
     Notes
     -----
@@ -214,10 +215,10 @@ class PredictiveController:
         self,
         markov: np.ndarray,
         delay: int,
-        horizon: int = 20,
-        moves: int = 1,
-        move_weight: float = 0.0,
-        input_weight: float = 0.0,
+        horizon: int,
+        moves: int,
+        move_weight: float,
+        input_weight: float,
     ) -> None:
         self.gain = predictive_gain(markov, delay, horizon, moves, move_weight, input_weight)
         self.delay = int(delay)

@@ -4,9 +4,10 @@ Benchmark: time to compute one wavelet control command, as a fraction of the per
 Cases: MIMO over 4 bearing axes and 8 sensor channels, even and odd quadrature, 1 level
 (p = 1: 16 measured / 8 control coefficients) and 3 levels (p = 1, 2, 3: 112 / 56),
 delay 2: the transient controller (eq. 8.10) with a truncated inverse of order 5 and 10, and
-the predictive controller (:mod:`amb_controller.predictive`, Markov order 12, horizon 20, 3
-moves). Timed: the controller's ``step`` alone and the full ``WaveletControlSupervisor.step``
-(controller + synthesis of the force samples + saturation). Reported: median and 99th
+the predictive controller (:mod:`amb_controller.predictive`, the Markov order, horizon, moves
+and weights of ``ControllerConfig``'s defaults). Timed: the controller's ``step`` alone and the
+full ``WaveletControlSupervisor.step`` (controller + synthesis of the force samples +
+saturation). Reported: median and 99th
 percentile over many periods, the median as a fraction of the control period at 11 Hz and
 67 Hz running speed (one revolution per period), and the p99 as a fraction at 67 Hz (issue
 18's target: <= 5 %).
@@ -22,6 +23,7 @@ import time
 import numpy as np
 
 from amb_controller.basis import control_basis
+from amb_controller.config import ControllerConfig
 from amb_controller.predictive import PredictiveController
 from amb_controller.response import PrescribedResponse
 from amb_controller.supervisor import Mode, WaveletControlSupervisor
@@ -29,8 +31,10 @@ from amb_controller.synthesis import ForceLimiter
 from amb_controller.transient import TransientController
 
 SPEEDS_HZ = (11.0, 67.0)
+#: the predictive law's settings: the configuration's defaults
+DEFAULT = ControllerConfig()
 #: Markov order M of the predictive cases (identification_order's default)
-PREDICTIVE_ORDER = 12
+PREDICTIVE_ORDER = DEFAULT.identification_order
 
 
 def _time_steps(step, measured: np.ndarray) -> np.ndarray:
@@ -72,7 +76,9 @@ def main() -> None:
             (
                 "predictive",
                 PREDICTIVE_ORDER,
-                lambda m=markov: PredictiveController(m, 2, 20, 3, 0.25, 0.03),
+                lambda m=markov: PredictiveController(
+                    m, 2, DEFAULT.horizon, DEFAULT.moves, DEFAULT.move_weight, DEFAULT.input_weight
+                ),
             )
         )
         for law, order, make in cases:

@@ -33,7 +33,7 @@ def test_the_loop_pole_on_a_first_order_fir_model_is_the_closed_form(horizon, g0
     pulls it in (mean-level control).
     """
     markov = np.array([g0, g1]).reshape(2, 1, 1)
-    controller = PredictiveController(markov, 1, horizon, 1, 0.0)
+    controller = PredictiveController(markov, 1, horizon, 1, 0.0, 0.0)
     big_g = g0 + g1
     expected = abs(g0 * g1 / (g0**2 + (horizon - 1) * big_g**2))
     assert own_model_radius(markov, controller) == pytest.approx(expected, rel=1e-9)
@@ -44,7 +44,7 @@ def test_a_static_plant_is_cancelled_deadbeat_after_the_delay(delay):
     """Static model ``g``, P = C = 1: ``u[k+i] = -d^[k] / g``. The command made at the end of
     period 0, the first to see a step ``d``, acts over period i: ``q = d`` for k < i, 0 after."""
     g, d = 3e-5, 2.0e-4
-    controller = PredictiveController(np.array([[[g]]]), delay, 1, 1, 0.0)
+    controller = PredictiveController(np.array([[[g]]]), delay, 1, 1, 0.0, 0.0)
     u = np.zeros(30)
     q = np.zeros(20)
     for k in range(20):
@@ -75,7 +75,7 @@ def test_it_is_offset_free_with_a_model_error(gain, phase):
     robust to 1.3 at -30 degrees (radius 1.006 on the true plant); the shorter horizon is."""
     model = _lightly_damped_model()
     plant = gain * np.einsum("ab,kbc->kac", _rotation(phase), model)
-    controller = PredictiveController(model, 1, 5, 1, 0.0)
+    controller = PredictiveController(model, 1, 5, 1, 0.0, 0.0)
     n = 120
     u = np.zeros((n + 2, 2))
     q = np.zeros((n, 2))
@@ -90,7 +90,7 @@ def test_it_is_offset_free_with_a_model_error(gain, phase):
 def test_its_realisation_gives_the_commands_of_its_steps():
     rng = np.random.default_rng(3)
     model = rng.normal(size=(4, 3, 2)) * 1e-5
-    controller = PredictiveController(model, 2, 8, 2, 0.1)
+    controller = PredictiveController(model, 2, 8, 2, 0.1, 0.05)
     ss = controller.state_space()
     q = rng.normal(size=(15, 3)) * 1e-4
     commands = np.zeros((17, 2))
@@ -104,21 +104,33 @@ def test_a_move_weight_slows_the_command():
     """``rho`` penalises the change of the command: the first move after a step is smaller."""
     markov = np.array([[[3e-5]]])
     first = [
-        PredictiveController(markov, 1, 1, 1, weight).step(0, np.array([1e-4])).coefficients[0]
+        PredictiveController(markov, 1, 1, 1, weight, 0.0).step(0, np.array([1e-4])).coefficients[0]
         for weight in (0.0, 1.0, 3.0)
     ]
     # (P3) with P = C = 1 on a static g: u = -g d / (g^2 + rho^2), rho = weight g
     np.testing.assert_allclose(first, [-1e-4 / 3e-5 / (1 + w**2) for w in (0, 1, 3)], rtol=1e-12)
 
 
+def test_the_input_weight_is_a_tikhonov_term_in_steady_state():
+    """Static ``g``, P = 3, C = 1, no move weight: the command held over the horizon minimises
+    ``3 ((g u + d)^2 + sigma^2 u^2)`` with ``sigma = input_weight g``, so ``u = -g d / (g^2 +
+    sigma^2)`` and the steady offset is ``d sigma^2 / (g^2 + sigma^2)``."""
+    g, d = 3e-5, 1e-4
+    for weight in (0.0, 0.03, 0.5):
+        step = PredictiveController(np.array([[[g]]]), 1, 3, 1, 0.0, weight).step(0, np.array([d]))
+        np.testing.assert_allclose(step.coefficients, [-d / g / (1 + weight**2)], rtol=1e-12)
+    with pytest.raises(ControllerValueError, match="input_weight"):
+        predictive_gain(np.ones((1, 1, 1)), 1, 2, 1, 0.0, -0.1)
+
+
 def test_bad_settings_are_refused_with_the_reason():
     markov = np.ones((2, 1, 1))
     with pytest.raises(ControllerValueError, match="moves"):
-        predictive_gain(markov, 1, 2, 3, 0.0)
+        predictive_gain(markov, 1, 2, 3, 0.0, 0.0)
     with pytest.raises(ControllerValueError, match="move_weight"):
-        predictive_gain(markov, 1, 2, 1, -1.0)
+        predictive_gain(markov, 1, 2, 1, -1.0, 0.0)
     with pytest.raises(ControllerValueError, match="no unique minimiser"):
-        predictive_gain(np.zeros((2, 1, 2)), 1, 4, 1, 0.0)
+        predictive_gain(np.zeros((2, 1, 2)), 1, 4, 1, 0.0, 0.0)
     with pytest.raises(ConfigError, match="moves"):
         ControllerConfig(controller="predictive", horizon=4, moves=5)
 
@@ -151,7 +163,7 @@ def test_a_saturated_command_does_not_wind_it_up():
     can act on cancels the rest exactly: no overshoot the held integrator would bring."""
     g, delay = 1e-5, 1
     sup = _supervised(delay, limit=50.0)
-    controller = PredictiveController(np.array([[[g]]]), delay, 1, 1, 0.0)
+    controller = PredictiveController(np.array([[[g]]]), delay, 1, 1, 0.0, 0.0)
     sup.set_controller(controller, own_model_radius(np.array([[[g]]]), controller))
     assert sup.set_mode(Mode.ACTIVE)[0]
     need = 3 * 50.0 * np.sqrt(16)  # coefficient (N sqrt(samples)) of 3 x the limit
@@ -169,7 +181,7 @@ def test_a_lost_command_is_not_mistaken_for_a_disturbance():
     estimate stays the true disturbance and the next periods are cancelled again."""
     g, delay = 1e-5, 2
     sup = _supervised(delay, limit=1000.0)
-    controller = PredictiveController(np.array([[[g]]]), delay, 1, 1, 0.0)
+    controller = PredictiveController(np.array([[[g]]]), delay, 1, 1, 0.0, 0.0)
     sup.set_controller(controller, own_model_radius(np.array([[[g]]]), controller))
     assert sup.set_mode(Mode.ACTIVE)[0]
     d = np.full(30, 40.0)
