@@ -160,10 +160,14 @@ class Command:
 
 @dataclass
 class _Step:
-    """A controller step, kept until its command is known to be applied (or not)."""
+    """A controller step, kept until its command is known to be applied (or not).
+
+    For a controller that ``tracks_applied``, ``measured`` and ``state_before`` are None: only
+    the fact that it ran (and must be told of a lost command) is kept.
+    """
 
     period: int
-    measured: np.ndarray
+    measured: np.ndarray | None
     state_before: object
     skipped: bool
 
@@ -473,16 +477,18 @@ class WaveletControlSupervisor:
                 if self.controller is not None:
                     self.reset_controller()
         result = None
-        saved = None
-        if self.mode in (Mode.ACTIVE, Mode.HOLD) and self.controller is not None:
-            saved = self.controller.get_state()
+        running = self.mode in (Mode.ACTIVE, Mode.HOLD) and self.controller is not None
+        tracks = running and self._tracks_applied()
+        # the state before the step, for the anti-windup hold and the replay of a lost command;
+        # a controller told the applied inputs needs neither (module docstring)
+        saved = self.controller.get_state() if running and not tracks else None
         if self.mode == Mode.IDENTIFYING:
             coefficients = self._identify(k, measured, target)
         elif self.mode == Mode.ACTIVE:
             coefficients = self.controller.step(k, measured).coefficients
             result = self.limiter.apply(coefficients)
             if result.saturated.any():
-                if not self._tracks_applied():
+                if not tracks:
                     self.controller.set_state(saved)  # anti-windup: hold the state
                     self.controller.skip(k)
                 hold = True
@@ -493,13 +499,15 @@ class WaveletControlSupervisor:
             coefficients = zeros if guard_tripped else self._hold_command()
         else:
             coefficients = zeros
-        if saved is not None and not guard_tripped:
+        if tracks and not guard_tripped:
+            self._steps[target] = _Step(k, None, None, hold)  # a marker: the controller ran
+        elif running and not guard_tripped:
             self._steps[target] = _Step(k, np.array(measured, dtype=float), saved, hold)
         else:
             self._steps.clear()  # the controller was reset or is not running
         if result is None:
             result = self.limiter.apply(coefficients)
-        if saved is not None and not guard_tripped and self._tracks_applied():
+        if tracks and not guard_tripped:
             self.controller.record_applied(target, result.coefficients)
         self._last = result.coefficients
         self._sent[target] = result.coefficients
