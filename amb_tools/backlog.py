@@ -25,8 +25,9 @@ per late sample.
   less the DDS source timestamp (the writer's wall clock at the publish, ``rmw_message_info``)
   less the stream's smallest transport time (its latency and any offset between the two clocks:
   a writer on another computer needs only clocks that do not drift apart; ``max_backlog_by_age:
-  false`` leaves the queue rule alone), in units of the writer's own spacing of the source
-  timestamps, whatever the reader's delays (:class:`MessageAge`). Simulated time and the plant's
+  false`` leaves the queue rule alone), in units of the writer's mean interval between
+  publishes (source timestamps over DDS publication sequence numbers), whatever the reader's
+  delays (:class:`MessageAge`). Simulated time and the plant's
   ``time_scale`` play no part.
 
 The newest message of a wake is never dropped: however old, it is the newest the reader has, and
@@ -44,10 +45,9 @@ coefficients are handed over in-process, never queued.
 
 from __future__ import annotations
 
-import itertools
 import math
-import statistics
 import time
+from collections import deque
 from collections.abc import Callable
 from typing import NamedTuple
 
@@ -178,6 +178,7 @@ class BacklogReader:
         self._msg_type = msg_type
         self.max_backlog = int(max_backlog)
         self.dropped = self.dropped_old = self.episodes = 0
+        self._received = 0  # messages taken, for a middleware without sequence numbers
         self._age = MessageAge(max_backlog) if max_backlog and catch_up.by_age else None
         self._warnings = ThrottledWarnings(node.get_logger(), period=5.0)
         # without a bound each message goes straight to ``deliver``: no extra call per message
@@ -190,16 +191,22 @@ class BacklogReader:
         batch = [raw]
         sent: list[int] = []
         received: list[int] = []
+        sequence: list[int] = []
         sub = self.subscription
         with sub.handle:  # as rclpy's executors take: every message queued now
             while (taken := sub.handle.take_message(self._msg_type, True)) is not None:
                 batch.append(taken[0])
-                sent.append(taken[1]["source_timestamp"])
-                received.append(taken[1]["received_timestamp"])
+                info = taken[1]
+                sent.append(info["source_timestamp"])
+                received.append(info["received_timestamp"])
+                sequence.append(info.get("publication_sequence_number") or 0)
+        self._received += len(batch)
         queued = max(len(batch) - self.max_backlog, 0)
         old = 0
         if self._age is not None:
-            old = self._age.old(sent, time.time_ns(), received)
+            if not all(sequence):  # no numbers from this middleware: count what came instead
+                sequence = list(range(self._received - len(sent), self._received))
+            old = self._age.old(sent, time.time_ns(), received, sequence)
             old += old > 0  # the executor's message is older than the first one taken here
         excess = min(max(queued, old), len(batch) - 1)  # the newest stays (module docstring)
         if excess > 0:
@@ -234,22 +241,27 @@ class MessageAge:
     stream, the reader's DDS reception stamp less the source timestamp (the transport's latency
     and any offset between the two clocks; a message that waited in the reader's queue, or in
     the writer's for a stopped reader, still shows it when it was received before the wait, so
-    that the floor is known from the first wake that finds two messages). The interval is the
-    writer's spacing of the source timestamps within a run: the median of the first
-    :attr:`WARMUP` spacings (or ``max_backlog``, if fewer), then a running mean over about
-    ``max_backlog`` spacings of each clipped to half and twice the estimate, so that a gap
-    (messages the writer lost) or a burst (a writer catching up) moves it by at most
-    ``1 / max_backlog`` while a speed change is followed within a few ``max_backlog`` spacings.
-    Until the first spacings are in, no message is old.
+    that the floor is known from the first wake that finds two messages).
+
+    The interval is the writer's mean spacing of its publishes over a span of at least
+    ``max_backlog`` of them: the source timestamps of two messages divided by the difference of
+    their publication sequence numbers (DDS numbers every message a writer publishes), so that
+    neither a burst (a realtime plant whose timer fired late releases several samples within
+    microseconds) nor messages the reader never received (a stalled reader whose queue
+    overflowed) bias it. Spacings measured between the messages a reader happens to take
+    together do not do: those runs are the bursts, and in the overload test they put the bound
+    at 2-42 ms instead of 182 ms, dropping fresh samples (``docs/history.md``, "Catch-up by
+    age"). The span ends at the newest message and starts at the newest earlier message at
+    least ``max_backlog`` publishes before it, so a speed change is followed within about
+    ``max_backlog`` publishes. Until a span of :attr:`WARMUP` publishes is seen, no message is
+    old. A sequence number that does not increase (a restarted writer) starts the estimate
+    afresh.
 
     A run is the messages a reader takes at one wake after the executor's own
-    (:class:`BacklogReader`): the executor's message comes without its timestamp, so a reader
+    (:class:`BacklogReader`): the executor's message comes without its message info, so a reader
     that keeps up (one message per wake) gives none, and the floor and the interval come from
     the wakes that found two or more queued; until then a reader drops by the queue rule alone.
-    The warm-up is short (:attr:`WARMUP`, not ``max_backlog``) because an idle reader has few such
-    wakes before a stall, and without the estimate it works through the stall's stale samples
-    (``docs/history.md``, "Catch-up by age"). ROS-free, so that the rule is tested on its own
-    (``test/reliability/test_backlog_age.py``).
+    ROS-free, so that the rule is tested on its own (``test/reliability/test_backlog_age.py``).
 
     Parameters
     ----------
@@ -257,14 +269,14 @@ class MessageAge:
         Bound, in messages (>= 1).
     """
 
-    #: Spacings whose median starts the interval estimate.
+    #: Publishes a span must cover before the interval is estimated.
     WARMUP = 16
 
     def __init__(self, max_backlog: int) -> None:
         if max_backlog < 1:
             raise ValueError(f"max_backlog = {max_backlog}: must be >= 1")
         self.max_backlog = int(max_backlog)
-        self._first: list[int] = []  # the spacings before the estimate exists, ns
+        self._anchors: deque[tuple[int, int]] = deque()  # (sequence number, source stamp ns)
         self._interval: float | None = None  # ns
         self._floor: int | None = None
 
@@ -278,17 +290,29 @@ class MessageAge:
         """The age bound, ``max_backlog`` intervals, s (inf until the interval is known)."""
         return math.inf if self._interval is None else self.max_backlog * self._interval * 1e-9
 
-    def _spacing(self, d: int) -> None:
-        if self._interval is None:
-            self._first.append(d)
-            if len(self._first) >= min(self.max_backlog, self.WARMUP):
-                self._interval = float(statistics.median(self._first))
-                self._first = []
-            return
-        i = self._interval
-        self._interval = i + (min(max(d, 0.5 * i), 2.0 * i) - i) / self.max_backlog
+    def _estimate(self, sequence: list[int], sent: list[int]) -> None:
+        anchors = self._anchors
+        if anchors and sequence[0] <= anchors[-1][0]:
+            anchors.clear()  # a new writer (or a restarted one): its own rate
+            self._interval = None
+        anchors.append((sequence[0], sent[0]))
+        newest = (sequence[-1], sent[-1])
+        # the newest anchor at least max_backlog publishes back starts the span
+        while len(anchors) > 1 and newest[0] - anchors[1][0] >= self.max_backlog:
+            anchors.popleft()
+        n, t = anchors[0]
+        if newest[0] - n >= min(self.WARMUP, self.max_backlog) and newest[1] > t:
+            self._interval = (newest[1] - t) / (newest[0] - n)
+        if newest[0] != sequence[0]:
+            anchors.append(newest)
 
-    def old(self, sent: list[int], now: int, received: list[int] | None = None) -> int:
+    def old(
+        self,
+        sent: list[int],
+        now: int,
+        received: list[int] | None = None,
+        sequence: list[int] | None = None,
+    ) -> int:
         """
         Record a run of consecutive messages and return how many of its first are too old.
 
@@ -301,6 +325,10 @@ class MessageAge:
         received : list of int, optional
             The reader's DDS reception stamps of the run, ns (wall clock); None: each taken on
             arrival (``now``).
+        sequence : list of int, optional
+            The writer's publication sequence numbers of the run; None: the run's messages
+            follow each other and the previous run's last (:class:`BacklogReader` counts the
+            messages it received when the middleware gives no numbers).
 
         Returns
         -------
@@ -309,9 +337,10 @@ class MessageAge:
         """
         if not sent:
             return 0
-        for earlier, later in itertools.pairwise(sent):
-            if later > earlier:
-                self._spacing(later - earlier)
+        if sequence is None:
+            first = self._anchors[-1][0] + 1 if self._anchors else 0
+            sequence = list(range(first, first + len(sent)))
+        self._estimate(sequence, sent)
         if received is None:
             floor = now - sent[-1]
         else:
