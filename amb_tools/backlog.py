@@ -243,19 +243,22 @@ class MessageAge:
     the writer's for a stopped reader, still shows it when it was received before the wait, so
     that the floor is known from the first wake that finds two messages).
 
-    The interval is the writer's mean spacing of its publishes over a span of at least
-    ``max_backlog`` of them: the source timestamps of two messages divided by the difference of
-    their publication sequence numbers (DDS numbers every message a writer publishes), so that
-    neither a burst (a realtime plant whose timer fired late releases several samples within
-    microseconds) nor messages the reader never received (a stalled reader whose queue
-    overflowed) bias it. Spacings measured between the messages a reader happens to take
-    together do not do: those runs are the bursts, and in the overload test they put the bound
-    at 2-42 ms instead of 182 ms, dropping fresh samples (``docs/history.md``, "Catch-up by
-    age"). The span ends at the newest message and starts at the newest earlier message at
-    least ``max_backlog`` publishes before it, so a speed change is followed within about
-    ``max_backlog`` publishes. Until a span of :attr:`WARMUP` publishes is seen, no message is
-    old. A sequence number that does not increase (a restarted writer) starts the estimate
-    afresh.
+    The interval is the writer's mean spacing of its publishes over spans of at least
+    ``max_backlog`` of them: the source timestamps of a span's two ends divided by the
+    difference of their publication sequence numbers (DDS numbers every message a writer
+    publishes), so that neither a burst (a realtime plant whose timer fired late releases
+    several samples within microseconds) nor messages the reader never received (a stalled
+    reader whose queue overflowed) bias it. Spacings measured between the messages a reader
+    happens to take together do not do: those runs are the bursts, and in the overload test
+    they put the bound at 2-42 ms instead of 182 ms, dropping fresh samples
+    (``docs/history.md``, "Catch-up by age"). The spans follow each other (each starts where the
+    last ended) and the interval is the median of the last :attr:`SPANS`, so that neither a span
+    over a pause of the writer (a filterbank stopped with its reader: its coefficients stop, the
+    clock goes on) stretches the bound nor one over the realtime plant's start-up burst (up to
+    ~100 samples at once; one such span gave a bound of 65 ms instead of 182 ms) shrinks it,
+    and a speed change is followed within three spans. Until :attr:`SPANS` spans are complete
+    no message is old. A sequence number that does not increase (a restarted writer) starts the
+    estimate afresh.
 
     A run is the messages a reader takes at one wake after the executor's own
     (:class:`BacklogReader`): the executor's message comes without its message info, so a reader
@@ -269,16 +272,18 @@ class MessageAge:
         Bound, in messages (>= 1).
     """
 
-    #: Publishes a span must cover before the interval is estimated.
-    WARMUP = 16
+    #: Spans whose median is the interval.
+    SPANS = 3
 
     def __init__(self, max_backlog: int) -> None:
         if max_backlog < 1:
             raise ValueError(f"max_backlog = {max_backlog}: must be >= 1")
         self.max_backlog = int(max_backlog)
-        self._anchors: deque[tuple[int, int]] = deque()  # (sequence number, source stamp ns)
+        self._span_start: tuple[int, int] | None = None  # (sequence number, source stamp ns)
+        self._spans: deque[float] = deque(maxlen=self.SPANS)  # mean spacings, ns
         self._interval: float | None = None  # ns
         self._floor: int | None = None
+        self._last_sequence = -1
 
     @property
     def interval_s(self) -> float:
@@ -291,20 +296,19 @@ class MessageAge:
         return math.inf if self._interval is None else self.max_backlog * self._interval * 1e-9
 
     def _estimate(self, sequence: list[int], sent: list[int]) -> None:
-        anchors = self._anchors
-        if anchors and sequence[0] <= anchors[-1][0]:
-            anchors.clear()  # a new writer (or a restarted one): its own rate
-            self._interval = None
-        anchors.append((sequence[0], sent[0]))
-        newest = (sequence[-1], sent[-1])
-        # the newest anchor at least max_backlog publishes back starts the span
-        while len(anchors) > 1 and newest[0] - anchors[1][0] >= self.max_backlog:
-            anchors.popleft()
-        n, t = anchors[0]
-        if newest[0] - n >= min(self.WARMUP, self.max_backlog) and newest[1] > t:
-            self._interval = (newest[1] - t) / (newest[0] - n)
-        if newest[0] != sequence[0]:
-            anchors.append(newest)
+        for point in ((sequence[0], sent[0]), (sequence[-1], sent[-1])):
+            start = self._span_start
+            if start is not None and point[0] < start[0]:
+                self._spans.clear()  # a new writer (or a restarted one): its own rate
+                self._interval = None
+                start = None
+            if start is None:
+                self._span_start = point
+            elif point[0] - start[0] >= self.max_backlog and point[1] > start[1]:
+                self._spans.append((point[1] - start[1]) / (point[0] - start[0]))
+                self._span_start = point
+                if len(self._spans) == self.SPANS:
+                    self._interval = sorted(self._spans)[self.SPANS // 2]
 
     def old(
         self,
@@ -338,8 +342,9 @@ class MessageAge:
         if not sent:
             return 0
         if sequence is None:
-            first = self._anchors[-1][0] + 1 if self._anchors else 0
+            first = self._last_sequence + 1
             sequence = list(range(first, first + len(sent)))
+        self._last_sequence = sequence[-1]
         self._estimate(sequence, sent)
         if received is None:
             floor = now - sent[-1]

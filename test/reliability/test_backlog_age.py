@@ -62,23 +62,40 @@ def test_a_run_is_old_up_to_its_last_message_beyond_the_bound() -> None:
     assert age.old(sent, now) == 700 - BOUND - 500
 
 
-def test_no_age_bound_before_a_span_of_warmup_publishes() -> None:
+def test_no_age_bound_before_three_spans_of_max_backlog_publishes() -> None:
     age = MessageAge(BOUND)
-    warmup = MessageAge.WARMUP
+    spans = MessageAge.SPANS
     assert age.old([], 10**12) == 0  # the executor's message alone: nothing known
     assert age.old([0], 10**12, sequence=[0]) == 0  # one message: no spacing yet
-    # runs of two taken on time: the span reaches warmup - 2 publishes, not yet
-    for first in range(2, warmup - 2, 3):
+    # runs of two taken on time: the spans reach 3 BOUND - 2 publishes, not yet
+    for first in range(2, spans * BOUND - 2, 3):
         run = [first * DT, (first + 1) * DT]
         assert age.old(run, run[-1] + LATENCY, sequence=[first, first + 1]) == 0
     assert age.limit_s == float("inf")
-    # one 1 s late, its span warmup - 1 publishes: not yet
-    late = [(warmup - 2) * DT, (warmup - 1) * DT]
-    assert age.old(late, late[-1] + 10**9, sequence=[warmup - 2, warmup - 1]) == 0
-    # the run that brings the span to warmup publishes is judged with the new estimate
-    late = [warmup * DT, (warmup + 1) * DT]
-    assert age.old(late, late[-1] + 10**9, sequence=[warmup, warmup + 1]) == 2
+    # one 1 s late, ending at 3 BOUND - 1 publishes: not yet
+    last = spans * BOUND - 1
+    late = [(last - 1) * DT, last * DT]
+    assert age.old(late, late[-1] + 10**9, sequence=[last - 1, last]) == 0
+    # the run that completes the third span is judged with the new estimate
+    late = [(last + 1) * DT, (last + 2) * DT]
+    assert age.old(late, late[-1] + 10**9, sequence=[last + 1, last + 2]) == 2
     assert age.limit_s == pytest.approx(BOUND * DT * 1e-9, rel=1e-12)
+
+
+def test_a_start_up_burst_does_not_shrink_the_bound() -> None:
+    """The realtime plant starts late and releases its first 100 samples at once, then one per
+    DT: the span holding the burst is short (29 DT over 128 publishes), the median of three is
+    not."""
+    age = MessageAge(BOUND)
+    burst = 100
+    sent = [(burst - 1) * DT + k * 1_000 for k in range(burst)]  # at 99 DT, 1 us apart
+    age.old(sent, sent[-1] + LATENCY, sequence=list(range(burst)))
+    for k in range(burst, burst + 4 * BOUND, 2):
+        run = [k * DT, (k + 1) * DT]
+        assert age.old(run, run[-1] + LATENCY, sequence=[k, k + 1]) == 0
+        known = age.interval_s == age.interval_s  # not nan: three spans are complete
+        assert not known or age.interval_s == pytest.approx(DT * 1e-9, rel=1e-12), k
+    assert known
 
 
 def test_a_writer_publishing_in_bursts_is_measured_at_its_mean_rate() -> None:
@@ -117,12 +134,24 @@ def test_a_restarted_writer_is_estimated_afresh() -> None:
     assert age.limit_s == float("inf")
 
 
-def test_a_speed_change_is_followed_within_two_bounds() -> None:
-    """The writer's rate doubles (a run-up): after 2 BOUND publishes at the new rate the span
-    holds only those, and the interval is the new one."""
+def test_a_pause_of_the_writer_does_not_stretch_the_bound() -> None:
+    """The writer stops for 1 s (a filterbank stopped with its reader): one span holds the
+    pause, the median of the last three does not."""
     age = MessageAge(BOUND)
     _pairs(age, 250)  # messages 0..499 at DT
-    assert _pairs(age, BOUND, start=1000, dt=DT // 2) == 0
+    pause = 1_000_000_000
+    for k in range(500, 500 + 2 * BOUND, 2):
+        sent = [k * DT + pause, (k + 1) * DT + pause]
+        assert age.old(sent, sent[-1] + LATENCY) == 0
+        assert age.interval_s == pytest.approx(DT * 1e-9, rel=1e-12)
+
+
+def test_a_speed_change_is_followed_within_three_spans() -> None:
+    """The writer's rate doubles (a run-up): after 3 spans at the new rate, two of the last
+    three spans hold only it, and the interval is the new one."""
+    age = MessageAge(BOUND)
+    _pairs(age, 250)  # messages 0..499 at DT
+    assert _pairs(age, 3 * BOUND // 2, start=1000, dt=DT // 2) == 0
     assert age.interval_s == pytest.approx(DT / 2 * 1e-9, rel=1e-12)
 
 
