@@ -31,6 +31,7 @@ __all__ = [
     "MEASUREMENT",
     "PREFIX",
     "ROOT_NAMESPACE",
+    "SAMPLES_PER_COEFFICIENT_MESSAGE",
     "SET_MODE",
     "START_IDENTIFICATION",
     "STATUS",
@@ -52,6 +53,9 @@ PREFIX = "amb/"
 MEASUREMENT = "amb/measurement"
 #: The filterbank's wavelet coefficients of the measurement stream.
 COEFFICIENTS = "amb/wavelet/coefficients"
+#: Samples per coefficient message: the filterbank publishes when its finest level (decimated by
+#: two) completes a coefficient, every second sample (thesis section 4.3).
+SAMPLES_PER_COEFFICIENT_MESSAGE = 2
 #: The controller's wavelet force for one control period.
 COMMAND = "amb/control/command"
 #: The controller's state, once a period.

@@ -168,7 +168,7 @@ class WaveletControllerNode(Node):
             ),
             stream_subscription(
                 self, bus, WaveletCoefficients, topics.COEFFICIENTS, self._on_coefficients, qos,
-                backlog,
+                backlog.per_message(topics.SAMPLES_PER_COEFFICIENT_MESSAGE),
             ),
         )  # fmt: skip
         self.create_subscription(FaultEvent, topics.FAULT_EVENTS, self._on_fault, 10)

@@ -210,7 +210,7 @@ class FaultMonitorNode(Node):
         self._readers = (
             stream_subscription(
                 self, bus, WaveletCoefficients, topics.COEFFICIENTS, self._on_coefficients, qos,
-                backlog,
+                backlog.per_message(topics.SAMPLES_PER_COEFFICIENT_MESSAGE),
             ),
             stream_subscription(
                 self, bus, Measurement, topics.MEASUREMENT, self._on_measurement, qos, backlog

@@ -12,7 +12,8 @@ from __future__ import annotations
 
 import pytest
 
-from amb_tools.backlog import MessageAge
+from amb_common.topics import SAMPLES_PER_COEFFICIENT_MESSAGE
+from amb_tools.backlog import NO_CATCH_UP, CatchUp, MessageAge
 
 DT = 1_000_000  # ns between publishes (1 kHz)
 LATENCY = 200_000  # ns from publish to take when the reader keeps up
@@ -62,40 +63,39 @@ def test_a_run_is_old_up_to_its_last_message_beyond_the_bound() -> None:
     assert age.old(sent, now) == 700 - BOUND - 500
 
 
-def test_no_age_bound_before_three_spans_of_max_backlog_publishes() -> None:
+def test_no_age_bound_before_a_span_of_max_backlog_publishes() -> None:
     age = MessageAge(BOUND)
-    spans = MessageAge.SPANS
     assert age.old([], 10**12) == 0  # the executor's message alone: nothing known
     assert age.old([0], 10**12, sequence=[0]) == 0  # one message: no spacing yet
-    # runs of two taken on time: the spans reach 3 BOUND - 2 publishes, not yet
-    for first in range(2, spans * BOUND - 2, 3):
+    # runs of two taken on time: the span reaches BOUND - 2 publishes, not yet
+    for first in range(2, BOUND - 2, 3):
         run = [first * DT, (first + 1) * DT]
         assert age.old(run, run[-1] + LATENCY, sequence=[first, first + 1]) == 0
     assert age.limit_s == float("inf")
-    # one 1 s late, ending at 3 BOUND - 1 publishes: not yet
-    last = spans * BOUND - 1
-    late = [(last - 1) * DT, last * DT]
-    assert age.old(late, late[-1] + 10**9, sequence=[last - 1, last]) == 0
-    # the run that completes the third span is judged with the new estimate
-    late = [(last + 1) * DT, (last + 2) * DT]
-    assert age.old(late, late[-1] + 10**9, sequence=[last + 1, last + 2]) == 2
+    # one 1 s late, its span BOUND - 1 publishes: not yet
+    late = [(BOUND - 2) * DT, (BOUND - 1) * DT]
+    assert age.old(late, late[-1] + 10**9, sequence=[BOUND - 2, BOUND - 1]) == 0
+    # the run that completes the first span is judged with the new estimate
+    late = [BOUND * DT, (BOUND + 1) * DT]
+    assert age.old(late, late[-1] + 10**9, sequence=[BOUND, BOUND + 1]) == 2
     assert age.limit_s == pytest.approx(BOUND * DT * 1e-9, rel=1e-12)
 
 
-def test_a_start_up_burst_does_not_shrink_the_bound() -> None:
+def test_a_start_up_burst_shrinks_the_bound_only_until_the_second_span() -> None:
     """The realtime plant starts late and releases its first 100 samples at once, then one per
-    DT: the span holding the burst is short (29 DT over 128 publishes), the median of three is
-    not."""
+    DT: the span holding the burst is short (29 DT over 128 publishes); the larger of two spans,
+    then the median of three, are not."""
     age = MessageAge(BOUND)
     burst = 100
     sent = [(burst - 1) * DT + k * 1_000 for k in range(burst)]  # at 99 DT, 1 us apart
     age.old(sent, sent[-1] + LATENCY, sequence=list(range(burst)))
-    for k in range(burst, burst + 4 * BOUND, 2):
+    for k in range(burst, burst + 6 * BOUND, 2):
         run = [k * DT, (k + 1) * DT]
         assert age.old(run, run[-1] + LATENCY, sequence=[k, k + 1]) == 0
-        known = age.interval_s == age.interval_s  # not nan: three spans are complete
-        assert not known or age.interval_s == pytest.approx(DT * 1e-9, rel=1e-12), k
-    assert known
+        if k == BOUND:  # the first span, over the burst
+            assert age.interval_s == pytest.approx((BOUND - burst + 1) / BOUND * DT * 1e-9)
+        if k >= 2 * BOUND:  # two spans and more
+            assert age.interval_s == pytest.approx(DT * 1e-9, rel=1e-12), k
 
 
 def test_a_writer_publishing_in_bursts_is_measured_at_its_mean_rate() -> None:
@@ -158,3 +158,12 @@ def test_a_speed_change_is_followed_within_three_spans() -> None:
 def test_a_bound_below_one_is_refused() -> None:
     with pytest.raises(ValueError, match="max_backlog = 0"):
         MessageAge(0)
+
+
+def test_a_coefficient_reader_is_bounded_by_the_same_time_behind() -> None:
+    """One coefficient message per two samples: half as many messages, the same samples."""
+    assert CatchUp(128).per_message(SAMPLES_PER_COEFFICIENT_MESSAGE) == CatchUp(64)
+    assert CatchUp(1, by_age=False).per_message(2) == CatchUp(1, by_age=False)  # at least 1
+    assert NO_CATCH_UP.per_message(2) == NO_CATCH_UP  # lockstep keeps every message
+    with pytest.raises(ValueError, match="samples per message = 0"):
+        CatchUp(128).per_message(0)
