@@ -229,7 +229,7 @@ class BacklogReader:
         if self._age is not None:
             if not all(sequence):  # no numbers from this middleware: count what came instead
                 sequence = list(range(self._received - len(sent), self._received))
-            old = self._age.old(sent, time.time_ns(), received, sequence)
+            old = self._age.old(sent, time.time_ns(), received, sequence=sequence)
             old += old > 0  # the executor's message is older than the first one taken here
         excess = min(max(queued, old), len(batch) - 1)  # the newest stays (module docstring)
         if excess > 0:
@@ -309,7 +309,6 @@ class MessageAge:
         self._spans: deque[float] = deque(maxlen=self.SPANS)  # mean spacings, ns
         self._interval: float | None = None  # ns
         self._floor: int | None = None
-        self._last_sequence = -1
 
     @property
     def interval_s(self) -> float:
@@ -342,7 +341,8 @@ class MessageAge:
         sent: list[int],
         now: int,
         received: list[int] | None = None,
-        sequence: list[int] | None = None,
+        *,
+        sequence: list[int],
     ) -> int:
         """
         Record a run of consecutive messages and return how many of its first are too old.
@@ -356,10 +356,9 @@ class MessageAge:
         received : list of int, optional
             The reader's DDS reception stamps of the run, ns (wall clock); None: each taken on
             arrival (``now``).
-        sequence : list of int, optional
-            The writer's publication sequence numbers of the run; None: the run's messages
-            follow each other and the previous run's last (:class:`BacklogReader` counts the
-            messages it received when the middleware gives no numbers).
+        sequence : list of int
+            The writer's publication sequence numbers of the run (:class:`BacklogReader` counts
+            the messages it received when the middleware gives no numbers).
 
         Returns
         -------
@@ -368,10 +367,6 @@ class MessageAge:
         """
         if not sent:
             return 0
-        if sequence is None:
-            first = self._last_sequence + 1
-            sequence = list(range(first, first + len(sent)))
-        self._last_sequence = sequence[-1]
         self._estimate(sequence, sent)
         if received is None:
             floor = now - sent[-1]

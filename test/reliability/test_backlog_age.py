@@ -21,12 +21,12 @@ BOUND = 128  # messages
 
 
 def _pairs(age: MessageAge, count: int, offset: int = 0, start: int = 0, dt: int = DT) -> int:
-    """Feed ``count`` runs of two consecutive messages taken as the second arrives (the writer's
-    sequence numbers implied: each run follows the previous one)."""
+    """Feed ``count`` runs of two consecutive messages taken as the second arrives (message k is
+    the writer's k-th publish)."""
     old = 0
     for k in range(start, start + 2 * count, 2):
         sent = [k * dt, (k + 1) * dt]
-        old += age.old(sent, sent[-1] + LATENCY + offset)
+        old += age.old(sent, sent[-1] + LATENCY + offset, sequence=[k, k + 1])
     return old
 
 
@@ -47,7 +47,7 @@ def test_a_trickle_after_a_stall_is_dropped_up_to_the_bound(offset: int) -> None
     for j, first in enumerate(range(500, 1600, 10)):
         sent = [k * DT for k in range(first, first + 10)]
         now = released + j * 1_000_000 + LATENCY  # one run of 10 per ms: it catches up
-        got.append(age.old(sent, now + offset))
+        got.append(age.old(sent, now + offset, sequence=list(range(first, first + 10))))
         # ages less the floor (LATENCY): now - LATENCY - k DT; old while > BOUND DT
         expected.append(sum(now - LATENCY - t > BOUND * DT for t in sent))
     assert got == expected
@@ -60,12 +60,12 @@ def test_a_run_is_old_up_to_its_last_message_beyond_the_bound() -> None:
     now = 700 * DT + LATENCY  # the reader wakes late with messages 500..699 queued
     sent = [k * DT for k in range(500, 700)]
     # ages less the floor (LATENCY): (700 - k) DT; old when > BOUND DT, i.e. k < 700 - BOUND
-    assert age.old(sent, now) == 700 - BOUND - 500
+    assert age.old(sent, now, sequence=list(range(500, 700))) == 700 - BOUND - 500
 
 
 def test_no_age_bound_before_a_span_of_max_backlog_publishes() -> None:
     age = MessageAge(BOUND)
-    assert age.old([], 10**12) == 0  # the executor's message alone: nothing known
+    assert age.old([], 10**12, sequence=[]) == 0  # the executor's message alone: nothing known
     assert age.old([0], 10**12, sequence=[0]) == 0  # one message: no spacing yet
     # runs of two taken on time: the span reaches BOUND - 2 publishes, not yet
     for first in range(2, BOUND - 2, 3):
@@ -142,7 +142,7 @@ def test_a_pause_of_the_writer_does_not_stretch_the_bound() -> None:
     pause = 1_000_000_000
     for k in range(500, 500 + 2 * BOUND, 2):
         sent = [k * DT + pause, (k + 1) * DT + pause]
-        assert age.old(sent, sent[-1] + LATENCY) == 0
+        assert age.old(sent, sent[-1] + LATENCY, sequence=[k, k + 1]) == 0
         assert age.interval_s == pytest.approx(DT * 1e-9, rel=1e-12)
 
 
