@@ -11,7 +11,16 @@ inconsistent or constant signal of one transducer. The rules, in order:
 
 1. ``SENSOR_FAULT``: one channel carries at least ``isolation`` of the fixed-frame change
    energy (each channel's change normalised by its plane threshold), i.e. it disagrees with
-   its plane partner and with the other planes while the rotor is not disturbed.
+   its plane partner and with the other planes while the rotor is not disturbed; or it
+   carries that share at the finest level monitored alone. The second test is for the probes
+   the bearings' PID closes its loop on (planes 2 and 3): there the loop turns the probe's
+   error into bearing force, so the rotor really moves and its response spreads the change
+   over every channel at and below 1 x. The rotor's mass filters that response as ``1 /
+   omega**2``, so at the finest level (8-16 x running speed at 32 samples per revolution) the
+   error of the probe itself still dominates, while a contact, the other local fault, moves
+   the rotor and so the neighbouring planes and the partner axis with it (the finest-level
+   shares measured on the suite: ``docs/fault_monitor_notes.md``, "Sensor faults inside the
+   PID loop").
 2. ``BASE_MOTION``: fixed-frame levels below 1 x cross on at least 3 of the 4 planes, the
    changes there are coherent across the planes (``low_coherence >= base_coherence``) and
    their largest value (m) is at least ``base_dominance`` times the larger of the lasting
@@ -92,6 +101,8 @@ class EpisodeEvidence:
     channel_energy : numpy.ndarray
         (8,) sum of squared fixed-frame changes over crossing coefficients, each normalised by
         its plane threshold.
+    fine_energy : numpy.ndarray
+        (8,) the same at the finest level monitored alone (rule 1's second test).
     sync_ratio : numpy.ndarray
         (4,) synchronous phasor change / threshold per plane (smaller of the two latest
         revolutions).
@@ -119,6 +130,7 @@ class EpisodeEvidence:
     low_coherence: float = 0.0
     low_peak: float = 0.0
     high_peak: float = 0.0
+    fine_energy: np.ndarray = field(default_factory=lambda: np.zeros(8))
 
     def peak(self, frame: str, which: str) -> np.ndarray:
         """Largest ratio per plane over levels ``above`` / ``below`` / ``at`` 1 x in ``frame``."""
@@ -165,6 +177,25 @@ def _confidence(ratio: float) -> float:
     return float(min(max(1.0 - math.exp(-(ratio - 1.0)), 0.0), 1.0))
 
 
+def _isolated_channel(
+    energy: np.ndarray, prefix: str, evidence: dict[str, Any]
+) -> tuple[int, float, float]:
+    """
+    The channel with the largest share of ``energy`` (8,): ``(channel, share, its energy)``.
+
+    ``(-1, 0, 0)`` when there is none; the channel and share go to ``evidence`` under
+    ``{prefix}largest_channel`` and ``{prefix}largest_channel_share``.
+    """
+    total = float(energy.sum())
+    if total <= 0:
+        return -1, 0.0, 0.0
+    ch = int(np.argmax(energy))
+    share = float(energy[ch] / total)
+    evidence[f"{prefix}largest_channel"] = ch
+    evidence[f"{prefix}largest_channel_share"] = share
+    return ch, share, float(energy[ch])
+
+
 def _levels_crossed(ev: EpisodeEvidence, frame: str) -> list[int]:
     return sorted({j for (j, f), r in ev.max_ratio.items() if f == frame and r.max() > 1.0})
 
@@ -202,25 +233,25 @@ def classify(ev: EpisodeEvidence, config: ClassifierThresholds) -> Decision:
         "low_peak_m": float(ev.low_peak),
         "high_peak_m": float(ev.high_peak),
     }
-    energy = ev.channel_energy
-    total = float(energy.sum())
-    if total > 0:
-        ch = int(np.argmax(energy))
-        share = float(energy[ch] / total)
-        base["largest_channel"] = ch
-        base["largest_channel_share"] = share
-        if share >= config.isolation:
+    isolated = _isolated_channel(ev.channel_energy, "", base)
+    fine = _isolated_channel(ev.fine_energy, "finest_level_", base)
+    for (ch, share, energy), where in ((isolated, "the"), (fine, "the finest-level")):
+        if ch >= 0 and share >= config.isolation:
             plane = ch // 2 + 1
             return Decision(
                 FaultType.SENSOR_FAULT,
                 plane=plane,
                 channel=ch,
-                severity=float(math.sqrt(energy[ch])),
+                severity=float(math.sqrt(energy)),
                 confidence=share,
-                evidence={**base, "rule": "one channel inconsistent with its partner and planes"},
+                evidence={
+                    **base,
+                    "rule": f"one channel inconsistent with its partner and planes ({where} "
+                    "fixed-frame change)",
+                },
                 description=(
                     f"sensor channel {ch} (plane {plane} {'xy'[ch % 2]}) carries {share:.0%} of "
-                    "the fixed-frame change: a transducer fault, the rotor is not disturbed"
+                    f"{where} fixed-frame change: a transducer fault"
                 ),
             )
     n_low_planes = int(np.count_nonzero(below_fixed > 1.0))

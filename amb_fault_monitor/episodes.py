@@ -3,12 +3,12 @@ The evidence of one episode, from its first crossing to its decision and tail.
 
 An :class:`Episode` collects what the classifier (:mod:`amb_fault_monitor.classifier`)
 needs: the largest ratio per (level, frame) and plane, the crossings (for the onset,
-:func:`amb_fault_monitor.onset.estimate_onset`), the fixed-frame change energy per channel
-(rule 1, sensor fault), the plane coherence and size of the fixed-frame changes below 1 x and
-the largest change above 1 x (rule 2, base motion), and the bursts of crossings above 1 x
-(rule 4, the contact count). It is confirmed (``alarm``) on a strong crossing or on crossings
-of several features, and carries the contact bursts of its ring-down
-(:class:`amb_fault_monitor.bursts.ContactBursts`).
+:func:`amb_fault_monitor.onset.estimate_onset`), the fixed-frame change energy per channel,
+over all levels and at the finest level alone (rule 1, sensor fault), the plane coherence
+and size of the fixed-frame changes below 1 x and the largest change above 1 x (rule 2, base
+motion), and the bursts of crossings above 1 x (rule 4, the contact count). It is confirmed
+(``alarm``) on a strong crossing or on crossings of several features, and carries the contact
+bursts of its ring-down (:class:`amb_fault_monitor.bursts.ContactBursts`).
 """
 
 from __future__ import annotations
@@ -64,6 +64,7 @@ class Episode:
     last_crossing: int = 0
     max_ratio: dict = field(default_factory=dict)  # (level, frame) -> (4,) plane ratios
     channel_energy: np.ndarray = field(default_factory=lambda: np.zeros(N_SENSORS))
+    fine_energy: np.ndarray = field(default_factory=lambda: np.zeros(N_SENSORS))
     bursts: list = field(default_factory=list)  # [start, end, max ratio fixed, max rotating]
     p_ref: np.ndarray | None = None
     decided: FaultEvent | None = None
@@ -98,12 +99,14 @@ class Episode:
         revolution_level: int,
         mask: np.ndarray,
         config,
+        finest: int = 1,
     ) -> None:
         """
         Add the crossings of the coefficient set ``s`` completed at ``n`` (some ``ratio > 1``).
 
         ``delta`` is its change (8,) in metres, ``thr`` the plane thresholds (4,), ``centre``
-        the time centre of its atom, ``mask`` the channels in use; ``config`` gives
+        the time centre of its atom, ``mask`` the channels in use, ``finest`` the finest level
+        monitored (its fixed-frame changes also go to ``fine_energy``); ``config`` gives
         ``samples_per_rev``, ``burst_gap_revs``, ``confirm_ratio`` and ``confirm_features``.
         Confirms the episode (``alarm = n``) on a crossing of at least ``confirm_ratio`` or
         crossings in ``confirm_features`` different (level, frame) features (unless
@@ -120,7 +123,10 @@ class Episode:
         self.keys.add(key)
         if frame == "fixed":
             w = np.repeat(thr, 2)
-            self.channel_energy += (delta / w) ** 2
+            energy = (delta / w) ** 2
+            self.channel_energy += energy
+            if level == finest:
+                self.fine_energy += energy
             if level > revolution_level:
                 self.add_low_change(delta, mask)
             elif level < revolution_level:
@@ -169,6 +175,7 @@ class Episode:
             revolution_level=revolution_level,
             max_ratio={k: v.copy() for k, v in self.max_ratio.items()},
             channel_energy=self.channel_energy.copy(),
+            fine_energy=self.fine_energy.copy(),
             sync_ratio=sync_ratio,
             sync_change=sync_change,
             bursts=[tuple(b) for b in self.bursts],

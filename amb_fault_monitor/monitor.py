@@ -406,7 +406,7 @@ class FaultMonitor:
             return
         ep.add_crossings(
             n, level, frame, s, ratio, delta, thr, self._centres.centre(s), self._R,
-            self._mask, self._config,
+            self._mask, self._config, self._finest,
         )  # fmt: skip
 
     def _contact_burst(self, ep: Episode, n: int, s, ratio: np.ndarray, frame: str) -> None:
