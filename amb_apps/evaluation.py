@@ -205,6 +205,7 @@ class SimulatedCase:
     block: Any
     wall_time: float = 0.0
     ki: float = 1.0  # N/A, the rig's current gain (the commanded force over it: the demand)
+    feedback_channels: tuple[int, ...] | None = None  # the rig's, for the loop-bias check
 
 
 def simulate_case(
@@ -248,6 +249,7 @@ def simulate_case(
         block=block,
         wall_time=time.perf_counter() - t0,
         ki=rig.amb.Ki,
+        feedback_channels=tuple(rig.feedback_channels),
     )
 
 
@@ -291,7 +293,7 @@ def run_case(
     times = block.time  # s, the sample instants (on a speed profile not n / fs)
     t0 = time.perf_counter()
     adapter = FilterbankAdapter(spr, wav)
-    monitor = FaultMonitor(cfg, case.ki)
+    monitor = FaultMonitor(cfg, case.ki, case.feedback_channels)
     monitor.trace = trace
     events: list[FaultEvent] = []
     for i in range(block.sample_index.size):

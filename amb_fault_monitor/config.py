@@ -112,6 +112,13 @@ class MonitorConfig:
         Coil/amplifier check (:mod:`amb_fault_monitor.coil_check`): the smallest threshold of
         the demanded-minus-measured current, A; the threshold's factor over the largest healthy
         difference of the calibration window; how long it must hold, revolutions.
+    bias_floor, bias_factor, bias_steady
+        Biased probe inside the PID loop (:mod:`amb_fault_monitor.loop_bias`): the smallest
+        step of an axis's one-revolution mean bearing force that counts, N; the threshold's
+        factor over the largest healthy change of that mean from one revolution to the next
+        in the calibration window; how far the last two revolutions' means may differ, as a
+        share of the step (the new level is held). The floor is a tenth of the 204-222 N that
+        a 20 um offset gave on the suite (``docs/fault_monitor_notes.md``).
     """
 
     samples_per_rev: int = param(
@@ -183,6 +190,9 @@ class MonitorConfig:
     )
     coil_factor: float = 4.0
     coil_confirm_revs: float = 0.25
+    bias_floor: float = 20.0
+    bias_factor: float = 4.0
+    bias_steady: float = 0.25
 
     def __post_init__(self) -> None:
         spr = self.samples_per_rev
@@ -200,7 +210,7 @@ class MonitorConfig:
             "decision_revs", "max_tail_revs", "isolation", "sync_change", "burst_gap_revs",
             "tail_rise", "tail_rise_median", "dead_revs", "base_coherence", "base_dominance",
             "rearm_revs", "control_step", "control_window_revs", "coil_floor", "coil_factor",
-            "coil_confirm_revs",
+            "coil_confirm_revs", "bias_floor", "bias_factor", "bias_steady",
         )  # fmt: skip
         for name in positive:
             if not getattr(self, name) > 0:

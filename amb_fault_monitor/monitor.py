@@ -14,7 +14,9 @@ Fault detection from wavelet coefficients in the fixed and rotating frames (thes
 * transients of the controller's own force: :mod:`amb_fault_monitor.control_transients`;
 * stuck or zero channels: :mod:`amb_fault_monitor.dead_channels`;
 * coil and amplifier failures, from the measured against the demanded currents:
-  :mod:`amb_fault_monitor.coil_check`.
+  :mod:`amb_fault_monitor.coil_check`;
+* a biased probe inside the PID loop, from a lasting step of a bearing axis's mean force:
+  :mod:`amb_fault_monitor.loop_bias`.
 
 Episodes
 --------
@@ -45,6 +47,15 @@ Episodes
    (``coil_explained``), not reported as a class of Table 5.1 (the one-sided pull of a lost
    coil changes the 1 x level for good, as a mass loss does). Contacts in it are reported:
    the rotor does touch.
+7. *Biased probes in the loop*: an episode decided a contact is a ``SENSOR_FAULT`` of the
+   bearing-plane probe of the axis whose one-revolution mean force has stepped to a new, held
+   level since before the episode (:mod:`amb_fault_monitor.loop_bias`; needs the currents, as
+   step 6): the displacements of a biased probe in the loop look like a contact (rule 4),
+   but a contact is over within a few revolutions. Not a mass loss: a probe's offset leaves
+   the 1 x level as it was, while a rotor latched on an auxiliary bearing after a loss holds
+   a bearing at a new mean force too (up to its 1 kN limit in the suite's 516 g cm case).
+   Not ``UNKNOWN`` either: the one such episode seen (a 15 Hz run in contact from its start,
+   calibrated in it) stepped by 1.7 kN.
 
 Sensor channels found faulty (decided sensor faults and stuck channels) are masked (their
 plane feature uses the partner channel only) until :meth:`FaultMonitor.reset`.
@@ -52,10 +63,13 @@ plane feature uses the partner channel only) until :meth:`FaultMonitor.reset`.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from dataclasses import replace
+
 import numpy as np
 
 from amb_common.faults import FaultEvent, FaultType
-from amb_common.names import N_SENSORS
+from amb_common.names import AXIS_NAMES, N_SENSORS
 from amb_fault_monitor.calibration import Calibration, CalibrationWindow
 from amb_fault_monitor.classifier import classify
 from amb_fault_monitor.coil_check import CoilCheck
@@ -65,6 +79,7 @@ from amb_fault_monitor.dead_channels import DeadChannels
 from amb_fault_monitor.episodes import Episode
 from amb_fault_monitor.errors import RecordError
 from amb_fault_monitor.features import ChangeFeatures, normalise
+from amb_fault_monitor.loop_bias import LoopBias
 from amb_fault_monitor.onset import AtomCentres, estimate_onset, onset_sample
 from amb_fault_monitor.phasor import SynchronousLevel
 from amb_fault_monitor.records import SampleCoefficients
@@ -81,6 +96,12 @@ class FaultMonitor:
     Parameters
     ----------
     config : MonitorConfig
+    ki : float, optional
+        The rig's current gain, N/A: with it :meth:`currents` checks the coils (step 6).
+    feedback_channels : sequence of int, optional
+        The sensor channel each bearing axis ``[b1x, b1y, b2x, b2y]`` is fed back from
+        (:attr:`amb_common.rig.Rig.feedback_channels`): with it and ``ki`` the commanded forces
+        given to :meth:`currents` also check for a biased probe inside the loop (step 7).
 
     Attributes
     ----------
@@ -111,9 +132,17 @@ class FaultMonitor:
     are emitted afterwards. :meth:`reset` starts again (new calibration).
     """
 
-    def __init__(self, config: MonitorConfig, ki: float | None = None) -> None:
+    def __init__(
+        self,
+        config: MonitorConfig,
+        ki: float | None = None,
+        feedback_channels: Sequence[int] | None = None,
+    ) -> None:
         self._config = config
         self._coils = CoilCheck(config, ki) if ki is not None else None
+        self._bias = None
+        if ki is not None and feedback_channels is not None:
+            self._bias = LoopBias(config, feedback_channels)
         self._R = revolution_level(config.samples_per_rev)
         self._finest = min(config.levels) if config.levels else 1
         self._centres = AtomCentres()
@@ -129,7 +158,8 @@ class FaultMonitor:
     @config.setter
     def config(self, config: MonitorConfig) -> None:
         self._config = config
-        for part in (self._calibration, self._sync, self._dead, self._control, self._coils):
+        parts = (self._calibration, self._sync, self._dead, self._control, self._coils, self._bias)
+        for part in parts:
             if part is not None:
                 part.config = config
 
@@ -152,6 +182,8 @@ class FaultMonitor:
         self.calibration_end: int | None = None
         if self._coils is not None:
             self._coils.reset()
+        if self._bias is not None:
+            self._bias.reset()
         self._coil_onsets: list[int] = []
         self.coil_explained = 0
 
@@ -273,10 +305,11 @@ class FaultMonitor:
         -------
         list of FaultEvent
             ``COIL_FAILURE`` events confirmed at this sample (:mod:`amb_fault_monitor.coil_check`);
-            empty without ``ki``.
+            empty without ``ki``. The commanded force also feeds the loop-bias check (step 7).
         """
         if self._coils is None:
             return []
+        self._bias.add(sample_index, commanded_force)
         events = self._coils.step(sample_index, commanded_force, current, omega)
         self._coil_onsets += [e.onset_sample_index for e in events]
         return events
@@ -365,6 +398,8 @@ class FaultMonitor:
         if calibration.dead_reference is not None:
             self._dead.reference = calibration.dead_reference
         self.calibration_end = calibration.end
+        if self._bias is not None:
+            self._bias.calibrate(calibration.end)
 
     def _phasor(self, even, odd) -> None:
         calibrating = not self._thr
@@ -463,6 +498,7 @@ class FaultMonitor:
                     if quiet:
                         self._end_tail(n, events)
                     return
+                ev = ep.decided = self._biased_probe(ep, ev)
                 events.append(ev)
                 if ev.fault_type == FaultType.SENSOR_FAULT and ev.channel >= 0:
                     self._mask[ev.channel] = False
@@ -482,6 +518,52 @@ class FaultMonitor:
             self._report_contacts(ep, n, events)
         if quiet or n - ep.decided.decision_sample_index >= cfg.max_tail_revs * spr:
             self._end_tail(n, events)
+
+    def _biased_probe(self, ep: Episode, ev: FaultEvent) -> FaultEvent:
+        """
+        ``ev``, or a ``SENSOR_FAULT`` of the bearing-plane probe of a stepped axis (step 7).
+
+        The probe is that of the axis whose mean force stepped since before ``ep``
+        (:meth:`LoopBias.step_at <amb_fault_monitor.loop_bias.LoopBias.step_at>`); a probe
+        already masked is not reported again.
+        """
+        if self._bias is None or ev.fault_type != FaultType.AUX_BEARING_CONTACT:
+            return ev
+        found = self._bias.step_at(ep.start)
+        if found is None:
+            return ev
+        axis, step = found
+        channel = self._bias.channels[axis]
+        plane = channel // 2 + 1
+        if not self._mask[channel]:
+            return ev
+        threshold = float(self._bias.threshold[axis])
+        name = AXIS_NAMES[axis]
+        return replace(
+            ev,
+            fault_type=FaultType.SENSOR_FAULT,
+            plane=plane,
+            channel=channel,
+            bearing=0,
+            severity=abs(float(step[axis])),
+            confidence=float(1.0 - np.exp(-(abs(step[axis]) / threshold - 1.0))),
+            count=1,
+            evidence={
+                **ev.evidence,
+                "rule": "a bearing axis's mean force stepped to a new held level: the probe the "
+                "PID holds it on reads off",
+                "displacement_class": ev.fault_type.name,
+                "force_axis": name,
+                "mean_force_step_n": [float(v) for v in step],
+                "force_threshold_n": threshold,
+            },
+            description=(
+                f"the mean force of {name} stepped by {float(step[axis]):.3g} N and holds "
+                f"(threshold {threshold:.3g} N): probe plane {plane} {'xy'[channel % 2]} (channel "
+                f"{channel}), inside the PID loop, reads off; the rotor moved with it "
+                f"(its displacements alone read {ev.fault_type.name})"
+            ),
+        )
 
     def _coil_explains(self, ev: FaultEvent) -> bool:
         """Whether a coil failure's onset lies within a revolution of the episode's (step 6)."""

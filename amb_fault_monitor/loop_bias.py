@@ -1,0 +1,148 @@
+"""
+A lasting step of a bearing axis's mean force: the sign of a biased probe inside the PID loop.
+
+The bearings' PID closes its loop on the probes of planes 2 and 3 (thesis section 2.4), so it
+holds what those probes *say* at the set point. When one of them reads ``b`` off (an offset,
+chapter 3's sensor faults), the loop moves the rotor by about ``-b`` at that plane and then
+holds it there, against the magnet's negative stiffness (eq. 2.35) and the shaft's bending:
+the one-revolution mean of that axis's bearing force steps to a new, steady level (measured
+on the suite: 204-222 N for a 20 um offset, ``docs/fault_monitor_notes.md``, "Sensor faults
+inside the PID loop"). The rotor's own faults do not do that: a sudden unbalance is
+synchronous and averages out over a revolution, a contact is over within a few revolutions,
+and a lost coil, which does step the force, is named by :mod:`amb_fault_monitor.coil_check`
+first. The displacements alone cannot tell it: the loop spreads the probe's error over every
+channel (the monitor's classifier rule 1 then finds no isolated channel).
+
+:class:`LoopBias` averages the commanded force of each axis (``bearing_force`` of the
+measurements, N) over whole revolutions. When the monitor has calibrated, the threshold per
+axis is ``max(bias_floor, bias_factor * s)``, ``s`` the largest change of the mean from one
+revolution to the next in the monitor's healthy window (:meth:`LoopBias.calibrate`).
+:meth:`LoopBias.step_at` tells, at an episode's decision, the axis whose mean over the last
+two revolutions has moved from its mean over the two revolutions before the episode by more
+than its threshold, with the last two revolutions within ``bias_steady`` of each other
+relative to that step (the new level is held, not a ring-down passing through).
+"""
+
+from __future__ import annotations
+
+from collections import deque
+
+import numpy as np
+
+__all__ = ["LoopBias"]
+
+
+class LoopBias:
+    """
+    One-revolution means of the commanded bearing force, and their steps.
+
+    Parameters
+    ----------
+    config : MonitorConfig
+        Or anything with its ``samples_per_rev``, ``calibration_revs``, ``decision_max_revs``,
+        ``bias_floor``, ``bias_factor`` and ``bias_steady``.
+    feedback_channels : sequence of int
+        The sensor channel (0-based, ``[x1, y1, ..., x4, y4]``) each axis ``[b1x, b1y, b2x,
+        b2y]`` is fed back from (:attr:`amb_common.rig.Rig.feedback_channels`).
+
+    Attributes
+    ----------
+    threshold : numpy.ndarray or None
+        Per axis ``[b1x, b1y, b2x, b2y]``, N (None while calibrating).
+    channels : tuple of int
+        ``feedback_channels``.
+    """
+
+    def __init__(self, config, feedback_channels) -> None:
+        self.config = config
+        self.channels = tuple(int(c) for c in feedback_channels)
+        if len(self.channels) != 4:
+            raise ValueError(f"feedback_channels: one per bearing axis (4), got {self.channels}")
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the means and the calibration (a restart of the stream)."""
+        cfg = self.config
+        self.threshold: np.ndarray | None = None
+        self._sum = np.zeros(4)
+        self._count = 0
+        self._block_start: int | None = None
+        keep = int(cfg.decision_max_revs + cfg.calibration_revs) + 8
+        self._means: deque[tuple[int, np.ndarray]] = deque(maxlen=keep)  # (first sample, mean)
+
+    def add(self, n: int, commanded_force: np.ndarray) -> None:
+        """
+        Add one sample's commanded force (4,), N.
+
+        A revolution's mean is kept once it has ``samples_per_rev`` samples; a gap in the
+        sample indices starts the revolution afresh.
+        """
+        spr = self.config.samples_per_rev
+        if self._block_start is None or n != self._block_start + self._count:
+            self._sum[:] = 0.0
+            self._count = 0
+            self._block_start = n
+        self._sum += commanded_force
+        self._count += 1
+        if self._count == spr:
+            self._means.append((self._block_start, self._sum / spr))
+            self._sum = np.zeros(4)
+            self._count = 0
+            self._block_start = n + 1
+
+    def calibrate(self, end: int) -> None:
+        """
+        Set the thresholds from the revolutions of the monitor's healthy window.
+
+        Parameters
+        ----------
+        end : int
+            The sample at which the monitor's thresholds were set: the window is the
+            ``calibration_revs`` revolutions before it. Fewer than two revolutions' means in
+            it (no currents fed) leave the check off.
+        """
+        cfg = self.config
+        first = end - cfg.calibration_revs * cfg.samples_per_rev
+        means = [
+            m
+            for start, m in self._means
+            if start >= first and start + cfg.samples_per_rev <= end + 1
+        ]
+        if len(means) < 2:
+            return
+        steps = np.abs(np.diff(np.array(means), axis=0)).max(axis=0)
+        self.threshold = np.maximum(cfg.bias_floor, cfg.bias_factor * steps)
+
+    def step_at(self, start: int) -> tuple[int, np.ndarray] | None:
+        """
+        The axis whose mean force has stepped since before sample ``start``, or None.
+
+        Parameters
+        ----------
+        start : int
+            The episode's first sample (its first crossing).
+
+        Returns
+        -------
+        tuple or None
+            ``(axis, step)``: the axis (0..3, ``[b1x, b1y, b2x, b2y]``) with the largest step
+            over its threshold and the steps of all four axes (4,), N; None when no axis has
+            a steady step above its threshold, or the means do not reach back before the
+            episode.
+        """
+        if self.threshold is None:
+            return None
+        before = [m for first, m in self._means if first + self.config.samples_per_rev <= start]
+        after = [m for first, m in self._means if first >= start]
+        if len(before) < 2 or len(after) < 4:
+            return None
+        reference = (before[-1] + before[-2]) / 2
+        last, previous = after[-1], after[-2]
+        step = (last + previous) / 2 - reference
+        ratio = np.abs(step) / self.threshold
+        axis = int(np.argmax(ratio))
+        if ratio[axis] < 1.0:
+            return None
+        if abs(last[axis] - previous[axis]) > self.config.bias_steady * abs(step[axis]):
+            return None
+        return axis, step
