@@ -323,7 +323,11 @@ class _Loop:
             if meas is not None and records:
                 recorder.coefficients(meas[s], n, float(block.omega[s]), records)
             if self.monitor is not None:
-                for event in self.monitor.step(n, float(block.omega[s]), records, force[s]):
+                found = self.monitor.step(
+                    n, float(block.omega[s]), records, force[s], block.bearing_force[s],
+                    block.current[s],
+                )  # fmt: skip
+                for event in found:
                     self.fault_events.append(event)
                     if recorder is not None:
                         recorder.fault_event(event, meas[s].header.stamp)
@@ -345,10 +349,16 @@ class _Loop:
 
 
 class _Monitor:
-    """The ``amb_fault_monitor`` core fed from the filterbank records (optional)."""
+    """
+    The ``amb_fault_monitor`` core fed as the node feeds it (optional).
 
-    def __init__(self, samples_per_rev: int, wavelet: str) -> None:
-        self.core = FaultMonitor(MonitorConfig(samples_per_rev=samples_per_rev))
+    The measurement's currents and commanded forces (coil check, loop-bias check, with the
+    rig's ``K_i`` and feedback channels), the applied wavelet force and the filterbank records.
+    """
+
+    def __init__(self, samples_per_rev: int, wavelet: str, ki: float, feedback_channels) -> None:
+        config = MonitorConfig(samples_per_rev=samples_per_rev)
+        self.core = FaultMonitor(config, ki, feedback_channels)
         self.spr = samples_per_rev
         self.wavelet = wavelet
         self.slots = []
@@ -356,11 +366,25 @@ class _Monitor:
             for quad in QUADRATURES:
                 self.slots.append((frame, quad, len(self.slots) * 8))
 
-    def step(self, n: int, omega: float, records, force: np.ndarray) -> list[dict]:
-        """Sample ``n``: its wavelet force (N per axis) and the coefficients it completed."""
-        # the applied force first, as the node gets the Measurement before the coefficients
-        # it completes (FaultMonitor.control_force)
+    def step(
+        self,
+        n: int,
+        omega: float,
+        records,
+        force: np.ndarray,
+        bearing_force: np.ndarray,
+        current: np.ndarray,
+    ) -> list[dict]:
+        """
+        Feed sample ``n``; return the events it decided.
+
+        Its wavelet force and commanded bearing force (N per axis), measured control
+        current (A per axis) and the coefficients it completed.
+        """
+        # the measurement first, as the node gets it before the coefficients it completes
+        # (FaultMonitor.control_force, FaultMonitor.currents)
         self.core.control_force(n, force)
+        found = self.core.currents(n, bearing_force, current, omega)
 
         sets = tuple(
             CoefficientSet(
@@ -377,7 +401,7 @@ class _Monitor:
             for r in records
             for frame, quad, i0 in self.slots
         )
-        events = self.core.step(SampleCoefficients(n, omega, sets, self.wavelet))
+        events = found + self.core.step(SampleCoefficients(n, omega, sets, self.wavelet))
         out = []
         for e in events:
             d = e.to_dict()
@@ -455,7 +479,9 @@ def run_closed_loop(
     """
     monitor = None
     if fault_monitor:
-        monitor = _Monitor(config.samples_per_rev, config.wavelet)
+        monitor = _Monitor(
+            config.samples_per_rev, config.wavelet, rig.amb.Ki, rig.feedback_channels
+        )
     loop = _Loop(rig, scenario, config, model, seed, recorder, monitor, baseline)
     loop.engage_on = tuple(int(c) for c in engage_on)
     if controller is not None:
