@@ -117,8 +117,8 @@ class MonitorConfig:
         step of an axis's one-revolution mean bearing force that counts, N; the threshold's
         factor over the largest healthy change of that mean from one revolution to the next
         in the calibration window; how far the last two revolutions' means may differ, as a
-        share of the step (the new level is held). The floor is a tenth of the 204-222 N that
-        a 20 um offset gave on the suite (``docs/fault_monitor_notes.md``).
+        share of the step (the new level is held). The floor is about a tenth of the step a 20 um
+        offset gave on the suite (``docs/fault_monitor_notes.md``).
     """
 
     samples_per_rev: int = param(

@@ -1,12 +1,15 @@
 """
 A lasting step of a bearing axis's mean force: the sign of a biased probe inside the PID loop.
 
-The bearings' PID closes its loop on the probes of planes 2 and 3 (thesis section 2.4), so it
-holds what those probes *say* at the set point. When one of them reads ``b`` off (an offset,
-chapter 3's sensor faults), the loop moves the rotor by about ``-b`` at that plane and then
-holds it there, against the magnet's negative stiffness (eq. 2.35) and the shaft's bending:
-the one-revolution mean of that axis's bearing force steps to a new, steady level (measured
-on the suite: 204-222 N for a 20 um offset, ``docs/fault_monitor_notes.md``, "Sensor faults
+The bearings' PID closes its loop on the inner probes beside the bearings (thesis section
+2.6, eqs. 2.45-2.46), so it answers what those probes *say*. When one of them reads ``b`` off
+(an offset, chapter 3's sensor faults), the loop answers a displacement that is not there: its
+proportional part moves the rotor at that bearing until the magnet's negative stiffness
+``K_z`` (eq. 2.39) balances the loop's ``K_p``, by ``K_p b / (K_z - K_p)``, several times
+``b`` with a loop only just stiffer than the magnet; its integral part brings the reading back
+to the set point over ``K_p / K_I`` (the rotor to ``-b``). Either way the bearing then holds
+the rotor off its magnetic centre and the one-revolution mean of that axis's force steps to a
+new, steady level (the suite's measurements: ``docs/fault_monitor_notes.md``, "Sensor faults
 inside the PID loop"). The rotor's own faults do not do that: a sudden unbalance is
 synchronous and averages out over a revolution, a contact is over within a few revolutions,
 and a lost coil, which does step the force, is named by :mod:`amb_fault_monitor.coil_check`
