@@ -266,3 +266,56 @@ def test_a_lost_coil_is_published_from_the_currents(ros, node_process) -> None:
     assert {kv.key: kv.value for kv in ev.evidence}["axis"] == "b2y"
     assert ev.onset_sample_index == fault
     assert ev.detection_sample_index == fault + math.ceil(0.25 * SPR) - 1
+
+
+@pytest.mark.slow
+def test_an_offset_probe_inside_the_loop_is_published_as_a_sensor_fault(ros, node_process):
+    """Issue 19: the suite's 20 um offset on the plane-2 x probe at 28.65 Hz (the PID's own
+    probe), simulated by the plant core and replayed over DDS with its currents and commanded
+    forces: the monitor node names channel 2, not the contact its displacements alone read
+    (amb_fault_monitor.loop_bias, fed the rig's feedback channels by the node)."""
+    from pathlib import Path
+
+    from amb_apps.evaluation import simulate_case
+
+    suite = Path(__file__).resolve().parents[2] / "config" / "scenarios" / "faults"
+    case = simulate_case(suite / "sensor_offset_plane2x_29hz.yaml", load_rig())
+    block, spr = case.block, case.samples_per_rev
+    fb = node_process(
+        "-m amb_wavelet.node", params={"wavelet": "haar", "samples_per_rev": spr, "levels": 6}
+    )
+    fm = node_process(
+        "-m amb_fault_monitor.node", params={"samples_per_rev": spr, "status_period": 0.2}
+    )
+    _, pub, events, writers = _driver(ros, "amb_test_fm_offset_driver", spr)
+    assert ros.spin_until(
+        lambda: (
+            pub.get_subscription_count() >= 2
+            and writers.matched("wavelet_filterbank", COEFFICIENTS) >= 1
+            and writers.matched("fault_monitor", EVENTS) >= 1
+        ),
+        timeout=30.0,
+    ), (writers.values, fb.log(), fm.log())
+    n = block.sample_index.size
+    for start in range(0, n, 64):  # small bursts: best-effort streams drop under load
+        for i in range(start, min(start + 64, n)):
+            t = float(block.time[i])
+            m = Measurement(sample_index=int(block.sample_index[i]), samples_per_rev=spr)
+            m.rotor_angle = float(block.angle[i])
+            m.rotor_speed = float(block.omega[i])
+            m.displacement = block.displacement[i].tolist()
+            m.bearing_force = block.bearing_force[i].tolist()
+            m.current = block.current[i].tolist()
+            m.header.stamp.sec = int(t)
+            m.header.stamp.nanosec = int((t % 1.0) * 1e9)
+            pub.publish(m)
+        ros.spin_for(0.05)
+    assert ros.spin_until(lambda: len(events) >= 1, timeout=30.0), (fm.log(), fb.log())
+    ros.spin_for(0.5)
+    ev = events[0]
+    assert (ev.fault_type, ev.channel, ev.plane) == (FaultEvent.SENSOR_FAULT, 2, 2), [
+        e.description for e in events
+    ]
+    fault = 2.0 * case.speed_hz * spr  # the scenario's fault time, in samples
+    assert abs(int(ev.onset_sample_index) - fault) <= spr
+    assert FaultEvent.AUX_BEARING_CONTACT not in {e.fault_type for e in events}
