@@ -29,8 +29,12 @@ relative to that step (the new level is held, not a ring-down passing through).
 from __future__ import annotations
 
 from collections import deque
+from dataclasses import replace
 
 import numpy as np
+
+from amb_common.faults import FaultEvent, FaultType
+from amb_common.names import AXIS_NAMES
 
 __all__ = ["LoopBias"]
 
@@ -149,3 +153,61 @@ class LoopBias:
         if abs(last[axis] - previous[axis]) > self.config.bias_steady * abs(step[axis]):
             return None
         return axis, step
+
+    def revise(self, ev: FaultEvent, start: int, mask: np.ndarray) -> FaultEvent:
+        """
+        The decision of an episode, revised: a contact may be a biased feedback probe.
+
+        Parameters
+        ----------
+        ev : FaultEvent
+            The classifier's decision of an episode that began at sample ``start``.
+        start : int
+            The episode's first sample.
+        mask : numpy.ndarray
+            Channels in use (8,), bool: a probe already masked is not reported again.
+
+        Returns
+        -------
+        FaultEvent
+            ``ev``, or, when it is an ``AUX_BEARING_CONTACT`` and an axis's mean force has a
+            held step (:meth:`step_at`), the ``SENSOR_FAULT`` of that axis's feedback probe
+            with the same onset, detection and decision samples.
+        """
+        if ev.fault_type != FaultType.AUX_BEARING_CONTACT:
+            return ev
+        found = self.step_at(start)
+        if found is None:
+            return ev
+        axis, step = found
+        channel = self.channels[axis]
+        if not mask[channel]:
+            return ev
+        plane = channel // 2 + 1
+        threshold = float(self.threshold[axis])
+        name = AXIS_NAMES[axis]
+        return replace(
+            ev,
+            fault_type=FaultType.SENSOR_FAULT,
+            plane=plane,
+            channel=channel,
+            bearing=0,
+            severity=abs(float(step[axis])),
+            confidence=float(1.0 - np.exp(-(abs(step[axis]) / threshold - 1.0))),
+            count=1,
+            evidence={
+                **ev.evidence,
+                "rule": "a bearing axis's mean force stepped to a new held level: the probe the "
+                "PID holds it on reads off",
+                "displacement_class": ev.fault_type.name,
+                "force_axis": name,
+                "mean_force_step_n": [float(v) for v in step],
+                "force_threshold_n": threshold,
+            },
+            description=(
+                f"the mean force of {name} stepped by {float(step[axis]):.3g} N and holds "
+                f"(threshold {threshold:.3g} N): probe plane {plane} {'xy'[channel % 2]} "
+                f"(channel {channel}), inside the PID loop, reads off; the rotor moved with it "
+                f"(its displacements alone read {ev.fault_type.name})"
+            ),
+        )

@@ -64,12 +64,11 @@ plane feature uses the partner channel only) until :meth:`FaultMonitor.reset`.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import replace
 
 import numpy as np
 
 from amb_common.faults import FaultEvent, FaultType
-from amb_common.names import AXIS_NAMES, N_SENSORS
+from amb_common.names import N_SENSORS
 from amb_fault_monitor.calibration import Calibration, CalibrationWindow
 from amb_fault_monitor.classifier import classify
 from amb_fault_monitor.coil_check import CoilCheck
@@ -498,7 +497,8 @@ class FaultMonitor:
                     if quiet:
                         self._end_tail(n, events)
                     return
-                ev = ep.decided = self._biased_probe(ep, ev)
+                if self._bias is not None:  # step 7
+                    ev = ep.decided = self._bias.revise(ev, ep.start, self._mask)
                 events.append(ev)
                 if ev.fault_type == FaultType.SENSOR_FAULT and ev.channel >= 0:
                     self._mask[ev.channel] = False
@@ -518,52 +518,6 @@ class FaultMonitor:
             self._report_contacts(ep, n, events)
         if quiet or n - ep.decided.decision_sample_index >= cfg.max_tail_revs * spr:
             self._end_tail(n, events)
-
-    def _biased_probe(self, ep: Episode, ev: FaultEvent) -> FaultEvent:
-        """
-        ``ev``, or a ``SENSOR_FAULT`` of the bearing-plane probe of a stepped axis (step 7).
-
-        The probe is that of the axis whose mean force stepped since before ``ep``
-        (:meth:`LoopBias.step_at <amb_fault_monitor.loop_bias.LoopBias.step_at>`); a probe
-        already masked is not reported again.
-        """
-        if self._bias is None or ev.fault_type != FaultType.AUX_BEARING_CONTACT:
-            return ev
-        found = self._bias.step_at(ep.start)
-        if found is None:
-            return ev
-        axis, step = found
-        channel = self._bias.channels[axis]
-        plane = channel // 2 + 1
-        if not self._mask[channel]:
-            return ev
-        threshold = float(self._bias.threshold[axis])
-        name = AXIS_NAMES[axis]
-        return replace(
-            ev,
-            fault_type=FaultType.SENSOR_FAULT,
-            plane=plane,
-            channel=channel,
-            bearing=0,
-            severity=abs(float(step[axis])),
-            confidence=float(1.0 - np.exp(-(abs(step[axis]) / threshold - 1.0))),
-            count=1,
-            evidence={
-                **ev.evidence,
-                "rule": "a bearing axis's mean force stepped to a new held level: the probe the "
-                "PID holds it on reads off",
-                "displacement_class": ev.fault_type.name,
-                "force_axis": name,
-                "mean_force_step_n": [float(v) for v in step],
-                "force_threshold_n": threshold,
-            },
-            description=(
-                f"the mean force of {name} stepped by {float(step[axis]):.3g} N and holds "
-                f"(threshold {threshold:.3g} N): probe plane {plane} {'xy'[channel % 2]} (channel "
-                f"{channel}), inside the PID loop, reads off; the rotor moved with it "
-                f"(its displacements alone read {ev.fault_type.name})"
-            ),
-        )
 
     def _coil_explains(self, ev: FaultEvent) -> bool:
         """Whether a coil failure's onset lies within a revolution of the episode's (step 6)."""

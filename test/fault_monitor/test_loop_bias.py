@@ -104,3 +104,32 @@ def test_a_gap_starts_the_revolution_afresh():
 def test_one_feedback_channel_per_axis():
     with pytest.raises(ValueError, match="one per bearing axis"):
         LoopBias(MonitorConfig(SPR), (2, 3, 4))
+
+
+def _event(fault_type):
+    from amb_common.faults import FaultEvent
+
+    return FaultEvent(fault_type, 100, 110, 300, SPR, 180.0, plane=2, bearing=1,
+                      evidence={"rule": "transient above 1 x in both frames"})  # fmt: skip
+
+
+def test_revise_turns_a_contact_into_the_stepped_axis_probe_fault_only():
+    from amb_common.faults import FaultType
+
+    bias, n0 = _calibrated()
+    step = np.array([0.0, -80.0, 0.0, 0.0])  # b1y
+    for n in range(n0, n0 + 6 * SPR):
+        bias.add(n, _force(n, extra=step))
+    mask = np.ones(8, dtype=bool)
+    ev = bias.revise(_event(FaultType.AUX_BEARING_CONTACT), n0, mask)
+    assert (ev.fault_type, ev.channel, ev.plane, ev.bearing) == (FaultType.SENSOR_FAULT, 3, 2, 0)
+    assert (ev.onset_sample_index, ev.detection_sample_index) == (100, 110)
+    assert ev.severity == pytest.approx(80.0, rel=1e-9)
+    assert ev.evidence["displacement_class"] == "AUX_BEARING_CONTACT"
+    assert ev.evidence["force_axis"] == "b1y"
+    mass_loss = _event(FaultType.MASS_LOSS)
+    assert bias.revise(mass_loss, n0, mask) is mass_loss  # a latched rotor moves the 1 x level
+    mask[3] = False  # the probe already reported
+    assert bias.revise(_event(FaultType.AUX_BEARING_CONTACT), n0, mask).fault_type == (
+        FaultType.AUX_BEARING_CONTACT
+    )
