@@ -41,6 +41,27 @@ def _driver(ros, name: str, spr: int) -> tuple:
     return node, pub, events, Diagnostics(node)
 
 
+def _chain(ros, node_process, name: str, spr: int) -> tuple:
+    """Filterbank and monitor nodes and a driver, matched before samples flow:
+    (node, pub, events, diag, filterbank, monitor)."""
+    fb = node_process(
+        "-m amb_wavelet.node", params={"wavelet": "haar", "samples_per_rev": spr, "levels": 6}
+    )
+    fm = node_process(
+        "-m amb_fault_monitor.node", params={"samples_per_rev": spr, "status_period": 0.2}
+    )
+    node, pub, events, diag = _driver(ros, name, spr)
+    assert ros.spin_until(
+        lambda: (
+            pub.get_subscription_count() >= 2
+            and diag.matched("wavelet_filterbank", COEFFICIENTS) >= 1
+            and diag.matched("fault_monitor", EVENTS) >= 1
+        ),
+        timeout=30.0,
+    ), (diag.values, fb.log(), fm.log())
+    return node, pub, events, diag, fb, fm
+
+
 def test_mass_loss_event_published_and_logged(ros, node_process, tmp_path) -> None:
     log = tmp_path / "events.jsonl"
     fb = node_process(
@@ -100,21 +121,7 @@ def test_control_transient_is_counted_on_diagnostics_not_published(ros, node_pro
     """The soak's late command (late_command.py) with its wavelet force: a WARN, no event."""
     spr = late_command.SPR
     block, force = late_command.late_command_run(1.6, [70])  # zero force in period 70
-    fb = node_process(
-        "-m amb_wavelet.node", params={"wavelet": "haar", "samples_per_rev": spr, "levels": 6}
-    )
-    fm = node_process(
-        "-m amb_fault_monitor.node", params={"samples_per_rev": spr, "status_period": 0.2}
-    )
-    node, pub, events, diag = _driver(ros, "amb_test_fm_control", spr)
-    assert ros.spin_until(
-        lambda: (
-            pub.get_subscription_count() >= 2
-            and diag.matched("wavelet_filterbank", COEFFICIENTS) >= 1
-            and diag.matched("fault_monitor", EVENTS) >= 1
-        ),
-        timeout=30.0,
-    ), (diag.values, fb.log(), fm.log())
+    node, pub, events, diag, _, fm = _chain(ros, node_process, "amb_test_fm_control", spr)
     assert get_parameter(ros, node, "fault_monitor", "control_step") == 2.0
     assert get_parameter(ros, node, "fault_monitor", "tail_rise_median") == 3.0
     (refused,) = set_parameters(ros, node, "fault_monitor", {"control_step": 0.0})
@@ -281,21 +288,7 @@ def test_an_offset_probe_inside_the_loop_is_published_as_a_sensor_fault(ros, nod
     suite = Path(__file__).resolve().parents[2] / "config" / "scenarios" / "faults"
     case = simulate_case(suite / "sensor_offset_plane2x_29hz.yaml", load_rig())
     block, spr = case.block, case.samples_per_rev
-    fb = node_process(
-        "-m amb_wavelet.node", params={"wavelet": "haar", "samples_per_rev": spr, "levels": 6}
-    )
-    fm = node_process(
-        "-m amb_fault_monitor.node", params={"samples_per_rev": spr, "status_period": 0.2}
-    )
-    _, pub, events, writers = _driver(ros, "amb_test_fm_offset_driver", spr)
-    assert ros.spin_until(
-        lambda: (
-            pub.get_subscription_count() >= 2
-            and writers.matched("wavelet_filterbank", COEFFICIENTS) >= 1
-            and writers.matched("fault_monitor", EVENTS) >= 1
-        ),
-        timeout=30.0,
-    ), (writers.values, fb.log(), fm.log())
+    _, pub, events, _, fb, fm = _chain(ros, node_process, "amb_test_fm_offset_driver", spr)
     n = block.sample_index.size
     for start in range(0, n, 64):  # small bursts: best-effort streams drop under load
         for i in range(start, min(start + 64, n)):
