@@ -306,9 +306,10 @@ class FaultMonitor:
             ``COIL_FAILURE`` events confirmed at this sample (:mod:`amb_fault_monitor.coil_check`);
             empty without ``ki``. The commanded force also feeds the loop-bias check (step 7).
         """
+        if self._bias is not None:
+            self._bias.add(sample_index, commanded_force)
         if self._coils is None:
             return []
-        self._bias.add(sample_index, commanded_force)
         events = self._coils.step(sample_index, commanded_force, current, omega)
         self._coil_onsets += [e.onset_sample_index for e in events]
         return events

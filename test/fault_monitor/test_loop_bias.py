@@ -133,3 +133,15 @@ def test_revise_turns_a_contact_into_the_stepped_axis_probe_fault_only():
     assert bias.revise(_event(FaultType.AUX_BEARING_CONTACT), n0, mask).fault_type == (
         FaultType.AUX_BEARING_CONTACT
     )
+
+
+def test_a_monitor_with_ki_but_no_feedback_channels_checks_coils_only():
+    """FaultMonitor(config, ki): the coil check runs on the currents, the loop-bias check is
+    off (it needs the probes the loop is fed from)."""
+    from amb_fault_monitor.monitor import FaultMonitor
+
+    ki = 572.0  # N/A, Table 2.2's current gain
+    monitor = FaultMonitor(MonitorConfig(SPR), ki)
+    demand = np.array([0.2, -0.1, 0.3, 0.5])  # A
+    for n in range(4 * SPR):
+        assert monitor.currents(n, ki * demand, demand, 180.0) == []
