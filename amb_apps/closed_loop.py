@@ -40,6 +40,7 @@ imported only when a bag is written.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import ClassVar
@@ -356,7 +357,9 @@ class _Monitor:
     rig's ``K_i`` and feedback channels), the applied wavelet force and the filterbank records.
     """
 
-    def __init__(self, samples_per_rev: int, wavelet: str, ki: float, feedback_channels) -> None:
+    def __init__(
+        self, samples_per_rev: int, wavelet: str, ki: float, feedback_channels: Sequence[int]
+    ) -> None:
         config = MonitorConfig(samples_per_rev=samples_per_rev)
         self.core = FaultMonitor(config, ki, feedback_channels)
         self.spr = samples_per_rev

@@ -99,7 +99,7 @@ class Episode:
         revolution_level: int,
         mask: np.ndarray,
         config,
-        finest: int = 1,
+        finest: int,
     ) -> None:
         """
         Add the crossings of the coefficient set ``s`` completed at ``n`` (some ``ratio > 1``).

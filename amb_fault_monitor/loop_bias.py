@@ -134,8 +134,9 @@ class LoopBias:
         tuple or None
             ``(axis, step)``: the axis (0..3, ``[b1x, b1y, b2x, b2y]``) with the largest step
             over its threshold and the steps of all four axes (4,), N; None when no axis has
-            a steady step above its threshold, or the means do not reach back before the
-            episode.
+            a steady step above its threshold, when the means do not reach two revolutions
+            back before the episode, or when fewer than four whole revolutions follow its
+            start (the last two of them are compared, after the first transient).
         """
         if self.threshold is None:
             return None
