@@ -61,6 +61,8 @@ class CoilCheck:
     def reset(self) -> None:
         """Forget the calibration and the failures (a restart of the stream)."""
         self.threshold: np.ndarray | None = None
+        self._limits: list[float] = []  # the threshold as floats (the per-sample test)
+        self._running = False  # whether a run may be non-zero
         self.failed = np.zeros(4, dtype=bool)
         self._seen = 0
         self._largest = np.zeros(4)
@@ -97,22 +99,36 @@ class CoilCheck:
         list of FaultEvent
             A ``COIL_FAILURE`` for each axis confirmed at this sample (usually none).
         """
-        diff = np.abs(np.asarray(commanded_force, float) / self.ki - np.asarray(current, float))
+        ki = self.ki
+        # four values: plain floats, each numpy call would cost more than the arithmetic
+        listed = [
+            abs(f / ki - i)
+            for f, i in zip(
+                np.asarray(commanded_force, float).tolist(),
+                np.asarray(current, float).tolist(),
+                strict=True,
+            )
+        ]
         if self.threshold is None:
-            self._largest = np.maximum(self._largest, diff)
+            self._largest = np.maximum(self._largest, listed)
             self._seen += 1
             if self._seen >= self._window:
                 cfg = self.config
                 self.threshold = np.maximum(cfg.coil_floor, cfg.coil_factor * self._largest)
+                self._limits = self.threshold.tolist()
             return []
-        over = diff > self.threshold
-        if not over.any():  # the usual sample: every run ends, nothing confirmed
-            if self._run.any():
+        if not any(d > t for d, t in zip(listed, self._limits, strict=True)):
+            # the usual sample: every run ends, nothing confirmed
+            if self._running:
                 self._run[:] = 0
+                self._running = False
             return []
+        diff = np.array(listed)
+        over = diff > self.threshold
         over &= ~self.failed
         self._first = np.where(over & (self._run == 0), n, self._first)
         self._run = np.where(over, self._run + 1, 0)
+        self._running = True
         events = []
         for axis in np.flatnonzero(self._run >= self._confirm):
             self.failed[axis] = True

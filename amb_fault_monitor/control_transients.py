@@ -63,8 +63,9 @@ class ControlSteps:
     def __init__(self, config) -> None:
         self.config = config
         spr = config.samples_per_rev
-        self._force = np.zeros((spr, 4))
-        self._force_at = np.full(spr, -(2**62), dtype=np.int64)
+        # plain lists: four floats per sample are cheaper in Python than in numpy calls
+        self._force = [[0.0] * 4 for _ in range(spr)]
+        self._force_at = [-(2**62)] * spr
         self._steps: deque[list] = deque(maxlen=32)  # [first, last, largest change N]
         self.transients = 0
         self.last_transient: dict | None = None
@@ -79,9 +80,9 @@ class ControlSteps:
         n = int(sample_index)
         spr = self.config.samples_per_rev
         slot = n % spr
-        f = np.asarray(force, dtype=float)
+        f = np.asarray(force, dtype=float).tolist()
         if self._force_at[slot] == n - spr:
-            change = float(np.abs(f - self._force[slot]).max())
+            change = max(abs(a - b) for a, b in zip(f, self._force[slot], strict=True))
             if change > self.config.control_step:
                 steps = self._steps
                 if steps and steps[-1][0] <= n <= steps[-1][1] + spr // 2:

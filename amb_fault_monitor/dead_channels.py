@@ -37,8 +37,20 @@ class DeadChannels:
 
     def __init__(self, config) -> None:
         self.config = config
-        self.reference: np.ndarray | None = None
         self._run = np.zeros(N_SENSORS, dtype=int)
+        self._running = False  # whether a run may be non-zero
+        self.reference = None
+
+    @property
+    def reference(self) -> np.ndarray | None:
+        """Healthy median magnitude (8,) per channel, m, or None (class docstring)."""
+        return self._reference
+
+    @reference.setter
+    def reference(self, value: np.ndarray | None) -> None:
+        self._reference = value
+        # the "low" limit per channel; a channel without a healthy level (0) is never low
+        self._low = None if value is None else np.where(value > 0, value, -np.inf)
 
     def check(
         self, n: int, magnitudes: np.ndarray, mask: np.ndarray, omega: float
@@ -63,13 +75,16 @@ class DeadChannels:
             A ``SENSOR_FAULT`` per channel found stuck now, with the first sample of its low
             run. The caller masks the channel.
         """
-        ref = self.reference
+        ref = self._reference
         if ref is None:
             return []
         cfg = self.config
         v = magnitudes
-        low = (v < cfg.dead_fraction * ref) & (ref > 0) & mask
+        low = (v < cfg.dead_fraction * self._low) & mask
+        if not (self._running or np.count_nonzero(low)):
+            return []  # the usual coefficient: no channel low, no run to end
         self._run = np.where(low, self._run + 1, 0)
+        self._running = bool(np.count_nonzero(self._run))
         need = max(2, math.ceil(cfg.dead_revs * cfg.samples_per_rev / 2))
         found = []
         for ch in np.flatnonzero(self._run >= need):

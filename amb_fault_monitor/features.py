@@ -50,6 +50,22 @@ def frame_mask(mask: np.ndarray, frame: str) -> np.ndarray:
     return np.repeat(mask[0::2] & mask[1::2], 2)
 
 
+class _FrameMasks:
+    """:func:`frame_mask` of the last mask seen (masks change once per channel found faulty)."""
+
+    def __init__(self) -> None:
+        self._key: bytes | None = None
+        self._rotating = np.ones(N_SENSORS, dtype=bool)
+
+    def get(self, mask: np.ndarray, frame: str) -> np.ndarray:
+        if frame == "fixed":
+            return mask
+        key = mask.tobytes()
+        if key != self._key:
+            self._key, self._rotating = key, frame_mask(mask, frame)
+        return self._rotating
+
+
 class _Lag:
     """Ring buffer of the last ``m`` coefficient vectors of one (level, frame)."""
 
@@ -60,14 +76,12 @@ class _Lag:
         self.count = 0
 
     def push(self, v: np.ndarray) -> np.ndarray | None:
-        old = self.buf[self.pos].copy() if self.count >= self.m else None
+        """Store ``v``; return ``v`` minus the vector ``m`` pushes ago (None until there is one)."""
+        change = v - self.buf[self.pos] if self.count >= self.m else None
         self.buf[self.pos] = v
         self.pos = (self.pos + 1) % self.m
         self.count += 1
-        return old
-
-    def latest(self) -> np.ndarray:
-        return self.buf[(self.pos - 1) % self.m]
+        return change
 
 
 class ChangeFeatures:
@@ -83,6 +97,7 @@ class ChangeFeatures:
     def __init__(self, revolution_level: int) -> None:
         self._R = revolution_level
         self._lags: dict[tuple[int, str], _Lag] = {}
+        self._masks = _FrameMasks()
 
     def change(self, level: int, frame: str, values, mask: np.ndarray) -> np.ndarray | None:
         """
@@ -95,7 +110,7 @@ class ChangeFeatures:
         lag = self._lags.get(key)
         if lag is None:
             lag = self._lags[key] = _Lag(max(1, 2 ** (self._R - level)))
-        old = lag.push(normalise(level, values))
-        if old is None:
+        change = lag.push(normalise(level, values))
+        if change is None:
             return None
-        return (lag.latest() - old) * frame_mask(mask, frame)
+        return change * self._masks.get(mask, frame)

@@ -422,10 +422,10 @@ class FaultMonitor:
 
     # ------------------------------------------------------------------ episodes
     def _evidence(self, n, level, frame, s, ratio, delta, thr) -> None:
-        crossed = ratio > 1.0
+        crossed = bool(np.count_nonzero(ratio > 1.0))  # (a third of ndarray.any's cost)
         ep = self._episode
         if ep is None:
-            if not crossed.any():
+            if not crossed:
                 return
             ep = self._episode = Episode(start=n, last_crossing=n)
             ep.p_ref = self._sync.reference(s.first_sample_index)
@@ -433,11 +433,11 @@ class FaultMonitor:
         if level == self._finest:
             self._contact_burst(ep, n, s, ratio, frame)
         if ep.decided is not None:  # tail
-            if crossed.any():
+            if crossed:
                 ep.last_crossing = n
             return
         ep.track(level, frame, ratio)
-        if not crossed.any():
+        if not crossed:
             return
         ep.add_crossings(
             n, level, frame, s, ratio, delta, thr, self._centres.centre(s), self._R,

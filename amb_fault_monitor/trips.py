@@ -19,6 +19,7 @@ times a fraction (one source for the rig's numbers).
 
 from __future__ import annotations
 
+import cmath
 from typing import Any
 
 import numpy as np
@@ -94,6 +95,7 @@ class TripMonitor:
         self.level = _levels(level)
         self.hysteresis = float(hysteresis)
         self.tripped = np.zeros(4, dtype=bool)
+        self._tripped_any = False
         self.peak = np.zeros(4)
         self.value = np.zeros(4)
 
@@ -104,6 +106,7 @@ class TripMonitor:
     def reset(self) -> None:
         """Clear trips and peaks."""
         self.tripped[:] = False
+        self._tripped_any = False
         self.peak[:] = 0.0
         self.value[:] = 0.0
 
@@ -118,14 +121,16 @@ class TripMonitor:
         """
         r = np.asarray(value, dtype=float)
         self.value = r
-        self.peak = np.maximum(self.peak, r)
+        np.maximum(self.peak, r, out=self.peak)
         over = r > self.level
-        if not (over.any() or self.tripped.any()):  # the usual sample: nothing can change
+        # the usual sample: nothing can change (count_nonzero: a third of ndarray.any's cost)
+        if not (self._tripped_any or np.count_nonzero(over)):
             return _NONE, _NONE
         on = self.level > 0
         new = over & ~self.tripped & on
         clear = self.tripped & ((r < self.level * (1.0 - self.hysteresis)) | ~on)
         self.tripped = (self.tripped | new) & ~clear
+        self._tripped_any = bool(np.count_nonzero(self.tripped))
         return np.flatnonzero(new), np.flatnonzero(clear)
 
     def step(self, displacement: ArrayLike) -> np.ndarray:
@@ -147,7 +152,10 @@ class SynchronousAmplitude:
     -----
     A running sum over a ring buffer of ``x_n exp(-i theta_n)``; O(8) per sample, the sum is
     recomputed from the buffer once per revolution so round-off does not accumulate.
-    :attr:`ready` is False until a full revolution is in the window.
+    :attr:`ready` is False until a full revolution is in the window. The eight channels are
+    Python complex numbers, not a numpy array: at this size each numpy call costs more than the
+    arithmetic (about 1 us each; the node calls this at the sample rate, 2144 times a second at
+    67 Hz x 32).
     """
 
     def __init__(self, samples_per_rev: int) -> None:
@@ -159,8 +167,8 @@ class SynchronousAmplitude:
 
     def reset(self) -> None:
         """Empty the window."""
-        self._buf = np.zeros((self.samples_per_rev, 8), dtype=complex)
-        self._sum = np.zeros(8, dtype=complex)
+        self._buf = [[0j] * 8 for _ in range(self.samples_per_rev)]
+        self._sum = [0j] * 8
         self._pos = 0
         self._count = 0
 
@@ -183,15 +191,22 @@ class SynchronousAmplitude:
         d = np.asarray(displacement, dtype=float)
         if d.shape != (8,):
             raise FaultMonitorError(f"displacement must have shape (8,), got {d.shape}")
-        v = d * np.exp(-1j * float(angle))
-        self._sum += v - self._buf[self._pos]
+        rot = cmath.exp(-1j * float(angle))
+        v = [x * rot for x in d.tolist()]
+        old = self._buf[self._pos]
+        self._sum = [s + (a - b) for s, a, b in zip(self._sum, v, old, strict=True)]
         self._buf[self._pos] = v
         self._pos = (self._pos + 1) % self.samples_per_rev
         self._count += 1
         if self._pos == 0:
-            self._sum = self._buf.sum(axis=0)
+            self._sum = [sum(column) for column in zip(*self._buf, strict=True)]
         if not self.ready:
             return np.zeros(4)
-        ph = 2.0 / self.samples_per_rev * self._sum
-        x, y = ph[0::2], ph[1::2]
-        return 0.5 * (np.abs(x + 1j * y) + np.abs(x - 1j * y))
+        k = 2.0 / self.samples_per_rev
+        ph = [k * s for s in self._sum]
+        return np.array(
+            [
+                0.5 * (abs(x + 1j * y) + abs(x - 1j * y))
+                for x, y in zip(ph[0::2], ph[1::2], strict=True)
+            ]
+        )

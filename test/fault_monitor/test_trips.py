@@ -34,6 +34,28 @@ def test_one_x_amplitude_of_circle_line_and_ellipse(phase):
     np.testing.assert_allclose(a, [30e-6, 20e-6, 40e-6, 7e-6], rtol=1e-9, atol=1e-15)
 
 
+@pytest.mark.parametrize("start", [0, 5, 13])
+def test_one_x_window_slides_over_an_amplitude_step(start):
+    """Forward circles of 30 um, then 10 um from sample ``3 * SPR + start``.
+
+    With half a revolution of each in the window, ``X = (A1 + A2) / 2`` (the half-revolution
+    sums of ``exp(-2 i theta)`` vanish), so the semi-major axis is 20 um; one revolution after
+    the step it is 10 um. Starting mid-revolution exercises the running sum across the
+    once-per-revolution recomputation.
+    """
+    step = 3 * SPR + start
+    n = step + SPR
+    theta = 2 * np.pi * np.arange(n) / SPR
+    radius = np.where(np.arange(n) < step, 30e-6, 10e-6)
+    xy = np.zeros((n, 8))
+    xy[:, 0], xy[:, 1] = radius * np.cos(theta), radius * np.sin(theta)
+    amp = SynchronousAmplitude(SPR)
+    half = _feed(amp, xy[: step + SPR // 2], theta[: step + SPR // 2] % (2 * np.pi))
+    np.testing.assert_allclose(half[0], 20e-6, rtol=1e-9)
+    full = _feed(amp, xy[step + SPR // 2 :], theta[step + SPR // 2 :] % (2 * np.pi))
+    np.testing.assert_allclose(full[0], 10e-6, rtol=1e-9)
+
+
 def test_not_ready_before_one_revolution():
     amp = SynchronousAmplitude(SPR)
     assert not amp.ready
