@@ -207,9 +207,24 @@ class ChannelFrontEnd:
         xy = np.asarray(displacements, dtype=float)
         if xy.shape != (self._S,):
             raise ValueError(f"displacements must have shape ({self._S},), got {xy.shape}")
-        framed = self._frames_of(xy, angle)
-        delayed = self._delay.step(framed) if self._odd else framed
-        return self._assemble(framed, delayed)
+        # one sample of 8 channels: plain floats, each numpy call would cost more than the
+        # arithmetic (the node calls this at the sample rate); the numbers are those of
+        # to_rotating_frame: numpy's cos and sin of the angle, then float64 products and sums
+        values = xy.tolist()
+        framed = list(values) if self._fixed else []
+        if self._rot:
+            c, s = float(np.cos(angle)), float(np.sin(angle))
+            for x, y in zip(values[0::2], values[1::2], strict=True):
+                framed += (c * x + s * y, c * y - s * x)
+        delayed = self._delay.step(np.array(framed)).tolist() if self._odd else framed
+        S = self._S
+        out = []
+        for f in range(len(self._frames)):
+            if self._even:
+                out += framed[f * S : (f + 1) * S]
+            if self._odd:
+                out += delayed[f * S : (f + 1) * S]
+        return np.array(out)
 
     def process_block(self, displacements: ArrayLike, angles: ArrayLike) -> np.ndarray:
         """
