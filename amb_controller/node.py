@@ -120,7 +120,7 @@ from amb_controller.node_params import (
 from amb_controller.pipeline import ControllerPipeline, control_waveform
 from amb_controller.supervisor import Mode
 from amb_controller.synthesis import ForceLimiter
-from amb_tools.backlog import backlog_counts, declare_catch_up
+from amb_tools.backlog import backlog_counts, declare_catch_up, gap_known
 from amb_tools.cdr import CoefficientsView, MeasurementView, read_coefficients, read_measurement
 from amb_tools.conversions import (
     MessageError,
@@ -317,8 +317,9 @@ class WaveletControllerNode(Node):
             self.get_logger().info(f"measurements resumed at sample {msg.sample_index}")
         before = dict(self._sequencer.counts)
         accepted = self._sequencer.push(
-            int(msg.sample_index), stamp_seconds(msg.header.stamp), msg.rotor_speed, msg
-        )
+            int(msg.sample_index), stamp_seconds(msg.header.stamp), msg.rotor_speed, msg,
+            gap_known(self._readers[0]),
+        )  # fmt: skip
         if self._sequencer.counts != before:
             self._last_reason = self._sequencer.last_reason
             self._warnings.warning("sequence", self._last_reason)

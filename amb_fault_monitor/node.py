@@ -116,7 +116,7 @@ from amb_fault_monitor.node_params import (
     parameter_value,
 )
 from amb_fault_monitor.trips import SynchronousAmplitude, TripMonitor, clearance_levels
-from amb_tools.backlog import backlog_counts, declare_catch_up
+from amb_tools.backlog import BacklogReader, backlog_counts, declare_catch_up, gap_known
 from amb_tools.cdr import (
     CoefficientsView,
     MeasurementView,
@@ -341,14 +341,23 @@ class FaultMonitorNode(Node):
         self._warnings.warning(counter, reason)
 
     def _sequence(
-        self, stream: str, seq: SampleSequencer, index: int, item: tuple, omega: float
+        self,
+        stream: str,
+        seq: SampleSequencer,
+        index: int,
+        item: tuple,
+        omega: float,
+        reader: BacklogReader | None,
     ) -> list:
         """Offer a checked (message view, CDR) pair to a stream's sequencer; return accepted pairs.
 
-        ``stream`` names it for the warnings (throttled per stream).
+        ``stream`` names it for the warnings (throttled per stream); ``reader`` is the stream's
+        DDS reader (a jump right after its drops is a known gap, :func:`gap_known`).
         """
         before = dict(seq.counts)
-        accepted = seq.push(index, stamp_seconds(item[0].header.stamp), omega, item)
+        accepted = seq.push(
+            index, stamp_seconds(item[0].header.stamp), omega, item, gap_known(reader)
+        )
         if seq.counts != before:
             self._last_reason = seq.last_reason
             if any(seq.counts[k] != before[k] for k in ("stray", "stamp", "repeat")):
@@ -368,7 +377,7 @@ class FaultMonitorNode(Node):
             return
         for reset, (m, r) in self._sequence(
             "measurements", self._meas_seq, int(msg.sample_index), (msg, raw),
-            float(msg.rotor_speed),
+            float(msg.rotor_speed), self._readers[1],
         ):  # fmt: skip
             if reset:
                 self._sync_amp.reset()  # the 1 x window must not straddle a discontinuity
@@ -419,8 +428,9 @@ class FaultMonitorNode(Node):
             return
         omega = self._omega if self._omega > 0 else UNKNOWN_OMEGA
         for reset, (m, r) in self._sequence(
-            "coefficients", self._coef_seq, int(msg.sample_index) // 2, (msg, raw), omega
-        ):
+            "coefficients", self._coef_seq, int(msg.sample_index) // 2, (msg, raw), omega,
+            self._readers[0],
+        ):  # fmt: skip
             self._coefficients(m, r, reset)
 
     def _coefficients(self, msg: CoefficientsView, raw: bytes, reset: bool) -> None:

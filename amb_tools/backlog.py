@@ -69,6 +69,7 @@ __all__ = [
     "MessageAge",
     "backlog_counts",
     "declare_catch_up",
+    "gap_known",
 ]
 
 #: Name of the ROS parameter (samples; 0 = keep every sample).
@@ -181,6 +182,10 @@ class BacklogReader:
         Of those, messages dropped for their age alone (fewer than ``max_backlog`` queued).
     episodes : int
         Wakes that dropped messages (overloads caught up).
+    gap_before : bool
+        True while the first message kept after a drop is being delivered: the readers'
+        sample indices jump there by what was dropped, a gap known to be real
+        (:meth:`amb_tools.validation.SampleSequencer.push`, ``gap_known``).
     """
 
     def __init__(
@@ -201,6 +206,7 @@ class BacklogReader:
         self._msg_type = msg_type
         self.max_backlog = int(max_backlog)
         self.dropped = self.dropped_old = self.episodes = 0
+        self.gap_before = False  # the message being delivered follows messages dropped here
         self._received = 0  # messages taken, for a middleware without sequence numbers
         self._age = MessageAge(max_backlog) if max_backlog and catch_up.by_age else None
         self._warnings = ThrottledWarnings(node.get_logger(), period=5.0)
@@ -251,8 +257,10 @@ class BacklogReader:
                 for item in batch[:excess]:
                     self._on_dropped(item)
             del batch[:excess]
-        for item in batch:
+        for k, item in enumerate(batch):
+            self.gap_before = excess > 0 and k == 0
             self._deliver(item)
+        self.gap_before = False
 
 
 class MessageAge:
@@ -381,6 +389,15 @@ class MessageAge:
             if now - t > limit:
                 newest_old = k
         return newest_old + 1
+
+
+def gap_known(reader: BacklogReader | None) -> bool:
+    """Whether the message ``reader`` is delivering follows messages it dropped (a known gap).
+
+    For :meth:`amb_tools.validation.SampleSequencer.push`; None (a stream handed over
+    in-process, never dropped): False.
+    """
+    return reader is not None and reader.gap_before
 
 
 def backlog_counts(*readers: BacklogReader | None) -> dict[str, int]:

@@ -139,6 +139,13 @@ class SampleSequencer:
     a stray message and is rejected. One bad message therefore never derails the stream, and a
     real discontinuity costs one sample of latency.
 
+    A jump forward the caller knows to be real, because its own reader dropped the samples
+    between to catch up (``gap_known``, :class:`amb_tools.backlog.BacklogReader`), is accepted
+    at once as a gap when its stamp is plausible: held as a candidate, the newest sample of a
+    stream that ends there would never be confirmed (the end of a ``realtime`` run behind the
+    plant: the node's last sample stays short of the plant's, and ``amb-run`` waits out its drain
+    timeout).
+
     Attributes
     ----------
     counts : dict
@@ -167,7 +174,9 @@ class SampleSequencer:
         """Index of the candidate waiting for confirmation (None if there is none)."""
         return None if self._candidate is None else self._candidate[0]
 
-    def push(self, index: int, stamp_s: float, omega: float, payload: object) -> list:
+    def push(
+        self, index: int, stamp_s: float, omega: float, payload: object, gap_known: bool = False
+    ) -> list:
         """Offer one message; return the ``(reset, payload)`` pairs to process, in order.
 
         Parameters
@@ -180,6 +189,9 @@ class SampleSequencer:
             rad/s, its ``rotor_speed`` (> 0, see :func:`check_measurement`).
         payload : object
             What to hand back (the message).
+        gap_known : bool
+            The caller's reader dropped messages just before this one (class notes): a jump
+            forward with a plausible stamp is a gap, accepted at once.
 
         Returns
         -------
@@ -201,6 +213,21 @@ class SampleSequencer:
             return [(False, payload)]
         if index == last_index and self._candidate is None:
             return self._reject("repeat", f"sample {index} repeated")
+        if gap_known and index > last_index + 1:
+            why = stamp_step_error(
+                last_stamp, stamp_s, index - last_index, omega, self.samples_per_rev
+            )
+            if why is None:
+                if self._candidate is not None:
+                    self.counts["stray"] += 1  # superseded: the reader dropped past it
+                    self._candidate = None
+                self.counts["gap"] += 1
+                self.last_reason = (
+                    f"sample {index} after {last_index}: gap (the reader dropped the samples "
+                    "between to catch up), filters reset"
+                )
+                self._last = (index, stamp_s)
+                return [(True, payload)]
         cand = self._candidate
         if cand is not None and index == cand[0] + 1:
             why = stamp_step_error(cand[1], stamp_s, 1, omega, self.samples_per_rev)

@@ -37,7 +37,7 @@ from rcl_interfaces.msg import (
 from rclpy.node import Node
 
 from amb_common import topics
-from amb_tools.backlog import backlog_counts, declare_catch_up
+from amb_tools.backlog import backlog_counts, declare_catch_up, gap_known
 from amb_tools.cdr import MeasurementView, read_measurement
 from amb_tools.conversions import MessageError, stamp_seconds
 from amb_tools.local_bus import LocalBus, stream_publisher, stream_subscription
@@ -189,8 +189,9 @@ class WaveletFilterbankNode(Node):
             return
         before = dict(self._sequencer.counts)
         accepted = self._sequencer.push(
-            int(msg.sample_index), stamp_seconds(msg.header.stamp), msg.rotor_speed, msg
-        )
+            int(msg.sample_index), stamp_seconds(msg.header.stamp), msg.rotor_speed, msg,
+            gap_known(self._meas_reader),
+        )  # fmt: skip
         if self._sequencer.counts != before:
             self._last_reason = self._sequencer.last_reason
             if any(self._sequencer.counts[k] != before[k] for k in ("stray", "stamp")):

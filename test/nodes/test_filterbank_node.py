@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import math
+import os
+import signal
 import warnings
 
 import numpy as np
@@ -120,6 +122,50 @@ def test_a_gap_resets_the_filterbank_at_the_new_index(ros, node_process) -> None
     ref = pywt.dwt(segment, "haar", mode="zero")[1][: len(segment) // 2]
     first = resume // 2
     np.testing.assert_allclose([d[first + k] for k in range(len(ref))], ref, atol=1e-15)
+
+
+def test_a_stream_ending_after_a_catch_up_is_processed_to_its_last_sample(
+    ros, node_process
+) -> None:
+    """Stopped while the stream goes on, the node catches up (``max_backlog`` 1: each wake keeps
+    only its newest message) and the stream ends there: its last sample, right after the
+    samples the reader dropped, is processed (a gap known to its reader), not held for a
+    confirmation that never comes (``amb-run``'s drain waited 300 s for it)."""
+    rng = np.random.default_rng(5)
+    n = 6 * SPR
+    xy, angle = _signal(n, rng)
+    fb = node_process(
+        "wavelet_filterbank",
+        params={
+            "wavelet": "haar", "samples_per_rev": SPR, "levels": LEVELS, "status_period": 0.1,
+            "max_backlog": 1,
+        },
+    )  # fmt: skip
+    node = ros.node("amb_test_fb_catch_up")
+    pub = node.create_publisher(Measurement, "/amb/measurement", stream_qos(SPR))
+    diag: dict[str, str] = {}
+
+    def on_diag(msg: DiagnosticArray) -> None:
+        for st in msg.status:
+            if st.name == "wavelet_filterbank":
+                diag.update({kv.key: kv.value for kv in st.values})
+
+    node.create_subscription(DiagnosticArray, "/diagnostics", on_diag, 10)
+    assert ros.spin_until(lambda: pub.get_subscription_count() > 0 and diag, 30.0), fb.log()
+    first = 2 * SPR
+    for i in range(first):
+        pub.publish(_measurement(i, xy[i], angle[i]))
+        ros.spin_for(0.002)
+    assert ros.spin_until(lambda: diag.get("last_sample") == str(first - 1), 30.0), (diag, fb.log())
+    os.kill(fb.proc.pid, signal.SIGSTOP)
+    try:
+        for i in range(first, n):
+            pub.publish(_measurement(i, xy[i], angle[i]))
+        ros.spin_for(0.5)
+    finally:
+        os.kill(fb.proc.pid, signal.SIGCONT)
+    assert ros.spin_until(lambda: diag.get("last_sample") == str(n - 1), 20.0), (diag, fb.log())
+    assert int(diag["backlog_dropped"]) > 0 and int(diag["gaps_reset"]) >= 1, diag
 
 
 def test_records_rebuilt_from_messages_equal_the_core(ros, node_process) -> None:

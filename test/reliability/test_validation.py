@@ -62,6 +62,32 @@ def test_confirmed_gap_resets_at_the_new_index() -> None:
     assert seq.counts["gap"] == 1 and seq.counts["stray"] == 0
 
 
+def test_a_gap_the_reader_made_is_accepted_at_once() -> None:
+    """The reader dropped 10..12 to catch up: 13 is the stream's newest (it may be its last)."""
+    seq = SampleSequencer(SPR)
+    _feed(seq, [(n, n * DT) for n in range(10)])
+    out = seq.push(13, 13 * DT, OMEGA, "13", gap_known=True)
+    assert out == [(True, "13")]
+    assert seq.counts["gap"] == 1 and seq.last_index == 13
+    assert seq.push(14, 14 * DT, OMEGA, "14") == [(False, "14")]
+    # unknown, the same jump waits for the next sample to confirm it
+    held = SampleSequencer(SPR)
+    _feed(held, [(n, n * DT) for n in range(10)])
+    assert held.push(13, 13 * DT, OMEGA, "13") == []
+    assert held.pending_index == 13 and held.counts["gap"] == 0
+
+
+@pytest.mark.parametrize(
+    ("index", "stamp"),
+    [(5, 5 * DT), (13, 30 * DT)],  # a step back; a stamp from the future for three samples
+)
+def test_a_known_gap_is_still_checked(index: int, stamp: float) -> None:
+    seq = SampleSequencer(SPR)
+    _feed(seq, [(n, n * DT) for n in range(10)])
+    assert seq.push(index, stamp, OMEGA, "x", gap_known=True) == []
+    assert seq.counts["gap"] == 0 and seq.last_index == 9
+
+
 def test_plant_restart_from_zero_is_confirmed() -> None:
     seq = SampleSequencer(SPR)
     items = [(n, n * DT) for n in range(50)] + [(n, n * DT) for n in range(5)]
