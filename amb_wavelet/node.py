@@ -15,11 +15,12 @@ lengths, finite values, ``rotor_speed`` > 0, ``rotor_angle`` in [0, 2 pi), the c
 a repeated index is dropped; a stamp that goes back or lies impossibly far ahead of the
 sample interval is rejected; a jump or a step back is held until the next sample confirms
 it, except a jump right after the samples this node's reader dropped to catch up (a known
-gap, accepted at once: the stream may end there). A confirmed gap or restart (a lost sample, a restarted plant) resets the filterbank at
-the new index, so no coefficient ever mixes samples from both sides of a discontinuity
-(start-up coefficients after a reset are flagged ``settled = false``); an unconfirmed one
-is a stray message and is dropped. Everything rejected is counted by reason and reported on
-``/diagnostics``; nothing rejected reaches the filterbank.
+gap, accepted at once: the stream may end there). A confirmed gap or restart (a lost sample,
+a restarted plant) resets the filterbank at the new index, so no coefficient ever mixes
+samples from both sides of a discontinuity (start-up coefficients after a reset are flagged
+``settled = false``); an unconfirmed one is a stray message and is dropped. Everything
+rejected is counted by reason and reported on ``/diagnostics``; nothing rejected reaches the
+filterbank.
 
 Structural parameters are read-only (they fix the filterbank); only ``status_period`` may be
 set at run time (it is validated by the on-set callback and applied to the report timer).
