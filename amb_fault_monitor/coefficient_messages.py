@@ -80,6 +80,20 @@ def check_coefficients(msg: WaveletCoefficients, samples_per_rev: int) -> None:
     check_finite("sets[].values", np.concatenate([from_float_array(s.values) for s in msg.sets]))
 
 
+def filterbank_restarted(msg: WaveletCoefficients) -> bool:
+    """Whether the filterbank restarted its filters shortly before this message.
+
+    True if a finest-level (level 1) set is not ``settled``: its support reaches back past the
+    filterbank's start or reset (start-up zeros). A jump of the coefficient stream to such a
+    message is the filterbank's own gap (it reset on a gap of its measurement stream, possibly
+    one its reader dropped to catch up, which this node cannot see), not a stray message, so
+    it is accepted at once (:meth:`amb_tools.validation.SampleSequencer.push`, ``gap_known``):
+    held for confirmation, the last message of a stream that ends there would never be
+    processed.
+    """
+    return any(s.level == 1 and not s.settled for s in msg.sets)
+
+
 def record_from_msg(msg: WaveletCoefficients, omega: float) -> SampleCoefficients:
     """Convert a ``WaveletCoefficients`` message (checked by :func:`check_coefficients`)."""
     sets = tuple(

@@ -100,6 +100,7 @@ from amb_fault_monitor.coefficient_messages import (
     EXTRA_OCTAVES,
     FRAME,
     check_coefficients,
+    filterbank_restarted,
     record_from_msg,
 )
 from amb_fault_monitor.config import MonitorConfig
@@ -348,16 +349,20 @@ class FaultMonitorNode(Node):
         item: tuple,
         omega: float,
         reader: BacklogReader | None,
+        restarted: bool = False,
     ) -> list:
         """Offer a checked (message view, CDR) pair to a stream's sequencer; return accepted pairs.
 
         ``stream`` names it for the warnings (throttled per stream); ``reader`` is the stream's
-        DDS reader (a jump right after its drops is a known gap, :func:`gap_known`).
+        DDS reader (a jump right after its drops is a known gap, :func:`gap_known`);
+        ``restarted``: the message says its producer restarted its filters before it (a jump
+        to it is the producer's own gap, known as well).
         """
         before = dict(seq.counts)
         accepted = seq.push(
-            index, stamp_seconds(item[0].header.stamp), omega, item, gap_known(reader)
-        )
+            index, stamp_seconds(item[0].header.stamp), omega, item,
+            restarted or gap_known(reader),
+        )  # fmt: skip
         if seq.counts != before:
             self._last_reason = seq.last_reason
             if any(seq.counts[k] != before[k] for k in ("stray", "stamp", "repeat")):
@@ -427,9 +432,11 @@ class FaultMonitorNode(Node):
             )
             return
         omega = self._omega if self._omega > 0 else UNKNOWN_OMEGA
+        index = int(msg.sample_index) // 2
+        last = self._coef_seq.last_index
         for reset, (m, r) in self._sequence(
-            "coefficients", self._coef_seq, int(msg.sample_index) // 2, (msg, raw), omega,
-            self._readers[0],
+            "coefficients", self._coef_seq, index, (msg, raw), omega, self._readers[0],
+            last is not None and index > last + 1 and filterbank_restarted(msg),
         ):  # fmt: skip
             self._coefficients(m, r, reset)
 

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import json
 import math
+import os
+import signal
 
 import late_command
 import numpy as np
@@ -312,3 +314,48 @@ def test_an_offset_probe_inside_the_loop_is_published_as_a_sensor_fault(ros, nod
     fault = 2.0 * case.speed_hz * spr  # the scenario's fault time, in samples
     assert abs(int(ev.onset_sample_index) - fault) <= spr
     assert FaultEvent.AUX_BEARING_CONTACT not in {e.fault_type for e in events}
+
+
+def test_the_last_coefficients_after_the_filterbanks_catch_up_are_processed(
+    ros, node_process
+) -> None:
+    """The filterbank stopped while the stream goes on catches up (``max_backlog`` 1) and the
+    stream ends there: its last coefficient message jumps past the ones it never computed. The
+    monitor's own reader lost nothing, but the message says the filterbank restarted its
+    filters (level 1 not settled), so the jump is the filterbank's gap and is processed, not
+    held for a confirmation that never comes (``amb-run``'s drain waited 300 s for it)."""
+    xy, angle, idx = make_run(6)
+    n = idx.size
+    fb = node_process(
+        "-m amb_wavelet.node",
+        params={"wavelet": "haar", "samples_per_rev": SPR, "levels": 6, "max_backlog": 1},
+    )
+    fm = node_process(
+        "-m amb_fault_monitor.node", params={"samples_per_rev": SPR, "status_period": 0.1}
+    )
+    _node, pub, _, diag = _driver(ros, "amb_test_fm_fb_catch_up", SPR)
+    assert ros.spin_until(
+        lambda: (
+            pub.get_subscription_count() >= 2
+            and diag.matched("wavelet_filterbank", COEFFICIENTS) >= 1
+            and diag.matched("fault_monitor", EVENTS) >= 1
+        ),
+        timeout=30.0,
+    ), (diag.values, fb.log(), fm.log())
+    last = lambda: diag.get("fault_monitor", "last_coefficient_sample")  # noqa: E731
+    first = 2 * SPR
+    for i in range(first):
+        pub.publish(_measurement(int(idx[i]), xy[i], angle[i]))
+        ros.spin_for(0.002)
+    assert ros.spin_until(lambda: last() == str(first - 1), 30.0), (diag.values, fm.log())
+    os.kill(fb.proc.pid, signal.SIGSTOP)
+    try:
+        for i in range(first, n):
+            pub.publish(_measurement(int(idx[i]), xy[i], angle[i]))
+            ros.spin_for(0.001)
+        ros.spin_for(0.5)
+    finally:
+        os.kill(fb.proc.pid, signal.SIGCONT)
+    assert ros.spin_until(lambda: last() == str(n - 1), 20.0), (diag.values, fm.log(), fb.log())
+    assert diag.get("fault_monitor", "coefficients_gap") == "1", diag.values
+    assert diag.get("fault_monitor", "last_sample") == str(n - 1), diag.values
