@@ -22,7 +22,9 @@ Run modes (ARCHITECTURE.md, "Time")
     Samples are produced on the wall clock (times ``time_scale``); a command is applied if it
     arrived before its period starts, else the period runs with zero force and the command is
     counted late. This is how a rig behaves: each period is simulated when it starts (its
-    wavelet force is fixed then) and each of its samples is published at its own instant, from
+    wavelet force is fixed then; the first one just before the clock starts, so that its
+    cold start is not taken from the first periods) and each of its samples is published at its
+    own instant, from
     a timer at the sample interval, so that the last sample of a period leaves at the period's
     end and the command latency (``latency_summary``) is measured from there. The effective
     control delay is reported as well (``control_summary``): the fraction of the periods that
@@ -393,6 +395,12 @@ class PlantSimNode(Node):
                     "anyway"
                 )
             self._started = True
+            if self._mode == "realtime" and self._remaining() > 0:
+                # the first period, simulated before the clock starts: its first run takes tens
+                # of ms (the speed's discretisation, cold code paths; 35 ms at 67 Hz x 32), which
+                # put the first periods behind their instants (a burst at the start, their
+                # commands late); a rig's I/O has no such start-up
+                self._run_period(0)
             self._wall0 = time.monotonic()
         if self._mode == "lockstep":
             self._tick_lockstep()
