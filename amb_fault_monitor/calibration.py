@@ -38,9 +38,40 @@ from numpy.typing import ArrayLike
 
 from amb_fault_monitor.errors import FaultMonitorError
 
-__all__ = ["MAD_TO_SIGMA", "Calibration", "CalibrationWindow", "robust_threshold"]
+__all__ = ["MAD_TO_SIGMA", "Calibration", "CalibrationWindow", "median", "robust_threshold"]
 
 MAD_TO_SIGMA = 1.4826
+
+
+def median(a: ArrayLike, axis: int | None = None) -> np.ndarray | float:
+    """
+    ``numpy.median`` of finite values, by one sort: the middle value, or the mean of the two.
+
+    The same numbers as ``numpy.median`` (it averages the same two middle values), without
+    its per-call overhead (tens of us): a calibration attempt takes about ninety medians of
+    short arrays, once per revolution, on the monitor's thread (7 ms at 67 Hz x 32 with
+    ``numpy.median``, a whole control period in the composed stack).
+
+    Parameters
+    ----------
+    a : array_like
+        Finite values (a NaN would sort last instead of propagating).
+    axis : int or None
+        0: along the first axis; None: over every value.
+
+    Returns
+    -------
+    numpy.ndarray or float
+    """
+    s = np.sort(np.asarray(a, dtype=float), axis=axis)
+    if axis is None:
+        s = s.ravel()
+    elif axis != 0:
+        raise ValueError(f"axis = {axis}: 0 or None")
+    n = s.shape[0]
+    if n == 0:
+        raise ValueError("median of an empty array")
+    return (s[(n - 1) // 2] + s[n // 2]) / 2
 
 
 def robust_threshold(samples: ArrayLike, k: float, floor: float, axis: int = 0) -> np.ndarray:
@@ -78,8 +109,10 @@ def robust_threshold(samples: ArrayLike, k: float, floor: float, axis: int = 0) 
         raise FaultMonitorError(f"k must be > 0, got {k}")
     if not floor >= 0:
         raise FaultMonitorError(f"floor must be >= 0, got {floor}")
-    med = np.median(a, axis=axis)
-    mad = np.median(np.abs(a - np.expand_dims(med, axis)), axis=axis)
+    if axis != 0:
+        a = np.moveaxis(a, axis, 0)
+    med = median(a, axis=0)
+    mad = median(np.abs(a - med), axis=0)
     return np.maximum(med + k * MAD_TO_SIGMA * mad, floor)
 
 
@@ -181,7 +214,7 @@ class CalibrationWindow:
             second = [v for m, v in q if m > mid]
             if not first or not second:
                 return None
-            if np.median(first) > cfg.settle_ratio * max(np.median(second), cfg.threshold_floor):
+            if median(first) > cfg.settle_ratio * max(median(second), cfg.threshold_floor):
                 self.retries += 1
                 return None  # still settling
         thr = {k: self._plane_thresholds(q) for k, q in self._features.items()}
@@ -192,7 +225,7 @@ class CalibrationWindow:
         sync = robust_threshold(np.array([v for _m, v in self._sync]), cfg.k, cfg.threshold_floor)
         dead = None
         if self._dead:
-            dead = np.median(np.abs(np.array([v for _m, v in self._dead])), axis=0)
+            dead = median(np.abs(np.array([v for _m, v in self._dead])), axis=0)
         self._features.clear()
         return Calibration(thr, sync, dead, n)
 

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from amb_fault_monitor.calibration import robust_threshold
+from amb_fault_monitor.calibration import median, robust_threshold
 from amb_fault_monitor.errors import FaultMonitorError
 
 
@@ -46,3 +46,13 @@ def test_floor_applies_to_noise_free_features():
 def test_errors(x, k, floor, match):
     with pytest.raises(FaultMonitorError, match=match):
         robust_threshold(x, k, floor)
+
+
+@pytest.mark.parametrize("shape", [(1,), (8,), (9,), (16, 4), (17, 4), (3, 2, 5)])
+def test_median_equals_numpys(shape) -> None:
+    """The sort-based median averages the same two middle values as ``numpy.median``."""
+    x = np.random.default_rng(sum(shape)).normal(size=shape) * 1e-6
+    assert median(x) == np.median(x)
+    np.testing.assert_array_equal(median(x, axis=0), np.median(x, axis=0))
+    with pytest.raises(ValueError, match="empty"):
+        median(np.zeros((0, 4)), axis=0)
