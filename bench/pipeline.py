@@ -33,7 +33,7 @@ runs made under the same load.
 
     python bench/pipeline.py [--duration 8] [--cases 11:64,67:32] [--repeat 3]
         [--composed [--apart fault_monitor]] [--nice NODE=N] [--hog START:SECONDS]
-        [--set NODE.PARAM:=VALUE ...]
+        [--set NODE.PARAM:=VALUE ...] [--keep DIR]
 """
 
 from __future__ import annotations
@@ -347,6 +347,7 @@ def main() -> None:
         "--hog",
         help="START:SECONDS: one core busy from START s after each realtime launch, SECONDS long",
     )
+    ap.add_argument("--keep", help="keep the runs' folders (bags, logs, CPU logs) here")
     args = ap.parse_args()
     hog = None
     if args.hog:
@@ -371,6 +372,9 @@ def main() -> None:
           + (f" {'hog s (run)':>11} {'before':>7} {'during':>7} {'after':>7} {'recover':>8} "
              f"{'lost':>5}" if hog else ""))  # fmt: skip
     with tempfile.TemporaryDirectory() as tmp:
+        if args.keep:
+            tmp = args.keep
+            Path(tmp).mkdir(parents=True, exist_ok=True)
         for hz, spr in cases:
             runs = case(
                 float(hz), int(spr), args.duration, Path(tmp), args.repeat, run_args, hog, args.set
