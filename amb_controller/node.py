@@ -164,11 +164,12 @@ class WaveletControllerNode(Node):
         self._max_backlog = backlog.max_backlog
         self._readers = (
             stream_subscription(
-                self, bus, Measurement, topics.MEASUREMENT, self._on_measurement, qos, backlog
+                self, bus, Measurement, topics.MEASUREMENT, self._on_measurement, qos, backlog,
+                urgent=True,
             ),
             stream_subscription(
                 self, bus, WaveletCoefficients, topics.COEFFICIENTS, self._on_coefficients, qos,
-                backlog.per_message(topics.SAMPLES_PER_COEFFICIENT_MESSAGE),
+                backlog.per_message(topics.SAMPLES_PER_COEFFICIENT_MESSAGE), urgent=True,
             ),
         )  # fmt: skip
         self.create_subscription(FaultEvent, topics.FAULT_EVENTS, self._on_fault, 10)

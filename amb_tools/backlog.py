@@ -173,6 +173,10 @@ class BacklogReader:
     on_dropped : callable, optional
         Called with the CDR bytes of each message dropped, oldest first, before the kept ones
         are delivered (a reader that must lose nothing: a composed recorder).
+    after_batch : callable, optional
+        Called after the messages of a wake are delivered (the composed readers that were
+        deferred until then, :class:`amb_tools.local_bus.LocalBus`); given, every wake takes
+        all queued messages, also with ``max_backlog`` 0 (none dropped then).
 
     Attributes
     ----------
@@ -197,12 +201,14 @@ class BacklogReader:
         qos: QoSProfile,
         catch_up: CatchUp = NO_CATCH_UP,
         on_dropped: Callable[[bytes], None] | None = None,
+        after_batch: Callable[[], None] | None = None,
     ) -> None:
         max_backlog = catch_up.max_backlog
         if max_backlog < 0:
             raise ValueError(f"max_backlog = {max_backlog}: must be >= 0 (0 = keep every sample)")
         self._deliver = deliver
         self._on_dropped = on_dropped
+        self._after_batch = after_batch
         self._msg_type = msg_type
         self.max_backlog = int(max_backlog)
         self.dropped = self.dropped_old = self.episodes = 0
@@ -210,14 +216,24 @@ class BacklogReader:
         self._received = 0  # messages taken, for a middleware without sequence numbers
         self._age = MessageAge(max_backlog) if max_backlog and catch_up.by_age else None
         self._warnings = ThrottledWarnings(node.get_logger(), period=5.0)
-        # without a bound each message goes straight to ``deliver``: no extra call per message
-        callback = self._on_message if self.max_backlog else deliver
+        # without a bound or a batch hook each message goes straight to ``deliver``: no extra
+        # call per message
+        batched = self.max_backlog or after_batch is not None
+        callback = self._on_message if batched else deliver
         self.subscription = node.create_subscription(msg_type, name, callback, qos, raw=True)
 
-    def _on_message(self, raw: bytes) -> None:
+    def poll(self) -> int:
+        """Take and deliver, as at a wake, whatever is queued now; return how many were taken.
+
+        For a caller busy with other work that wants newer messages first (a composed bus's
+        deferred readers, :meth:`amb_tools.local_bus.LocalBus.flush`).
+        """
+        return self._on_message(None)
+
+    def _on_message(self, raw: bytes | None) -> int:
         # the executor's message comes without its message info (rclpy's EventsExecutor fails on
         # a callback that asks for it); the rest are taken with it, for their source timestamps
-        batch = [raw]
+        batch = [] if raw is None else [raw]
         sent: list[int] = []
         received: list[int] = []
         sequence: list[int] = []
@@ -229,14 +245,17 @@ class BacklogReader:
                 sent.append(info["source_timestamp"])
                 received.append(info["received_timestamp"])
                 sequence.append(info.get("publication_sequence_number") or 0)
+        if not batch:
+            return 0
         self._received += len(batch)
-        queued = max(len(batch) - self.max_backlog, 0)
+        queued = max(len(batch) - self.max_backlog, 0) if self.max_backlog else 0
         old = 0
         if self._age is not None:
             if not all(sequence):  # no numbers from this middleware: count what came instead
                 sequence = list(range(self._received - len(sent), self._received))
             old = self._age.old(sent, time.time_ns(), received, sequence=sequence)
-            old += old > 0  # the executor's message is older than the first one taken here
+            if raw is not None:
+                old += old > 0  # the executor's message is older than the first one taken here
         excess = min(max(queued, old), len(batch) - 1)  # the newest stays (module docstring)
         if excess > 0:
             self.dropped += excess
@@ -257,10 +276,22 @@ class BacklogReader:
                 for item in batch[:excess]:
                     self._on_dropped(item)
             del batch[:excess]
+        error: Exception | None = None
         for k, item in enumerate(batch):
             self.gap_before = excess > 0 and k == 0
-            self._deliver(item)
+            try:
+                self._deliver(item)
+            except Exception as exc:  # the rest of the wake is still delivered; raised after
+                error = error or exc
         self.gap_before = False
+        if self._after_batch is not None:
+            try:
+                self._after_batch()
+            except Exception as exc:
+                error = error or exc
+        if error is not None:
+            raise error
+        return len(batch) + excess
 
 
 class MessageAge:

@@ -19,10 +19,24 @@ each stays keyed on its sample indices, so a composed system computes what separ
 compute (lock-step results are bit-identical; ``test/system``). Nodes take ``bus=None`` when
 run alone and then subscribe and publish as usual (:func:`stream_subscription`,
 :func:`stream_publisher`).
+
+The control path first. One thread serves every composed node, and a command is due a fixed
+time after its period's last sample: a reader subscribed ``urgent`` (the filterbank's
+measurements, the controller's measurements and coefficients) is handed each message at once;
+the others (the fault monitor, the recorder) get theirs, in the same order, once every message
+the process's DDS reader found queued at that wake has gone through the urgent ones. Keeping
+up, a wake holds one message and nothing changes but the order within it; behind (a burst, a
+stall), the controller answers the backlog's newest period before the monitor and the recorder
+work through it, instead of after (in lock-step the plant computes its next period meanwhile,
+on the other core). Each reader still sees its streams in their order, and the relative order
+of the deferred readers' messages is kept (a coefficient message the filterbank publishes for a
+sample reaches the monitor before that sample's measurement, as before).
 """
 
 from __future__ import annotations
 
+import time
+from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -35,13 +49,18 @@ __all__ = ["LocalBus", "StreamPublisher", "stream_publisher", "stream_subscripti
 
 RawCallback = Callable[[bytes], None]
 
+#: s of deferred work between two polls of the DDS readers (:meth:`LocalBus.flush`): at
+#: 67 Hz x 32 a sample comes every 0.47 ms.
+POLL_PERIOD = 0.0005
+
 
 @dataclass
 class _Topic:
     """The composed readers of one resolved topic name and how its messages arrive."""
 
     msg_type: type
-    readers: list[RawCallback] = field(default_factory=list)
+    urgent: list[RawCallback] = field(default_factory=list)  # handed each message at once
+    deferred: list[RawCallback] = field(default_factory=list)  # after the wake's urgent ones
     lossless: list[RawCallback] = field(default_factory=list)  # also get what a catch-up drops
     local: bool = False  # published by a composed node (else: one DDS reader feeds the readers)
     dds_reader: BacklogReader | None = None
@@ -62,6 +81,10 @@ class LocalBus:
     def __init__(self, local_topics: tuple[str, ...] = ()) -> None:
         self._local_names = tuple(local_topics)
         self._topics: dict[str, _Topic] = {}
+        # deferred deliveries: (reader, bytes, the DDS reader the bytes came from, its gap flag)
+        self._pending: deque[tuple[RawCallback, bytes, BacklogReader | None, bool]] = deque()
+        self._in_wake = False  # a DDS reader's wake is delivering: defer until its end
+        self._flushing = False
 
     def _declared_local(self, node: Node, resolved: str) -> bool:
         """Whether ``resolved`` is one of the local topics (their names resolved by ``node``)."""
@@ -89,6 +112,7 @@ class LocalBus:
         qos: QoSProfile,
         catch_up: CatchUp = NO_CATCH_UP,
         lossless: bool = False,
+        urgent: bool = False,
     ) -> BacklogReader | None:
         """
         Hand every message of topic ``name`` (CDR bytes) to ``callback``.
@@ -112,6 +136,9 @@ class LocalBus:
         lossless : bool
             Also hand over, in order, the messages the shared DDS reader drops to catch up
             (the composed recorder: every sample in the bag while the control nodes skip).
+        urgent : bool
+            The reader is on the control path: it is handed each message at once, the others
+            after the wake's urgent deliveries (module notes).
 
         Returns
         -------
@@ -119,13 +146,13 @@ class LocalBus:
             The process's DDS reader of an outside topic (shared); None for a local topic.
         """
         resolved, topic = self._topic(node, msg_type, name)
-        topic.readers.append(callback)
+        (topic.urgent if urgent else topic.deferred).append(callback)
         if lossless:
             topic.lossless.append(callback)
         if not topic.local and topic.dds_reader is None:
             topic.dds_reader = BacklogReader(
-                node, msg_type, resolved, lambda raw, t=topic: self._deliver(t, raw), qos,
-                catch_up, lambda raw, t=topic: self._deliver_dropped(t, raw),
+                node, msg_type, resolved, lambda raw, t=topic: self._wake_deliver(t, raw), qos,
+                catch_up, lambda raw, t=topic: self._deliver_dropped(t, raw), self._end_wake,
             )  # fmt: skip
         return topic.dds_reader
 
@@ -144,13 +171,81 @@ class LocalBus:
             )
         return StreamPublisher(node.create_publisher(msg_type, resolved, qos), topic, self)
 
+    def _wake_deliver(self, topic: _Topic, raw: bytes) -> None:
+        """A message of an outside topic, taken at a wake of its DDS reader."""
+        self._in_wake = True
+        self._deliver(topic, raw)
+
+    def _end_wake(self) -> None:
+        """The DDS reader's wake is delivered: hand the deferred readers their messages."""
+        self._in_wake = False
+        self.flush()
+
     def _deliver(self, topic: _Topic, raw: bytes) -> None:
-        for reader in topic.readers:
+        for reader in topic.urgent:
             reader(raw)
+        if topic.deferred:
+            source = topic.dds_reader
+            gap = source is not None and source.gap_before
+            self._pending.extend((reader, raw, source, gap) for reader in topic.deferred)
+            if not self._in_wake:
+                self.flush()
 
     def _deliver_dropped(self, topic: _Topic, raw: bytes) -> None:
+        if self._flushing:  # polled within a flush: after the older messages still deferred
+            self._pending.extend((reader, raw, None, False) for reader in topic.lossless)
+            return
+        self.flush()  # anything still deferred is older
         for reader in topic.lossless:
             reader(raw)
+
+    def _polled_readers(self) -> list[BacklogReader]:
+        return [t.dds_reader for t in self._topics.values() if t.dds_reader is not None]
+
+    def flush(self) -> None:
+        """Hand the deferred readers what they are owed, in order (module notes).
+
+        Every :data:`POLL_PERIOD` s of this work the process's DDS readers are polled, so that
+        a message that arrived meanwhile reaches the urgent readers at once (its deferred
+        deliveries join the queue), unless the queue holds more than its bound: the
+        ``max_backlog`` of the readers' catch-up, per deferred reader (none in lock-step, where
+        the plant waits for the commands). Beyond it the DDS queue is left to grow and the
+        readers' own catch-up drops from it (:class:`amb_tools.backlog.BacklogReader`): an
+        overload that lasts is caught up as before, for every reader, instead of leaving the
+        deferred ones ever further behind.
+
+        Each message's DDS reader shows, during the call, the ``gap_before`` it had when the
+        message was taken (:func:`amb_tools.backlog.gap_known`). A reader's exception leaves
+        the messages after it for the next flush and is raised.
+        """
+        if self._flushing:
+            return  # a poll within a flush: the outer loop goes on
+        self._flushing = True
+        pending = self._pending
+        sources = self._polled_readers()
+        bound = sum(r.max_backlog for r in sources) * max(
+            (len(t.deferred) for t in self._topics.values()), default=1
+        )
+        clock = time.perf_counter
+        try:
+            next_poll = clock() + POLL_PERIOD
+            while pending:
+                reader, raw, source, gap = pending.popleft()
+                if source is None:
+                    reader(raw)
+                else:
+                    source.gap_before = gap
+                    try:
+                        reader(raw)
+                    finally:
+                        source.gap_before = False
+                if clock() > next_poll:
+                    if not bound or len(pending) < bound:
+                        for src in sources:
+                            src.poll()
+                    next_poll = clock() + POLL_PERIOD
+        finally:
+            self._flushing = False
 
 
 class StreamPublisher:
@@ -180,15 +275,17 @@ def stream_subscription(
     callback: RawCallback,
     qos: QoSProfile,
     catch_up: CatchUp = NO_CATCH_UP,
+    urgent: bool = False,
 ) -> BacklogReader | None:
     """Subscribe ``callback`` (raw CDR) to a stream: from the bus if composed, else from DDS.
 
+    ``urgent``: on the control path, served first when composed (:meth:`LocalBus.subscribe`).
     Returns the DDS reader (:class:`amb_tools.backlog.BacklogReader`, its drop counts; shared
     by the composed readers of an outside topic), or None for a topic published in-process.
     """
     if bus is None:
         return BacklogReader(node, msg_type, name, callback, qos, catch_up)
-    return bus.subscribe(node, msg_type, name, callback, qos, catch_up)
+    return bus.subscribe(node, msg_type, name, callback, qos, catch_up, urgent=urgent)
 
 
 def stream_publisher(node: Node, bus: LocalBus | None, msg_type: type, name: str, qos: QoSProfile):

@@ -97,7 +97,7 @@ class WaveletFilterbankNode(Node):
         self._diag = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS, 10)
         self._meas_reader = stream_subscription(
             self, bus, Measurement, topics.MEASUREMENT, self._on_measurement, qos,
-            declare_catch_up(self),
+            declare_catch_up(self), urgent=True,  # the controller waits for the coefficients
         )  # fmt: skip
         self._status_timer = self.create_timer(
             self.get_parameter("status_period").value, self._publish_status

@@ -94,3 +94,42 @@ def test_a_local_stream_reaches_a_reader_outside_from_its_match_on(ros) -> None:
     assert ros.spin_until(lambda: got and got[-1] == 299, timeout=30.0), got
     assert inside == list(range(300))  # the composed reader: everything
     assert got == list(range(100, 300))  # everything after the writer counted it matched
+
+
+def test_urgent_readers_take_a_wake_before_the_deferred_ones(ros) -> None:
+    """A burst taken at one wake goes through the urgent readers (the control path: a
+    filterbank-like reader that publishes a coefficient message per measurement, a controller-
+    like reader of those) before the deferred ones (monitor, recorder), which still get every
+    message of both streams in their order, a sample's coefficients before its measurement."""
+    node = ros.node("amb_test_bus_urgent")
+    driver = ros.node("amb_test_bus_urgent_driver")
+    qos = stream_qos(16)
+    meas_pub = driver.create_publisher(Measurement, "/amb/measurement", qos)
+    bus = LocalBus(local_topics=("/amb/wavelet/coefficients",))
+    coef_pub = bus.publisher(node, WaveletCoefficients, "/amb/wavelet/coefficients", qos)
+    log: list[tuple[str, int]] = []
+
+    def filterbank(raw: bytes) -> None:
+        k = read_measurement(raw).sample_index
+        log.append(("filterbank", k))
+        coef_pub.publish(serialize_message(WaveletCoefficients(sample_index=k)))
+
+    def reader(name: str, read):
+        return lambda raw: log.append((name, read(raw).sample_index))
+
+    bus.subscribe(node, Measurement, "/amb/measurement", filterbank, qos, urgent=True)
+    bus.subscribe(node, Measurement, "/amb/measurement", reader("monitor", read_measurement), qos)
+    for name, urgent in (("controller", True), ("monitor coefficients", False)):
+        bus.subscribe(
+            node, WaveletCoefficients, "/amb/wavelet/coefficients",
+            reader(name, read_coefficients), qos, urgent=urgent,
+        )  # fmt: skip
+    assert ros.spin_until(lambda: meas_pub.get_subscription_count() == 1, timeout=30.0)
+    n = 10
+    for k in range(n):
+        meas_pub.publish(serialize_message(Measurement(sample_index=k, samples_per_rev=16)))
+    assert meas_pub.wait_for_all_acked(Duration(seconds=30.0))  # all queued before the wake
+    assert ros.spin_until(lambda: len(log) >= 4 * n, timeout=30.0), log
+    urgent = [e for k in range(n) for e in (("filterbank", k), ("controller", k))]
+    deferred = [e for k in range(n) for e in (("monitor coefficients", k), ("monitor", k))]
+    assert log == urgent + deferred
