@@ -20,17 +20,18 @@ compute (lock-step results are bit-identical; ``test/system``). Nodes take ``bus
 run alone and then subscribe and publish as usual (:func:`stream_subscription`,
 :func:`stream_publisher`).
 
-The control path first. One thread serves every composed node, and a command is due a fixed
-time after its period's last sample: a reader subscribed ``urgent`` (the filterbank's
+The control path first, in lock-step. One thread serves every composed node, and in lock-step
+the plant waits for each command: a reader subscribed ``urgent`` (the filterbank's
 measurements, the controller's measurements and coefficients) is handed each message at once;
 the others (the fault monitor, the recorder) get theirs, in the same order, once every message
-the process's DDS reader found queued at that wake has gone through the urgent ones. Keeping
-up, a wake holds one message and nothing changes but the order within it; behind (a burst, a
-stall), the controller answers the backlog's newest period before the monitor and the recorder
-work through it, instead of after (in lock-step the plant computes its next period meanwhile,
-on the other core). Each reader still sees its streams in their order, and the relative order
-of the deferred readers' messages is kept (a coefficient message the filterbank publishes for a
-sample reaches the monitor before that sample's measurement, as before).
+the process's DDS reader found queued at that wake (the plant's burst of a period) has gone
+through the urgent ones, so that the command leaves and the plant computes its next period on
+the other core while the monitor and the recorder work. Each reader still sees its streams in
+their order, and the relative order of the deferred readers' messages is kept (a coefficient
+message the filterbank publishes for a sample reaches the monitor before that sample's
+measurement, as before). In realtime (a reader with a catch-up bound) every reader is served at
+each message, urgent ones first: deferring there made the periods controlled at 67 Hz x 32
+worse, not better (``docs/history.md``, "The control path first").
 """
 
 from __future__ import annotations
@@ -173,7 +174,8 @@ class LocalBus:
 
     def _wake_deliver(self, topic: _Topic, raw: bytes) -> None:
         """A message of an outside topic, taken at a wake of its DDS reader."""
-        self._in_wake = True
+        # deferred in lock-step only (module notes): a bounded reader is a realtime one
+        self._in_wake = not topic.dds_reader.max_backlog
         self._deliver(topic, raw)
 
     def _end_wake(self) -> None:
@@ -184,12 +186,13 @@ class LocalBus:
     def _deliver(self, topic: _Topic, raw: bytes) -> None:
         for reader in topic.urgent:
             reader(raw)
-        if topic.deferred:
+        if not self._in_wake:
+            for reader in topic.deferred:
+                reader(raw)
+        elif topic.deferred:
             source = topic.dds_reader
             gap = source is not None and source.gap_before
             self._pending.extend((reader, raw, source, gap) for reader in topic.deferred)
-            if not self._in_wake:
-                self.flush()
 
     def _deliver_dropped(self, topic: _Topic, raw: bytes) -> None:
         if self._flushing:  # polled within a flush: after the older messages still deferred
@@ -205,27 +208,27 @@ class LocalBus:
     def flush(self) -> None:
         """Hand the deferred readers what they are owed, in order (module notes).
 
-        Every :data:`POLL_PERIOD` s of this work the process's DDS readers are polled, so that
-        a message that arrived meanwhile reaches the urgent readers at once (its deferred
-        deliveries join the queue), unless the queue holds more than its bound: the
-        ``max_backlog`` of the readers' catch-up, per deferred reader (none in lock-step, where
-        the plant waits for the commands). Beyond it the DDS queue is left to grow and the
-        readers' own catch-up drops from it (:class:`amb_tools.backlog.BacklogReader`): an
-        overload that lasts is caught up as before, for every reader, instead of leaving the
-        deferred ones ever further behind.
+        Without a catch-up bound (lock-step: the plant publishes the next period as soon as
+        the command arrives) the process's DDS readers are polled every :data:`POLL_PERIOD` s
+        of this work, so that a message that arrived meanwhile reaches the urgent readers at
+        once (its deferred deliveries join the queue). Not with one (realtime): a poll there
+        takes the samples one at a time, and in three runs at 67 Hz x 32 the periods
+        controlled fell to 28-61 % (``docs/history.md``, "The control path first"); a lasting
+        overload is then caught up by the readers' own rule, for every reader
+        (:class:`amb_tools.backlog.BacklogReader`), instead of leaving the deferred ones ever
+        further behind.
 
         Each message's DDS reader shows, during the call, the ``gap_before`` it had when the
         message was taken (:func:`amb_tools.backlog.gap_known`). A reader's exception leaves
         the messages after it for the next flush and is raised.
         """
-        if self._flushing:
+        if self._flushing or not self._pending:
             return  # a poll within a flush: the outer loop goes on
         self._flushing = True
         pending = self._pending
         sources = self._polled_readers()
-        bound = sum(r.max_backlog for r in sources) * max(
-            (len(t.deferred) for t in self._topics.values()), default=1
-        )
+        if any(r.max_backlog for r in sources):
+            sources = []
         clock = time.perf_counter
         try:
             next_poll = clock() + POLL_PERIOD
@@ -239,10 +242,9 @@ class LocalBus:
                         reader(raw)
                     finally:
                         source.gap_before = False
-                if clock() > next_poll:
-                    if not bound or len(pending) < bound:
-                        for src in sources:
-                            src.poll()
+                if sources and clock() > next_poll:
+                    for src in sources:
+                        src.poll()
                     next_poll = clock() + POLL_PERIOD
         finally:
             self._flushing = False
