@@ -24,12 +24,11 @@ Run modes (ARCHITECTURE.md, "Time")
     counted late. This is how a rig behaves: each period is simulated when it starts (its
     wavelet force is fixed then; the first one just before the clock starts, so that its
     cold start is not taken from the first periods) and each of its samples is published at its
-    own instant, from
-    a timer at the sample interval, so that the last sample of a period leaves at the period's
-    end and the command latency (``latency_summary``) is measured from there. The effective
-    control delay is reported as well (``control_summary``): the fraction of the periods that
-    could have a command which ran with one, and, for each command, its arrival minus the wall
-    time its period started (negative: in time; the lead a rig has left).
+    own instant, from a timer at the sample interval, so that the last sample of a period
+    leaves at the period's end and the command latency (``latency_summary``) is measured from
+    there. The effective control delay is reported as well (``control_summary``): the fraction
+    of the periods that could have a command which ran with one, and, for each command, its
+    arrival minus the wall time its period started (negative: in time; the lead a rig has left).
 
 A command is rejected (counted, reported, never applied) if its period has already started
 (``late``), if it is malformed (:func:`amb_tools.validation.check_command`: sizes, indices,

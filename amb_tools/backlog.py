@@ -222,15 +222,15 @@ class BacklogReader:
         callback = self._on_message if batched else deliver
         self.subscription = node.create_subscription(msg_type, name, callback, qos, raw=True)
 
-    def poll(self) -> int:
-        """Take and deliver, as at a wake, whatever is queued now; return how many were taken.
+    def poll(self) -> None:
+        """Take and deliver, as at a wake, whatever is queued now.
 
         For a caller busy with other work that wants newer messages first (a composed bus's
         deferred readers, :meth:`amb_tools.local_bus.LocalBus.flush`).
         """
-        return self._on_message(None)
+        self._on_message(None)
 
-    def _on_message(self, raw: bytes | None) -> int:
+    def _on_message(self, raw: bytes | None) -> None:
         # the executor's message comes without its message info (rclpy's EventsExecutor fails on
         # a callback that asks for it); the rest are taken with it, for their source timestamps
         batch = [] if raw is None else [raw]
@@ -246,7 +246,7 @@ class BacklogReader:
                 received.append(info["received_timestamp"])
                 sequence.append(info.get("publication_sequence_number") or 0)
         if not batch:
-            return 0
+            return
         self._received += len(batch)
         queued = max(len(batch) - self.max_backlog, 0) if self.max_backlog else 0
         old = 0
@@ -291,7 +291,6 @@ class BacklogReader:
                 error = error or exc
         if error is not None:
             raise error
-        return len(batch) + excess
 
 
 class MessageAge:

@@ -202,21 +202,14 @@ class LocalBus:
         for reader in topic.lossless:
             reader(raw)
 
-    def _polled_readers(self) -> list[BacklogReader]:
-        return [t.dds_reader for t in self._topics.values() if t.dds_reader is not None]
-
     def flush(self) -> None:
         """Hand the deferred readers what they are owed, in order (module notes).
 
-        Without a catch-up bound (lock-step: the plant publishes the next period as soon as
-        the command arrives) the process's DDS readers are polled every :data:`POLL_PERIOD` s
+        The DDS readers that defer (no catch-up bound: lock-step, where the plant publishes
+        the next period as soon as the command arrives) are polled every :data:`POLL_PERIOD` s
         of this work, so that a message that arrived meanwhile reaches the urgent readers at
-        once (its deferred deliveries join the queue). Not with one (realtime): a poll there
-        takes the samples one at a time, and in three runs at 67 Hz x 32 the periods
-        controlled fell to 28-61 % (``docs/history.md``, "The control path first"); a lasting
-        overload is then caught up by the readers' own rule, for every reader
-        (:class:`amb_tools.backlog.BacklogReader`), instead of leaving the deferred ones ever
-        further behind.
+        once (its deferred deliveries join the queue). A realtime reader defers nothing
+        (:meth:`_wake_deliver`) and is not polled.
 
         Each message's DDS reader shows, during the call, the ``gap_before`` it had when the
         message was taken (:func:`amb_tools.backlog.gap_known`). A reader's exception leaves
@@ -226,9 +219,11 @@ class LocalBus:
             return  # a poll within a flush: the outer loop goes on
         self._flushing = True
         pending = self._pending
-        sources = self._polled_readers()
-        if any(r.max_backlog for r in sources):
-            sources = []
+        sources = [
+            t.dds_reader
+            for t in self._topics.values()
+            if t.dds_reader is not None and not t.dds_reader.max_backlog
+        ]
         clock = time.perf_counter
         try:
             next_poll = clock() + POLL_PERIOD

@@ -39,6 +39,7 @@ runs made under the same load.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import re
@@ -371,10 +372,10 @@ def main() -> None:
           f"{'late':>5} {'load':>6}"
           + (f" {'hog s (run)':>11} {'before':>7} {'during':>7} {'after':>7} {'recover':>8} "
              f"{'lost':>5}" if hog else ""))  # fmt: skip
-    with tempfile.TemporaryDirectory() as tmp:
-        if args.keep:
-            tmp = args.keep
-            Path(tmp).mkdir(parents=True, exist_ok=True)
+    if args.keep:
+        Path(args.keep).mkdir(parents=True, exist_ok=True)
+    folder = contextlib.nullcontext(args.keep) if args.keep else tempfile.TemporaryDirectory()
+    with folder as tmp:
         for hz, spr in cases:
             runs = case(
                 float(hz), int(spr), args.duration, Path(tmp), args.repeat, run_args, hog, args.set

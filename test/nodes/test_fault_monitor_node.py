@@ -43,11 +43,12 @@ def _driver(ros, name: str, spr: int) -> tuple:
     return node, pub, events, Diagnostics(node)
 
 
-def _chain(ros, node_process, name: str, spr: int) -> tuple:
-    """Filterbank and monitor nodes and a driver, matched before samples flow:
-    (node, pub, events, diag, filterbank, monitor)."""
+def _chain(ros, node_process, name: str, spr: int, **filterbank) -> tuple:
+    """Filterbank (``filterbank``: more of its parameters) and monitor nodes and a driver,
+    matched before samples flow: (node, pub, events, diag, filterbank, monitor)."""
     fb = node_process(
-        "-m amb_wavelet.node", params={"wavelet": "haar", "samples_per_rev": spr, "levels": 6}
+        "-m amb_wavelet.node",
+        params={"wavelet": "haar", "samples_per_rev": spr, "levels": 6, **filterbank},
     )
     fm = node_process(
         "-m amb_fault_monitor.node", params={"samples_per_rev": spr, "status_period": 0.2}
@@ -326,22 +327,9 @@ def test_the_last_coefficients_after_the_filterbanks_catch_up_are_processed(
     held for a confirmation that never comes (``amb-run``'s drain waited 300 s for it)."""
     xy, angle, idx = make_run(6)
     n = idx.size
-    fb = node_process(
-        "-m amb_wavelet.node",
-        params={"wavelet": "haar", "samples_per_rev": SPR, "levels": 6, "max_backlog": 1},
+    _, pub, _, diag, fb, fm = _chain(
+        ros, node_process, "amb_test_fm_fb_catch_up", SPR, max_backlog=1
     )
-    fm = node_process(
-        "-m amb_fault_monitor.node", params={"samples_per_rev": SPR, "status_period": 0.1}
-    )
-    _node, pub, _, diag = _driver(ros, "amb_test_fm_fb_catch_up", SPR)
-    assert ros.spin_until(
-        lambda: (
-            pub.get_subscription_count() >= 2
-            and diag.matched("wavelet_filterbank", COEFFICIENTS) >= 1
-            and diag.matched("fault_monitor", EVENTS) >= 1
-        ),
-        timeout=30.0,
-    ), (diag.values, fb.log(), fm.log())
     last = lambda: diag.get("fault_monitor", "last_coefficient_sample")  # noqa: E731
     first = 2 * SPR
     for i in range(first):
