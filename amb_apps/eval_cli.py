@@ -5,7 +5,7 @@ Usage::
 
     amb-fault-eval --scenarios config/scenarios/faults [--json] [--wavelet haar,db2,db4]
                    [--samples-per-rev 32] [--rig config/rig.yaml] [--match STR]
-                   [--figures DIR] [--jobs N]
+                   [--figures DIR] [--jobs N] [--provisional REVS]
 
 Prints the confusion matrix (expected class per row, reported class per column; row ``NONE``
 holds false alarms), detection delay (ms and revolutions), decision delay, onset-time error
@@ -24,6 +24,13 @@ onsets and each event's estimated onset, detection and decision), and ``DIR/summ
 hour). The paths written are printed after the tables (to stderr with ``--json``, whose
 stdout stays JSON); the exit status does not depend on them.
 
+``--provisional REVS`` has the monitor publish a provisional class that many revolutions
+after each episode's estimated onset (``MonitorConfig.provisional_revs``); the report then
+adds the earliest answer per expected fault (provisional or final) and how many were right
+within ``FIRST_ANSWER_REVS`` revolutions of the true onset, per case (its first fault: issue
+19's target) and per expected fault. The final classes and
+the exit status are scored as without it.
+
 The scenarios are simulated in ``--jobs`` parallel processes (default: the machine's cores;
 :mod:`amb_apps.parallel`); the report is the same for any ``--jobs``.
 """
@@ -36,7 +43,7 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from amb_apps.evaluation import run_case, simulate_case, summarise
+from amb_apps.evaluation import FIRST_ANSWER_REVS, run_case, simulate_case, summarise
 from amb_apps.parallel import add_jobs_argument, run_jobs
 from amb_common.rig import load_rig
 
@@ -59,6 +66,14 @@ def _parser() -> argparse.ArgumentParser:
         metavar="DIR",
         help="also write PNG figures there: one per scenario and wavelet, and summary.png",
     )
+    p.add_argument(
+        "--provisional",
+        type=float,
+        default=None,
+        metavar="REVS",
+        help="publish a provisional class REVS revolutions after each episode's onset and "
+        "score the earliest answers",
+    )
     add_jobs_argument(p)
     return p
 
@@ -70,7 +85,8 @@ def _case_task(task: tuple) -> list:
     """
     Simulate one scenario file and run the monitor with each wavelet (in a worker process).
 
-    ``(file, rig file or None, samples per revolution, wavelets, figure folder or None)`` ->
+    ``(file, rig file or None, samples per revolution, wavelets, figure folder or None,
+    provisional revolutions or None)`` ->
     ``[(CaseResult, figure path or None), ...]``, one per wavelet.
 
     Raises
@@ -78,7 +94,7 @@ def _case_task(task: tuple) -> list:
     ValueError
         An invalid scenario, the file named in the message.
     """
-    f, rig_path, spr, wavelets, fig_dir = task
+    f, rig_path, spr, wavelets, fig_dir, provisional = task
     if rig_path not in _RIGS:
         _RIGS[rig_path] = load_rig(rig_path) if rig_path else load_rig()
     out = []
@@ -86,7 +102,7 @@ def _case_task(task: tuple) -> list:
         case = simulate_case(f, _RIGS[rig_path], samples_per_rev=spr)
         for w in wavelets:
             trace: list | None = [] if fig_dir is not None else None
-            res = run_case(case, w, trace=trace)
+            res = run_case(case, w, trace=trace, provisional_revs=provisional)
             png = None
             if fig_dir is not None:
                 from amb_apps import eval_figures  # heavy, optional: matplotlib
@@ -125,6 +141,16 @@ def _table(summary: dict, results: list) -> str:
         f" in {summary['simulated_s']:.1f} s simulated = "
         f"{summary['false_alarms_per_hour']:.1f} per hour"
     )
+    first = summary["first_answers"]
+    if first["provisional"]:
+        lines.append(
+            f"earliest answer (provisional or final) right within {FIRST_ANSWER_REVS:g} "
+            f"revolutions of the onset: {first['cases_in_time']}/{first['cases']} cases (their "
+            f"first fault), {first['correct_in_time']}/{first['total']} expected faults; right "
+            f"at any time {first['correct']}/{first['total']}; provisional classes revised at "
+            f"the decision: {first['revised']} of {first['provisional']}, false alarms "
+            f"{first['false_alarms']}"
+        )
     if summary.get("before_calibration"):
         lines.append(
             f"  {summary['before_calibration']} expected fault(s) before the monitor was "
@@ -139,6 +165,20 @@ def _table(summary: dict, results: list) -> str:
     bad += [(r.name, "NONE", f["predicted"]) for r in results for f in r.false_alarms]
     for name, e, p in bad:
         lines.append(f"  {name}: expected {e}, reported {p}")
+    if first["provisional"]:
+        late = [
+            (r.name, m["expected"], m["first_predicted"], m.get("first_decision_revs"))
+            for r in results
+            for m in r.matches
+            if "first_predicted" in m
+            and not (
+                m["first_predicted"] == m["expected"]
+                and m["first_decision_revs"] <= FIRST_ANSWER_REVS
+            )
+        ]
+        for name, e, p, t in late:
+            when = "" if t is None else f" after {t:.2f} rev"
+            lines.append(f"  {name}: expected {e}, earliest answer {p}{when}")
     return "\n".join(lines)
 
 
@@ -165,7 +205,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         from amb_apps import eval_figures
     written: list[Path] = []
     results: dict[str | None, list] = {w: [] for w in wavelets}
-    tasks = [(f, args.rig, args.samples_per_rev, wavelets, fig_dir) for f in files]
+    tasks = [
+        (f, args.rig, args.samples_per_rev, wavelets, fig_dir, args.provisional) for f in files
+    ]
 
     def done(i: int, out: list) -> None:
         print(f"{files[i].name}: done ({len(out)} wavelet(s))", file=sys.stderr, flush=True)
@@ -199,6 +241,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                     "calibration_end_sample": r.calibration_end_sample,
                     "matches": r.matches,
                     "false_alarms": r.false_alarms,
+                    "provisional_false_alarms": r.provisional_false_alarms,
                     "events": r.events,
                     "wall_time_s": r.wall_time,
                 }

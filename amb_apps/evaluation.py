@@ -74,10 +74,12 @@ from amb_wavelet.filters import get_filters
 from amb_wavelet.levels import support_length
 
 __all__ = [
+    "FIRST_ANSWER_REVS",
     "CaseResult",
     "Expectation",
     "SimulatedCase",
     "evaluate_case",
+    "first_answers",
     "load_case",
     "run_case",
     "sample_time",
@@ -111,6 +113,9 @@ class CaseResult:
     matches: list[dict[str, Any]] = field(default_factory=list)
     false_alarms: list[dict[str, Any]] = field(default_factory=list)
     events: list[dict[str, Any]] = field(default_factory=list)
+    #: provisional events of episodes whose final event matched no expected fault (and that
+    #: were not withdrawn)
+    provisional_false_alarms: list[dict[str, Any]] = field(default_factory=list)
     finest_support: int = 2
     wall_time: float = 0.0
     calibration_end_sample: int | None = None
@@ -258,6 +263,7 @@ def run_case(
     wavelet: str | None = None,
     match_revs: float = 20.0,
     trace: list | None = None,
+    provisional_revs: float | None = None,
 ) -> CaseResult:
     """
     Run the filterbank core and the monitor on a simulated scenario and score the events.
@@ -272,6 +278,8 @@ def run_case(
     trace : list, optional
         When given, the monitor's feature ratios are appended to it
         (:attr:`FaultMonitor.trace <amb_fault_monitor.monitor.FaultMonitor>`).
+    provisional_revs : float, optional
+        Overrides the file's ``MonitorConfig.provisional_revs`` (provisional classes).
 
     Returns
     -------
@@ -280,7 +288,12 @@ def run_case(
         comes earlier carries ``before_calibration: True`` (the fault fell inside the healthy
         window the monitor needs, which says nothing about the method). A contact match
         carries ``first_contact_peak_n``, the largest force of the first simulated contact
-        burst (a graze of a few tens of N may lie below the noise floor).
+        burst (a graze of a few tens of N may lie below the noise floor). The matches and
+        false alarms are scored on the final events; provisional and withdrawn ones
+        (``evidence["status"]``) are in ``events`` and give each match its
+        ``first_predicted`` and ``first_decision_revs``: the class and decision delay of the
+        earliest event of either kind whose onset lies in the match window
+        (:func:`first_answers`).
     """
     spr = case.samples_per_rev
     mon_d = case.monitor
@@ -289,6 +302,8 @@ def run_case(
     cfg = MonitorConfig(spr, **{k: v for k, v in mon_d.items() if k in names})
     if "levels" in mon_d:
         cfg = replace(cfg, levels=tuple(mon_d["levels"]))
+    if provisional_revs is not None:
+        cfg = replace(cfg, provisional_revs=float(provisional_revs))
     block = case.block
     times = block.time  # s, the sample instants (on a speed profile not n / fs)
     t0 = time.perf_counter()
@@ -315,6 +330,8 @@ def run_case(
         calibration_end_sample=monitor.calibration_end,
     )
     res.events = [e.to_dict() for e in events]
+    every = events
+    events = [e for e in every if e.evidence.get("status") not in ("provisional", "withdrawn")]
     used: set[int] = set()
     expect = case.expect
     last_fault_time = max((e.time for e in expect if e.time is not None), default=0.0)
@@ -363,6 +380,7 @@ def run_case(
                 onset_error_ms=1e3 * (sample_time(times, e.onset_sample_index) - times[true]),
             )
         res.matches.append(row)
+    first_answers(res.matches, every, spr, match_revs)
     for i, e in enumerate(events):
         if i not in used:
             res.false_alarms.append(
@@ -371,7 +389,61 @@ def run_case(
                     "detection_time": sample_time(times, e.detection_sample_index),
                 }
             )
+    matched = {_episode_key(events[i]) for i in used}
+    void = {_episode_key(e) for e in every if e.evidence.get("status") == "withdrawn"}
+    for e in every:
+        key = _episode_key(e)
+        if e.evidence.get("status") == "provisional" and key not in matched | void:
+            res.provisional_false_alarms.append(
+                {
+                    "predicted": e.fault_type.name,
+                    "detection_time": sample_time(times, e.detection_sample_index),
+                }
+            )
     return res
+
+
+#: Revolutions after the true onset within which the earliest answer should be right (issue
+#: 19: a provisional class a controller can act on).
+FIRST_ANSWER_REVS = 2.0
+
+
+def _episode_key(e: FaultEvent) -> tuple[int, int]:
+    return e.onset_sample_index, e.detection_sample_index
+
+
+def first_answers(
+    matches: list[dict[str, Any]], events: list[FaultEvent], spr: int, match_revs: float
+) -> None:
+    """
+    Give each match the earliest answer, provisional or final (in place).
+
+    Each match with a true onset gets ``first_predicted`` (``MISSED`` for none) and
+    ``first_decision_revs``: the earliest event by decision (withdrawn ones left out) whose
+    onset lies from one revolution before the true onset to ``match_revs`` after it, as the
+    final matching's window, and whose episode (its onset and detection samples: a provisional
+    event and its final one share them) was not given to an earlier match.
+    """
+    given: set[tuple[int, int]] = set()
+    for row in matches:
+        true = row.get("true_onset_sample")
+        if true is None or row.get("predicted") == "NO_TRUTH":
+            continue
+        lo, hi = true - spr, true + match_revs * spr
+        window = [
+            (e.decision_sample_index, i)
+            for i, e in enumerate(events)
+            if _episode_key(e) not in given
+            and e.evidence.get("status") != "withdrawn"
+            and lo <= e.onset_sample_index <= hi
+        ]
+        if not window:
+            row["first_predicted"] = MISSED
+            continue
+        decision, i = min(window)
+        given.add(_episode_key(events[i]))
+        row["first_predicted"] = events[i].fault_type.name
+        row["first_decision_revs"] = (decision - true) / spr
 
 
 def evaluate_case(
@@ -407,8 +479,15 @@ def summarise(results: list[CaseResult]) -> dict[str, Any]:
         ``confusion`` (expected -> predicted -> count; ``NONE`` row for false alarms),
         ``delays`` per class (median / max detection delay in ms and revolutions, decision
         delay in revolutions, onset error in ms and in finest-level supports),
-        ``false_alarms_per_hour``, ``simulated_s``, ``correct``, ``total`` and
-        ``before_calibration`` (expected faults whose true onset preceded calibration).
+        ``false_alarms_per_hour``, ``simulated_s``, ``correct``, ``total``,
+        ``before_calibration`` (expected faults whose true onset preceded calibration) and
+        ``first_answers``: of the expected faults with a true onset (``total``), those whose
+        earliest answer (:func:`first_answers`) was right (``correct``) and right within
+        :data:`FIRST_ANSWER_REVS` of the onset (``correct_in_time``); the same for each case's
+        first expected fault alone (``cases``, ``cases_in_time``; the later ones are its
+        consequences, such as the contacts of a large mass loss); the provisional events
+        published (``provisional``), how many the decision revised (``revised``) and those of
+        episodes whose final event matched no expected fault (``false_alarms``).
     """
     classes = [t.name for t in FaultType if t != FaultType.TRIP]
     cols = [*classes, MISSED, "NO_TRUTH"]
@@ -418,8 +497,30 @@ def summarise(results: list[CaseResult]) -> dict[str, Any]:
     fa = 0
     sim_s = 0.0
     early = 0
+    first = dict.fromkeys(
+        (
+            "total", "correct", "correct_in_time", "cases", "cases_in_time", "provisional",
+            "revised", "false_alarms",
+        ),
+        0,
+    )  # fmt: skip
     for r in results:
         sim_s += r.duration
+        first["false_alarms"] += len(r.provisional_false_alarms)
+        for e in r.events:
+            status = e["evidence"].get("status")
+            first["provisional"] += status == "provisional"
+            first["revised"] += status == "final" and bool(e["evidence"].get("revised"))
+        answered = [m for m in r.matches if "first_predicted" in m]
+        for k, m in enumerate(sorted(answered, key=lambda m: m["true_onset_sample"])):
+            right = m["first_predicted"] == m["expected"]
+            in_time = right and m["first_decision_revs"] <= FIRST_ANSWER_REVS
+            first["total"] += 1
+            first["correct"] += right
+            first["correct_in_time"] += in_time
+            if k == 0:  # the case's own fault (later ones: its consequences)
+                first["cases"] += 1
+                first["cases_in_time"] += in_time
         for m in r.matches:
             total += 1
             early += bool(m.get("before_calibration"))
@@ -458,4 +559,5 @@ def summarise(results: list[CaseResult]) -> dict[str, Any]:
         "correct": correct,
         "total": total,
         "before_calibration": early,
+        "first_answers": first,
     }

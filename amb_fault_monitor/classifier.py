@@ -50,12 +50,29 @@ inconsistent or constant signal of one transducer. The rules, in order:
    Contacts *during* another fault's ring-down are found by the monitor's rise test
    (:mod:`amb_fault_monitor.bursts`) and reported as their own event.
 5. ``UNKNOWN``: anything else (Table 5.1 "unidentified").
+
+A *provisional* class (:func:`classify_provisional`) is given a revolution or two after the
+onset, before the 1 x level can have settled and before the coefficients below 1 x (supports
+of two revolutions and more) have seen much of a slow motion: rules 1 and 5 as above; rule 2
+also when the fixed-frame changes at *every* level are coherent across the planes
+(``coherence >= base_coherence``: a housing's translation moves the four probes alike, a
+sudden unbalance excites the bending and conical modes, a contact is local); and rules 3-4 by
+the frame the change above 1 x appears in. A sudden unbalance change adds a synchronous force,
+``dF exp(j Omega t)`` from the onset on; in the rotating frame (multiplied by ``exp(-j Omega
+t)``) that force is a step at 0 Hz, so its response's growth at and near 1 x, which the
+fixed-frame levels just above 1 x take in (the filters' pass bands overlap), falls to the
+rotating frame's levels below 1 x. A contact's impulses are broadband in both frames. The
+largest change-to-threshold ratio above 1 x in the fixed frame over that in the rotating frame,
+``fixed_over_rotating``, is therefore large for a mass loss and near 1 for a contact; at
+``provisional_ratio`` or more the provisional class is ``MASS_LOSS``, else
+``AUX_BEARING_CONTACT``. The measured ratios on the suite are in ``docs/fault_monitor_notes.md``
+("Provisional classes").
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Protocol
 
 import numpy as np
@@ -69,6 +86,7 @@ __all__ = [
     "EpisodeEvidence",
     "bearing_of_plane",
     "classify",
+    "classify_provisional",
 ]
 
 
@@ -85,6 +103,7 @@ class ClassifierThresholds(Protocol):
     base_dominance: float
     confirm_ratio: float
     sync_change: float
+    provisional_ratio: float
 
 
 @dataclass
@@ -118,6 +137,8 @@ class EpisodeEvidence:
         Largest fixed-frame change below 1 x of any channel, m.
     high_peak : float
         Largest fixed-frame change above 1 x of any channel, m.
+    coherence : float
+        Plane coherence (as ``low_coherence``) of the fixed-frame changes at every level.
     """
 
     revolution_level: int
@@ -131,6 +152,7 @@ class EpisodeEvidence:
     low_peak: float = 0.0
     high_peak: float = 0.0
     fine_energy: np.ndarray = field(default_factory=lambda: np.zeros(8))
+    coherence: float = 0.0
 
     def peak(self, frame: str, which: str) -> np.ndarray:
         """Largest ratio per plane over levels ``above`` / ``below`` / ``at`` 1 x in ``frame``."""
@@ -230,6 +252,7 @@ def classify(ev: EpisodeEvidence, config: ClassifierThresholds) -> Decision:
         "sync_change_m": float(ev.sync_change.max()),
         "revolution_level": ev.revolution_level,
         "low_coherence": float(ev.low_coherence),
+        "coherence": float(ev.coherence),
         "low_peak_m": float(ev.low_peak),
         "high_peak_m": float(ev.high_peak),
     }
@@ -324,4 +347,60 @@ def classify(ev: EpisodeEvidence, config: ClassifierThresholds) -> Decision:
         confidence=0.5,
         evidence={**base, "rule": "none of Table 5.1"},
         description="a confirmed detection that fits no class of Table 5.1",
+    )
+
+
+def classify_provisional(ev: EpisodeEvidence, config: ClassifierThresholds) -> Decision:
+    """
+    Provisional class of an episode whose 1 x level has not settled (module docstring).
+
+    Parameters
+    ----------
+    ev : EpisodeEvidence
+        The evidence so far; its ``sync_ratio`` is not used (the level has not settled).
+    config : ClassifierThresholds
+        Uses ``provisional_ratio``, ``base_coherence`` and what :func:`classify` uses.
+
+    Returns
+    -------
+    Decision
+        ``SENSOR_FAULT``, ``BASE_MOTION`` and ``UNKNOWN`` as :func:`classify` decides them
+        without a lasting 1 x change; ``BASE_MOTION`` also for ``coherence >=
+        base_coherence``; else a change above 1 x in both frames is ``MASS_LOSS`` when
+        ``fixed_over_rotating >= provisional_ratio`` (in ``evidence``), else
+        ``AUX_BEARING_CONTACT``.
+    """
+    d = classify(replace(ev, sync_ratio=np.zeros(4), sync_change=np.zeros(4)), config)
+    if d.fault_type in (FaultType.SENSOR_FAULT, FaultType.BASE_MOTION):
+        return d
+    if ev.coherence >= config.base_coherence:
+        return Decision(
+            FaultType.BASE_MOTION,
+            plane=0,
+            severity=float(max(ev.low_peak, ev.high_peak)),
+            confidence=float(ev.coherence),
+            evidence={**d.evidence, "rule": "the planes move together (fixed frame, every level)"},
+            description=(
+                f"the planes move together (coherence {ev.coherence:.2f} of the fixed-frame "
+                "changes at every level): base motion"
+            ),
+        )
+    if d.fault_type != FaultType.AUX_BEARING_CONTACT:
+        return d
+    above_fixed = ev.peak("fixed", "above")
+    ratio = float(above_fixed.max() / max(float(ev.peak("rotating", "above").max()), 1e-300))
+    d.evidence["fixed_over_rotating"] = ratio
+    if ratio < config.provisional_ratio:
+        d.description += f" (fixed over rotating frame above 1 x {ratio:.2f})"
+        return d
+    plane = int(np.argmax(above_fixed)) + 1
+    return Decision(
+        FaultType.MASS_LOSS,
+        plane=plane,
+        confidence=_confidence(ratio / config.provisional_ratio),
+        evidence={**d.evidence, "rule": "change above 1 x mostly in the fixed frame"},
+        description=(
+            f"the change above 1 x is {ratio:.2f} x larger in the fixed frame than in the "
+            f"rotating frame, largest at plane {plane}: a synchronous (unbalance) change"
+        ),
     )

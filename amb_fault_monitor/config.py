@@ -119,6 +119,16 @@ class MonitorConfig:
         in the calibration window; how far the last two revolutions' means may differ, as a
         share of the step (the new level is held). The floor is about a tenth of the step a 20 um
         offset gave on the suite (``docs/fault_monitor_notes.md``).
+    provisional_revs : float
+        Revolutions after an episode's estimated onset (at the alarm if later) at which a
+        provisional class is published, to be confirmed or revised at the decision
+        (:mod:`amb_fault_monitor.monitor`, step 3; 0: none). Its event's ``evidence`` has
+        ``status: provisional``.
+    provisional_ratio : float
+        Fixed-frame over rotating-frame peak change above 1 x from which the provisional
+        class of a change in both frames is a mass loss rather than a contact
+        (:func:`~amb_fault_monitor.classifier.classify_provisional`; measured ratios:
+        ``docs/fault_monitor_notes.md``, "Provisional classes").
     """
 
     samples_per_rev: int = param(
@@ -193,6 +203,12 @@ class MonitorConfig:
     bias_floor: float = 20.0
     bias_factor: float = 4.0
     bias_steady: float = 0.25
+    provisional_revs: float = param(
+        0.0,
+        description="publish a provisional class this many revolutions after the alarm (0: none)",
+        floats=(0.0, 1e3),
+    )
+    provisional_ratio: float = 1.3
 
     def __post_init__(self) -> None:
         spr = self.samples_per_rev
@@ -210,16 +226,22 @@ class MonitorConfig:
             "decision_revs", "max_tail_revs", "isolation", "sync_change", "burst_gap_revs",
             "tail_rise", "tail_rise_median", "dead_revs", "base_coherence", "base_dominance",
             "rearm_revs", "control_step", "control_window_revs", "coil_floor", "coil_factor",
-            "coil_confirm_revs", "bias_floor", "bias_factor", "bias_steady",
+            "coil_confirm_revs", "bias_floor", "bias_factor", "bias_steady", "provisional_ratio",
         )  # fmt: skip
         for name in positive:
             if not getattr(self, name) > 0:
                 raise FaultMonitorError(f"{name} must be > 0, got {getattr(self, name)}")
         if self.settle_ratio < 1:
             raise FaultMonitorError(f"settle_ratio must be >= 1, got {self.settle_ratio}")
-        if self.threshold_floor < 0 or self.sync_relative_floor < 0 or self.dead_fraction < 0:
+        if (
+            self.threshold_floor < 0
+            or self.sync_relative_floor < 0
+            or self.dead_fraction < 0
+            or self.provisional_revs < 0
+        ):
             raise FaultMonitorError(
-                "threshold_floor, sync_relative_floor and dead_fraction must be >= 0"
+                "threshold_floor, sync_relative_floor, dead_fraction and provisional_revs must "
+                "be >= 0"
             )
         if self.settle_revs < 2 or not self.settle_spread > 0:
             raise FaultMonitorError(

@@ -55,6 +55,8 @@ class Episode:
         The contact bursts found in it.
     explained : str
         The fault it is the consequence of (``COIL_FAILURE``: monitor notes, step 6), or "".
+    provisional : FaultEvent or None
+        Its provisional class, once published (monitor notes, step 3).
     """
 
     start: int
@@ -72,10 +74,13 @@ class Episode:
     control: list | bool | None = None
     low_coherent: float = 0.0
     low_energy: float = 0.0
+    coherent: float = 0.0  # the same over every fixed-frame crossing (any level)
+    coherence_energy: float = 0.0
     low_peak: float = 0.0
     high_peak: float = 0.0
     contacts: ContactBursts = field(init=False)
     explained: str = ""
+    provisional: FaultEvent | None = None
 
     def __post_init__(self) -> None:
         self.contacts = ContactBursts(self.start)
@@ -127,6 +132,9 @@ class Episode:
             self.channel_energy += energy
             if level == finest:
                 self.fine_energy += energy
+            coherent, total = _plane_coherence(delta, mask)
+            self.coherent += coherent
+            self.coherence_energy += total
             if level > revolution_level:
                 self.add_low_change(delta, mask)
             elif level < revolution_level:
@@ -147,6 +155,19 @@ class Episode:
         ):
             self.alarm = n
 
+    def withdrawal(self, explained_by: str) -> list[FaultEvent]:
+        """
+        A copy of the published provisional event that says it is void, or nothing.
+
+        For an episode that turns out to be the consequence of another fault, named by
+        ``explained_by`` (monitor notes, step 3).
+        """
+        if self.provisional is None:
+            return []
+        ev = FaultEvent.from_dict(self.provisional.to_dict())
+        ev.evidence.update(status="withdrawn", explained_by=explained_by)
+        return [ev]
+
     def add_low_change(self, delta: np.ndarray, mask: np.ndarray) -> None:
         """
         Accumulate a fixed-frame change (8,) below 1 x: plane coherence (classifier rule 2).
@@ -154,13 +175,9 @@ class Episode:
         Per axis, over the channels in ``mask``, ``(sum_p a_p)**2`` and ``P sum_p a_p**2``;
         their ratio over the episode is ``low_coherence``, 1 when the planes move alike.
         """
-        for axis in (0, 1):
-            used = mask[axis::2]
-            d = delta[axis::2][used]
-            if d.size < 2:
-                continue
-            self.low_coherent += float(d.sum()) ** 2
-            self.low_energy += d.size * float(d @ d)
+        coherent, total = _plane_coherence(delta, mask)
+        self.low_coherent += coherent
+        self.low_energy += total
         self.low_peak = max(self.low_peak, float(np.abs(delta).max()))
 
     def evidence(
@@ -181,6 +198,24 @@ class Episode:
             bursts=[tuple(b) for b in self.bursts],
             mask=mask.copy(),
             low_coherence=self.low_coherent / self.low_energy if self.low_energy > 0 else 0.0,
+            coherence=(self.coherent / self.coherence_energy if self.coherence_energy > 0 else 0.0),
             low_peak=self.low_peak,
             high_peak=self.high_peak,
         )
+
+
+def _plane_coherence(delta: np.ndarray, mask: np.ndarray) -> tuple[float, float]:
+    """
+    ``(sum_p a_p)**2`` and ``P sum_p a_p**2`` of a change (8,), summed over both axes.
+
+    ``a_p`` the change of plane ``p`` along the axis, over the channels in ``mask`` (axes with
+    fewer than two left out); the first over the second is 1 when the planes move alike.
+    """
+    coherent = total = 0.0
+    for axis in (0, 1):
+        d = delta[axis::2][mask[axis::2]]
+        if d.size < 2:
+            continue
+        coherent += float(d.sum()) ** 2
+        total += d.size * float(d @ d)
+    return coherent, total

@@ -28,7 +28,14 @@ Episodes
    latest ``decision_revs`` revolutions after the alarm, the evidence is classified
    (:mod:`amb_fault_monitor.classifier`) and one event emitted. The wait is extended up to
    ``decision_max_revs`` while the 1 x level stays far from its reference and still moves
-   (:mod:`amb_fault_monitor.phasor`).
+   (:mod:`amb_fault_monitor.phasor`). With ``provisional_revs`` > 0, a provisional class
+   (:func:`~amb_fault_monitor.classifier.classify_provisional`) is emitted that many
+   revolutions after the episode's estimated onset, at the alarm if that is later, if the
+   episode is undecided then (``evidence["status"]`` ``provisional``); the decision's event
+   then says ``final``, with the provisional class (``provisional_class``) and whether it was
+   revised (``revised``), or, where the episode turns out to be another fault's consequence
+   and no class is reported (steps 5-6, a stuck channel), a copy of the provisional event
+   says ``withdrawn``.
 4. *Contacts inside an episode and tail*: the disturbance may ring on; no new episode starts
    until ``quiet_revs`` pass without a crossing (at most ``max_tail_revs``), and for
    ``rearm_revs`` after that a new episode needs a strong crossing (``confirm_ratio``) to be
@@ -70,7 +77,7 @@ import numpy as np
 from amb_common.faults import FaultEvent, FaultType
 from amb_common.names import N_SENSORS
 from amb_fault_monitor.calibration import Calibration, CalibrationWindow
-from amb_fault_monitor.classifier import classify
+from amb_fault_monitor.classifier import Decision, classify, classify_provisional
 from amb_fault_monitor.coil_check import CoilCheck
 from amb_fault_monitor.config import MonitorConfig
 from amb_fault_monitor.control_transients import ControlSteps
@@ -419,6 +426,7 @@ class FaultMonitor:
             ep = self._episode
             if ep is not None and ep.decided is None and ep.start >= start - spr:
                 self._episode = None  # the crossings came from the failing channel
+                events += ep.withdrawal("SENSOR_FAULT")
 
     # ------------------------------------------------------------------ episodes
     def _evidence(self, n, level, frame, s, ratio, delta, thr) -> None:
@@ -473,6 +481,10 @@ class FaultMonitor:
                 self._episode = None
             return
         if ep.decided is None:
+            if cfg.provisional_revs > 0 and ep.provisional is None:
+                onset = estimate_onset(ep.crossings)
+                if n - onset >= cfg.provisional_revs * spr:
+                    self._provisional(n, ep, onset, events)
             status = self._sync_status(ep)
             extra = max(self._sync.support - spr, 0)
             waited = n - ep.alarm
@@ -485,6 +497,7 @@ class FaultMonitor:
                 ep.decided = ev
                 if ep.control:
                     self._control.count(ep.control, ev)
+                    events += ep.withdrawal("CONTROL_TRANSIENT")
                     if ep.contacts.count:
                         self._report_contacts(ep, n, events)
                     if quiet:
@@ -493,6 +506,7 @@ class FaultMonitor:
                 if ev.fault_type != FaultType.AUX_BEARING_CONTACT and self._coil_explains(ev):
                     ep.explained = FaultType.COIL_FAILURE.name
                     self.coil_explained += 1
+                    events += ep.withdrawal(ep.explained)
                     if ep.contacts.count:
                         self._report_contacts(ep, n, events)
                     if quiet:
@@ -500,6 +514,12 @@ class FaultMonitor:
                     return
                 if self._bias is not None:  # step 7
                     ev = ep.decided = self._bias.revise(ev, ep.start, self._mask)
+                if ep.provisional is not None:
+                    ev.evidence.update(
+                        status="final",
+                        provisional_class=ep.provisional.fault_type.name,
+                        revised=ev.fault_type != ep.provisional.fault_type,
+                    )
                 events.append(ev)
                 if ev.fault_type == FaultType.SENSOR_FAULT and ev.channel >= 0:
                     self._mask[ev.channel] = False
@@ -519,6 +539,24 @@ class FaultMonitor:
             self._report_contacts(ep, n, events)
         if quiet or n - ep.decided.decision_sample_index >= cfg.max_tail_revs * spr:
             self._end_tail(n, events)
+
+    def _provisional(self, n: int, ep: Episode, onset: int, events: list[FaultEvent]) -> None:
+        """
+        Emit the provisional class of an undecided episode (module notes, step 3).
+
+        None for an episode that a control step or a coil failure explains: those are counted,
+        not reported, at the decision.
+        """
+        if self._control_run(ep):
+            return
+        zero = np.zeros(4)
+        decision = classify_provisional(ep.evidence(self._R, zero, zero, self._mask), self._config)
+        ev = self._event(n, ep, onset, decision)
+        if self._coil_explains(ev):
+            return
+        ev.evidence["status"] = "provisional"
+        ep.provisional = ev
+        events.append(ev)
 
     def _coil_explains(self, ev: FaultEvent) -> bool:
         """Whether a coil failure's onset lies within a revolution of the episode's (step 6)."""
@@ -560,12 +598,16 @@ class FaultMonitor:
         if status != "settled":
             sync_ratio = np.zeros(4)
         decision = classify(ep.evidence(self._R, sync_ratio, sync_change, self._mask), cfg)
+        return self._event(n, ep, onset, decision)
+
+    def _event(self, n: int, ep: Episode, onset: int, decision: Decision) -> FaultEvent:
+        """The event of ``decision`` on ``ep`` at sample ``n``."""
         return FaultEvent(
             decision.fault_type,
             onset_sample_index=onset,
             detection_sample_index=int(ep.alarm),
             decision_sample_index=n,
-            samples_per_rev=cfg.samples_per_rev,
+            samples_per_rev=self._config.samples_per_rev,
             omega=self._omega,
             plane=decision.plane,
             channel=decision.channel,

@@ -156,3 +156,25 @@ def test_trace_holds_a_crossing_at_every_detection_sample():
     assert max(finest) >= 3.0  # MonitorConfig.confirm_ratio default
     first_true = min(m["true_onset_sample"] for m in res.matches)
     assert max(v for n, v in at.items() if n < first_true) <= 1.0
+
+
+def test_eval_cli_provisional_scores_the_earliest_answers(tmp_path, capsys):
+    """--provisional: the earliest answers are counted per case and per expected fault, the
+    final scoring and the exit status stay as without it; the table says so in words. The
+    truth: a 430 g cm loss at 29 Hz (its provisional MASS_LOSS comes 1.5 revolutions after the
+    onset) and an outer-probe offset (a final SENSOR_FAULT, no provisional)."""
+    for name in ("mass_loss_29hz_430gcm_000.yaml", "sensor_offset_plane1x_29hz.yaml"):
+        shutil.copy(SUITE / name, tmp_path / name)
+    status = main(["--scenarios", str(tmp_path), "--json", "--provisional", "1.5"])
+    out = json.loads(capsys.readouterr().out)
+    assert status == 0
+    assert out["correct"] == out["total"] == 2 and out["false_alarms"] == 0
+    first = out["first_answers"]
+    assert first["cases"] == first["total"] == 2
+    assert first["provisional"] >= 1
+    assert first["cases_in_time"] == first["correct_in_time"] == 2, out["cases"]
+    assert main(["--scenarios", str(tmp_path), "--provisional", "1.5"]) == 0
+    text = capsys.readouterr().out
+    assert "right within 2 revolutions of the onset: 2/2 cases" in text
+    assert main(["--scenarios", str(tmp_path)]) == 0
+    assert "earliest answer" not in capsys.readouterr().out
