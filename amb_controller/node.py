@@ -540,8 +540,10 @@ class WaveletControllerNode(Node):
 
     # ------------------------------------------------------------------ services, events
     def _on_fault(self, msg: FaultEvent) -> None:
-        action = self._pipe.on_fault(msg.fault_type)
-        self.get_logger().info(f"fault event type {msg.fault_type}: {action}")
+        status = next((kv.value for kv in msg.evidence if kv.key == "status"), "")
+        action = self._pipe.on_fault(msg.fault_type, status)
+        what = f" ({status})" if status else ""
+        self.get_logger().info(f"fault event type {msg.fault_type}{what}: {action}")
 
     def _on_set_mode(self, request, response):
         response.accepted, response.message = self._pipe.set_mode(request.mode)

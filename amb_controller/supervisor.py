@@ -354,8 +354,22 @@ class WaveletControlSupervisor:
         self.mode = Mode.IDENTIFYING
         self.message = "identifying"
 
-    def on_fault(self, fault_type: int) -> str:
-        """Apply the configured reconfiguration for a fault event; return the action."""
+    def on_fault(self, fault_type: int, status: str = "") -> str:
+        """
+        Apply the configured reconfiguration for a fault event; return the action.
+
+        Parameters
+        ----------
+        fault_type : int
+            ``FaultEvent.fault_type``.
+        status : str
+            The event's ``status`` evidence: ``""`` (a monitor without provisional classes),
+            ``"provisional"`` or ``"final"`` act alike (the reconfiguration acts on the earliest
+            class); ``"withdrawn"`` (a provisional class that turned out to be another
+            fault's consequence) takes no action.
+        """
+        if status == "withdrawn":
+            return "ignore"
         action = self.fault_actions.get(int(fault_type), "ignore")
         if action == "hold" and self.mode == Mode.ACTIVE:
             self._enter(Mode.HOLD)

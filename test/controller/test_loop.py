@@ -230,7 +230,9 @@ def test_guard_trip_zeroes_force_and_fault_holds():
     assert sup.set_mode(Mode.ACTIVE)[0]
     sup.step(0, np.zeros(1))
     last = sup.step(1, np.array([1e-6]))
-    assert sup.on_fault(AUX_BEARING_CONTACT) == "hold" and sup.mode == Mode.HOLD
+    assert sup.on_fault(AUX_BEARING_CONTACT, "withdrawn") == "ignore"  # void: no action
+    assert sup.mode == Mode.ACTIVE
+    assert sup.on_fault(AUX_BEARING_CONTACT, "provisional") == "hold" and sup.mode == Mode.HOLD
     held = sup.step(2, np.array([5e-6]))
     np.testing.assert_allclose(held.coefficients, last.coefficients)
     assert held.hold
