@@ -16,6 +16,7 @@ from reliability_helpers import Diagnostics, get_parameter, set_parameters
 from synthetic import HZ, SPR, make_run
 
 from amb_common import topics
+from amb_common.faults import FaultType
 from amb_common.rig import load_rig
 from amb_tools.streams import stream_qos
 
@@ -43,15 +44,17 @@ def _driver(ros, name: str, spr: int) -> tuple:
     return node, pub, events, Diagnostics(node)
 
 
-def _chain(ros, node_process, name: str, spr: int, **filterbank) -> tuple:
-    """Filterbank (``filterbank``: more of its parameters) and monitor nodes and a driver,
-    matched before samples flow: (node, pub, events, diag, filterbank, monitor)."""
+def _chain(ros, node_process, name: str, spr: int, monitor=None, **filterbank) -> tuple:
+    """Filterbank (``filterbank``: more of its parameters) and monitor (``monitor``: more of
+    its parameters) nodes and a driver, matched before samples flow: (node, pub, events, diag,
+    filterbank, monitor)."""
     fb = node_process(
         "-m amb_wavelet.node",
         params={"wavelet": "haar", "samples_per_rev": spr, "levels": 6, **filterbank},
     )
     fm = node_process(
-        "-m amb_fault_monitor.node", params={"samples_per_rev": spr, "status_period": 0.2}
+        "-m amb_fault_monitor.node",
+        params={"samples_per_rev": spr, "status_period": 0.2, **(monitor or {})},
     )
     node, pub, events, diag = _driver(ros, name, spr)
     assert ros.spin_until(
@@ -117,6 +120,32 @@ def test_mass_loss_event_published_and_logged(ros, node_process, tmp_path) -> No
     assert ros.spin_until(lambda: diag.get("events_logged") == "1", timeout=10.0), diag
     lines = log.read_text().splitlines()
     assert json.loads(lines[0])["fault_type"] == "MASS_LOSS"
+
+
+def test_a_provisional_class_is_published_before_the_final_one(ros, node_process) -> None:
+    """provisional_revs (a ROS parameter): the synthetic mass loss's episode is published
+    provisionally 1.5 revolutions after its onset, then decided; the final event names the
+    provisional class it confirms or revises (issue 19)."""
+    _, pub, events, _, fb, fm = _chain(
+        ros, node_process, "amb_test_fm_provisional", SPR, monitor={"provisional_revs": 1.5}
+    )
+    xy, angle, idx = make_run(70, mass_loss_rev=50.3)
+    for start in range(0, len(idx), 64):  # small bursts: best-effort streams drop under load
+        for i in range(start, min(start + 64, len(idx))):
+            pub.publish(_measurement(int(idx[i]), xy[i], angle[i]))
+        ros.spin_for(0.05)
+    assert ros.spin_until(lambda: len(events) >= 2, timeout=30.0), (fm.log(), fb.log())
+    first, final = ({kv.key: kv.value for kv in e.evidence} for e in events[:2])
+    assert first["status"] == "provisional", [e.description for e in events]
+    true = math.ceil(50.3 * SPR)
+    stamp = events[0].header.stamp  # the decision: the stamp of its sample (_measurement)
+    decision = round((stamp.sec + stamp.nanosec * 1e-9) * SPR * HZ)
+    assert 0 < decision - true <= 2 * SPR, (decision, true)
+    assert final["status"] == "final"
+    assert events[1].fault_type == FaultEvent.MASS_LOSS
+    assert final["provisional_class"] == FaultType(events[0].fault_type).name
+    assert final["revised"] == str(events[1].fault_type != events[0].fault_type)
+    assert events[1].onset_sample_index == events[0].onset_sample_index
 
 
 @pytest.mark.slow
