@@ -408,8 +408,9 @@ def run_case(
 FIRST_ANSWER_REVS = 2.0
 
 
-def _episode_key(e: FaultEvent) -> tuple[int, int]:
-    return e.onset_sample_index, e.detection_sample_index
+def _episode_key(e: FaultEvent) -> int:
+    """An episode's events share its detection (alarm) sample; its onset estimate may move."""
+    return e.detection_sample_index
 
 
 def first_answers(
@@ -421,10 +422,10 @@ def first_answers(
     Each match with a true onset gets ``first_predicted`` (``MISSED`` for none) and
     ``first_decision_revs``: the earliest event by decision (withdrawn ones left out) whose
     onset lies from one revolution before the true onset to ``match_revs`` after it, as the
-    final matching's window, and whose episode (its onset and detection samples: a provisional
-    event and its final one share them) was not given to an earlier match.
+    final matching's window, and whose episode (its detection sample: a provisional event and
+    its final one share it) was not given to an earlier match.
     """
-    given: set[tuple[int, int]] = set()
+    given: set[int] = set()
     for row in matches:
         true = row.get("true_onset_sample")
         if true is None or row.get("predicted") == "NO_TRUTH":

@@ -57,6 +57,9 @@ class Episode:
         The fault it is the consequence of (``COIL_FAILURE``: monitor notes, step 6), or "".
     provisional : FaultEvent or None
         Its provisional class, once published (monitor notes, step 3).
+    provisional_due : bool
+        Its provisional class is still to be given (False once given, or skipped for an
+        episode a control step or a coil failure explains).
     """
 
     start: int
@@ -81,6 +84,7 @@ class Episode:
     contacts: ContactBursts = field(init=False)
     explained: str = ""
     provisional: FaultEvent | None = None
+    provisional_due: bool = True
 
     def __post_init__(self) -> None:
         self.contacts = ContactBursts(self.start)

@@ -481,7 +481,7 @@ class FaultMonitor:
                 self._episode = None
             return
         if ep.decided is None:
-            if cfg.provisional_revs > 0 and ep.provisional is None:
+            if cfg.provisional_revs > 0 and ep.provisional_due:
                 onset = estimate_onset(ep.crossings)
                 if n - onset >= cfg.provisional_revs * spr:
                     self._provisional(n, ep, onset, events)
@@ -547,6 +547,7 @@ class FaultMonitor:
         None for an episode that a control step or a coil failure explains: those are counted,
         not reported, at the decision.
         """
+        ep.provisional_due = False
         if self._control_run(ep):
             return
         zero = np.zeros(4)

@@ -131,11 +131,12 @@ def _event(kind, onset, detection, decision, status=None):
 
 def test_first_answers_take_each_episode_once_and_skip_withdrawn_ones():
     """Two expected faults 10 samples apart; the first episode's provisional (decided 40
-    samples after the onset) answers the first, its final event (in the second's window too)
-    does not answer the second; a withdrawn copy is no answer."""
+    samples after the onset) answers the first, its final event (the same detection sample,
+    its onset estimate moved; in the second's window too) does not answer the second; a
+    withdrawn copy is no answer."""
     events = [
         _event(FaultType.AUX_BEARING_CONTACT, 1000, 1004, 1040, "provisional"),
-        _event(FaultType.MASS_LOSS, 1000, 1004, 1600, "final"),
+        _event(FaultType.MASS_LOSS, 998, 1004, 1600, "final"),  # onset estimate moved
         _event(FaultType.UNKNOWN, 1100, 1104, 1150, "withdrawn"),
         _event(FaultType.AUX_BEARING_CONTACT, 1200, 1210, 1900),
     ]

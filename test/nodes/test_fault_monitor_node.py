@@ -145,7 +145,7 @@ def test_a_provisional_class_is_published_before_the_final_one(ros, node_process
     assert events[1].fault_type == FaultEvent.MASS_LOSS
     assert final["provisional_class"] == FaultType(events[0].fault_type).name
     assert final["revised"] == str(events[1].fault_type != events[0].fault_type)
-    assert events[1].onset_sample_index == events[0].onset_sample_index
+    assert events[1].detection_sample_index == events[0].detection_sample_index
 
 
 @pytest.mark.slow
