@@ -333,13 +333,13 @@ class _Loop:
                     if recorder is not None:
                         recorder.fault_event(event, meas[s].header.stamp)
                     code = event["fault_type_code"]
-                    status = event.get("evidence", {}).get("status", "")
-                    if status == "withdrawn":
-                        continue  # a void provisional class: no action
-                    if code in self.engage_on and self.pipeline.supervisor.mode == Mode.OFF:
+                    evidence = event.get("evidence", {})
+                    status = evidence.get("status", "")
+                    engage = code in self.engage_on and status != "withdrawn"
+                    if engage and self.pipeline.supervisor.mode == Mode.OFF:
                         self.pipeline.set_mode(Mode.ACTIVE)  # fault-triggered engagement
                     else:
-                        self.pipeline.on_fault(code, status)
+                        self.pipeline.on_fault(code, status, bool(evidence.get("revised")))
             out = self.pipeline.on_sample(n, records, x, float(block.omega[s]), missing)
             if out is not None:
                 self.commands[out.target_period] = out

@@ -346,9 +346,9 @@ class HarmonicPipeline:
             return False, f"unknown mode {mode}; expected 0..3"
         return self.supervisor.set_mode(mode)
 
-    def on_fault(self, fault_type: int, status: str = "") -> str:
-        """Apply the configured action for a FaultEvent type and status; return it."""
-        return self.supervisor.on_fault(int(fault_type), status)
+    def on_fault(self, fault_type: int, status: str = "", revised: bool = False) -> str:
+        """Apply the action for a FaultEvent (:meth:`WaveletControlSupervisor.on_fault`)."""
+        return self.supervisor.on_fault(int(fault_type), status, revised)
 
     def on_sample(
         self, sample_index: int, records, displacement, omega=None, command_missing=False

@@ -540,8 +540,10 @@ class WaveletControllerNode(Node):
 
     # ------------------------------------------------------------------ services, events
     def _on_fault(self, msg: FaultEvent) -> None:
-        status = next((kv.value for kv in msg.evidence if kv.key == "status"), "")
-        action = self._pipe.on_fault(msg.fault_type, status)
+        evidence = {kv.key: kv.value for kv in msg.evidence}
+        status = evidence.get("status", "")
+        revised = evidence.get("revised") == "True"  # the monitor's str(bool)
+        action = self._pipe.on_fault(msg.fault_type, status, revised)
         what = f" ({status})" if status else ""
         self.get_logger().info(f"fault event type {msg.fault_type}{what}: {action}")
 

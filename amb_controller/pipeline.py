@@ -402,9 +402,9 @@ class ControllerPipeline:
             f"{experiment.n_periods} periods"
         )
 
-    def on_fault(self, fault_type: int, status: str = "") -> str:
-        """Apply the configured action for a FaultEvent type and status; return it."""
-        return self.supervisor.on_fault(int(fault_type), status)
+    def on_fault(self, fault_type: int, status: str = "", revised: bool = False) -> str:
+        """Apply the action for a FaultEvent (:meth:`WaveletControlSupervisor.on_fault`)."""
+        return self.supervisor.on_fault(int(fault_type), status, revised)
 
     def reset(self) -> None:
         """OFF, guard re-armed, period assembly and counters cleared (model kept)."""

@@ -243,6 +243,7 @@ class WaveletControlSupervisor:
         self._steps: dict[int, _Step] = {}  # target period -> the step that made its command
         self._missing_reported: int | None = None
         self.controller = None
+        self._provisional_hold = False  # the HOLD was entered on a provisional fault class
         self.mode = Mode.OFF
         self.message = "off"
         if controller is not None:
@@ -339,6 +340,7 @@ class WaveletControlSupervisor:
         elif mode != Mode.HOLD:
             self._held = None
             self._held_periods = 0
+        self._provisional_hold = False  # on_fault sets it after entering a HOLD
         self.mode = mode
 
     def start_identification(self, experiment: StepExperiment, identifier: MarkovIdentifier):
@@ -354,7 +356,7 @@ class WaveletControlSupervisor:
         self.mode = Mode.IDENTIFYING
         self.message = "identifying"
 
-    def on_fault(self, fault_type: int, status: str = "") -> str:
+    def on_fault(self, fault_type: int, status: str = "", revised: bool = False) -> str:
         """
         Apply the configured reconfiguration for a fault event; return the action.
 
@@ -366,17 +368,41 @@ class WaveletControlSupervisor:
             The event's ``status`` evidence: ``""`` (a monitor without provisional classes),
             ``"provisional"`` or ``"final"`` act alike (the reconfiguration acts on the earliest
             class); ``"withdrawn"`` (a provisional class that turned out to be another
-            fault's consequence) takes no action.
+            fault's consequence) takes no action of its own.
+        revised : bool
+            A final event's ``revised`` evidence: its provisional class was another.
+
+        Returns
+        -------
+        str
+            ``"hold"``, ``"off"`` or ``"ignore"`` (the configured action), or ``"resume"``: a
+            HOLD entered on a provisional class was left for ACTIVE because that class was
+            withdrawn or revised, and the final class asks for nothing else.
         """
+        resumed = False
+        if (
+            self._provisional_hold
+            and self.mode == Mode.HOLD
+            and (status == "withdrawn" or (status == "final" and revised))
+        ):
+            resumed, why = self.set_mode(Mode.ACTIVE)
+            self.message = (
+                f"active again: the provisional fault was {status}"
+                if resumed
+                else f"hold: the provisional fault was {status}, but {why}"
+            )
         if status == "withdrawn":
-            return "ignore"
+            return "resume" if resumed else "ignore"
         action = self.fault_actions.get(int(fault_type), "ignore")
         if action == "hold" and self.mode == Mode.ACTIVE:
             self._enter(Mode.HOLD)
+            self._provisional_hold = status == "provisional"
             self.message = f"hold on fault {fault_type}"
         elif action == "off" and self.mode in (Mode.ACTIVE, Mode.HOLD):
             self.set_mode(Mode.OFF)
             self.message = f"off on fault {fault_type}"
+        elif resumed:
+            return "resume"
         return action
 
     def reset(self) -> None:

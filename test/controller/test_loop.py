@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 import pywt
 
+from amb_common.faults import FaultType
 from amb_controller.basis import control_basis, measurement_basis
 from amb_controller.config import ControllerConfig
 from amb_controller.guard import DivergenceGuard, GuardConfig
@@ -230,14 +231,44 @@ def test_guard_trip_zeroes_force_and_fault_holds():
     assert sup.set_mode(Mode.ACTIVE)[0]
     sup.step(0, np.zeros(1))
     last = sup.step(1, np.array([1e-6]))
-    assert sup.on_fault(AUX_BEARING_CONTACT, "withdrawn") == "ignore"  # void: no action
-    assert sup.mode == Mode.ACTIVE
-    assert sup.on_fault(AUX_BEARING_CONTACT, "provisional") == "hold" and sup.mode == Mode.HOLD
+    assert sup.on_fault(AUX_BEARING_CONTACT) == "hold" and sup.mode == Mode.HOLD
     held = sup.step(2, np.array([5e-6]))
     np.testing.assert_allclose(held.coefficients, last.coefficients)
     assert held.hold
     assert sup.on_fault(COIL_FAILURE) == "off" and sup.mode == Mode.OFF  # an actuator lost
     assert ControllerConfig(samples_per_rev=64).fault_actions == {2: "hold", 5: "off"}
+
+
+def test_a_hold_on_a_provisional_contact_is_left_when_it_is_revised_or_withdrawn():
+    """Issue 19: the reconfiguration acts on the earliest class; when the decision revises a
+    provisional contact (or withdraws it), the HOLD it caused is left for ACTIVE."""
+    _, limiter, _ = _one_axis_setup()
+    ctrl = TransientController(np.full((1, 1, 1), 1e5), PrescribedResponse.exponential(0.3, 0.5), 2)
+    sup = WaveletControlSupervisor(limiter, delay=2, controller=ctrl)
+    assert sup.set_mode(Mode.ACTIVE)[0]
+    assert sup.on_fault(AUX_BEARING_CONTACT, "withdrawn") == "ignore"  # void: no action
+    assert sup.mode == Mode.ACTIVE
+    # revised to a mass loss at the decision: control resumes
+    assert sup.on_fault(AUX_BEARING_CONTACT, "provisional") == "hold" and sup.mode == Mode.HOLD
+    assert sup.on_fault(FaultType.MASS_LOSS, "final", revised=True) == "resume"
+    assert sup.mode == Mode.ACTIVE
+    # confirmed at the decision: it holds on
+    assert sup.on_fault(AUX_BEARING_CONTACT, "provisional") == "hold"
+    assert sup.on_fault(AUX_BEARING_CONTACT, "final") == "hold" and sup.mode == Mode.HOLD
+    # withdrawn (another fault's consequence): control resumes
+    assert sup.set_mode(Mode.ACTIVE)[0]
+    assert sup.on_fault(AUX_BEARING_CONTACT, "provisional") == "hold"
+    assert sup.on_fault(AUX_BEARING_CONTACT, "withdrawn") == "resume"
+    assert sup.mode == Mode.ACTIVE
+    # a HOLD on a final contact is not left on a later revision of another episode
+    assert sup.on_fault(AUX_BEARING_CONTACT) == "hold"
+    assert sup.on_fault(FaultType.MASS_LOSS, "final", revised=True) == "ignore"
+    assert sup.mode == Mode.HOLD
+    # revised to a coil failure: resumed, then off as a coil failure asks
+    assert sup.set_mode(Mode.ACTIVE)[0]
+    assert sup.on_fault(AUX_BEARING_CONTACT, "provisional") == "hold"
+    assert sup.on_fault(COIL_FAILURE, "final", revised=True) == "off"
+    assert sup.mode == Mode.OFF
 
 
 def test_model_file_round_trip(tmp_path):
