@@ -28,8 +28,8 @@ stdout stays JSON); the exit status does not depend on them.
 after each episode's estimated onset (``MonitorConfig.provisional_revs``); the report then
 adds the earliest answer per expected fault (provisional or final) and how many were right
 within ``FIRST_ANSWER_REVS`` revolutions of the true onset, per case (its first fault: issue
-19's target) and per expected fault. The final classes and
-the exit status are scored as without it.
+19's target) and per expected fault. The final classes and the exit status are scored as
+without it.
 
 The scenarios are simulated in ``--jobs`` parallel processes (default: the machine's cores;
 :mod:`amb_apps.parallel`); the report is the same for any ``--jobs``.
