@@ -135,10 +135,15 @@ def _tag(ax, t: float, text: str, colour: str, i: int) -> None:
 
 
 def _event_label(e: dict[str, Any]) -> str:
+    """Class, plane and channel of an event, and its status (provisional classes)."""
     where = f" plane {e['plane']}" if e.get("plane") else ""
     if e.get("channel", -1) >= 0:
         where += f" ch {e['channel'] + 1}"
-    return f"{e['fault_type']}{where}"
+    evidence = e.get("evidence", {})
+    status = evidence.get("status", "")
+    if status == "final" and evidence.get("revised"):
+        status = f"final, provisionally {evidence['provisional_class']}"
+    return f"{e['fault_type']}{where}" + (f" ({status})" if status else "")
 
 
 def case_figure(case: SimulatedCase, result: CaseResult, trace: list, path: str | Path) -> Path:

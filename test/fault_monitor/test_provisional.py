@@ -217,3 +217,20 @@ def test_a_provisional_class_the_stuck_channel_check_explains_is_withdrawn(rig):
     assert withdrawn["onset_sample_index"] == res.events[0]["onset_sample_index"]
     assert res.events[1]["channel"] == 1  # plane 1 y ([x1, y1, x2, ...])
     assert res.matches[0]["predicted"] == "SENSOR_FAULT"
+
+
+def test_figure_labels_say_which_events_are_provisional():
+    from amb_apps.eval_figures import _event_label
+
+    def event(kind, **evidence):
+        return {"fault_type": kind, "plane": 2, "channel": -1, "evidence": evidence}
+
+    assert _event_label(event("MASS_LOSS")) == "MASS_LOSS plane 2"
+    assert _event_label(event("MASS_LOSS", status="provisional")) == (
+        "MASS_LOSS plane 2 (provisional)"
+    )
+    revised = event("MASS_LOSS", status="final", provisional_class="AUX_BEARING_CONTACT")
+    assert _event_label({**revised, "evidence": {**revised["evidence"], "revised": True}}) == (
+        "MASS_LOSS plane 2 (final, provisionally AUX_BEARING_CONTACT)"
+    )
+    assert _event_label(event("MASS_LOSS", status="withdrawn")) == "MASS_LOSS plane 2 (withdrawn)"
