@@ -48,6 +48,7 @@ from typing import ClassVar
 import numpy as np
 
 from amb_common import topics
+from amb_common.faults import WITHDRAWN, event_status
 from amb_common.names import SENSOR_NAMES
 from amb_controller.baselines import HarmonicPipeline
 from amb_controller.config import BASELINE_CONTROLLERS, ControllerConfig
@@ -333,13 +334,12 @@ class _Loop:
                     if recorder is not None:
                         recorder.fault_event(event, meas[s].header.stamp)
                     code = event["fault_type_code"]
-                    evidence = event.get("evidence", {})
-                    status = evidence.get("status", "")
-                    engage = code in self.engage_on and status != "withdrawn"
+                    status, revised = event_status(event.get("evidence", {}))
+                    engage = code in self.engage_on and status != WITHDRAWN
                     if engage and self.pipeline.supervisor.mode == Mode.OFF:
                         self.pipeline.set_mode(Mode.ACTIVE)  # fault-triggered engagement
                     else:
-                        self.pipeline.on_fault(code, status, bool(evidence.get("revised")))
+                        self.pipeline.on_fault(code, status, revised)
             out = self.pipeline.on_sample(n, records, x, float(block.omega[s]), missing)
             if out is not None:
                 self.commands[out.target_period] = out

@@ -35,6 +35,7 @@ from matplotlib.lines import Line2D
 
 from amb_apps.evaluation import CaseResult, SimulatedCase, sample_time
 from amb_apps.report_figures import PLANE_NOTE, UM, save_figure
+from amb_common.faults import FINAL, event_status
 from amb_wavelet.levels import revolution_level
 
 __all__ = ["case_figure", "case_window", "summary_figure"]
@@ -140,8 +141,8 @@ def _event_label(e: dict[str, Any]) -> str:
     if e.get("channel", -1) >= 0:
         where += f" ch {e['channel'] + 1}"
     evidence = e.get("evidence", {})
-    status = evidence.get("status", "")
-    if status == "final" and evidence.get("revised"):
+    status, revised = event_status(evidence)
+    if status == FINAL and revised:
         status = f"final, provisionally {evidence['provisional_class']}"
     return f"{e['fault_type']}{where}" + (f" ({status})" if status else "")
 

@@ -63,7 +63,7 @@ import numpy as np
 import yaml
 from numpy.typing import ArrayLike
 
-from amb_common.faults import FaultEvent, FaultType
+from amb_common.faults import FINAL, PROVISIONAL, WITHDRAWN, FaultEvent, FaultType, event_status
 from amb_fault_monitor.config import MonitorConfig
 from amb_fault_monitor.errors import FaultMonitorError
 from amb_fault_monitor.monitor import FaultMonitor
@@ -331,7 +331,7 @@ def run_case(
     )
     res.events = [e.to_dict() for e in events]
     every = events
-    events = [e for e in every if e.evidence.get("status") not in ("provisional", "withdrawn")]
+    events = [e for e in every if e.evidence.get("status") not in (PROVISIONAL, WITHDRAWN)]
     used: set[int] = set()
     expect = case.expect
     last_fault_time = max((e.time for e in expect if e.time is not None), default=0.0)
@@ -390,10 +390,10 @@ def run_case(
                 }
             )
     matched = {_episode_key(events[i]) for i in used}
-    void = {_episode_key(e) for e in every if e.evidence.get("status") == "withdrawn"}
+    void = {_episode_key(e) for e in every if e.evidence.get("status") == WITHDRAWN}
     for e in every:
         key = _episode_key(e)
-        if e.evidence.get("status") == "provisional" and key not in matched | void:
+        if e.evidence.get("status") == PROVISIONAL and key not in matched | void:
             res.provisional_false_alarms.append(
                 {
                     "predicted": e.fault_type.name,
@@ -435,7 +435,7 @@ def first_answers(
             (e.decision_sample_index, i)
             for i, e in enumerate(events)
             if _episode_key(e) not in given
-            and e.evidence.get("status") != "withdrawn"
+            and e.evidence.get("status") != WITHDRAWN
             and lo <= e.onset_sample_index <= hi
         ]
         if not window:
@@ -509,9 +509,9 @@ def summarise(results: list[CaseResult]) -> dict[str, Any]:
         sim_s += r.duration
         first["false_alarms"] += len(r.provisional_false_alarms)
         for e in r.events:
-            status = e["evidence"].get("status")
-            first["provisional"] += status == "provisional"
-            first["revised"] += status == "final" and bool(e["evidence"].get("revised"))
+            status, revised = event_status(e["evidence"])
+            first["provisional"] += status == PROVISIONAL
+            first["revised"] += status == FINAL and revised
         answered = [m for m in r.matches if "first_predicted" in m]
         for k, m in enumerate(sorted(answered, key=lambda m: m["true_onset_sample"])):
             right = m["first_predicted"] == m["expected"]

@@ -7,11 +7,29 @@ onto seconds (``sample_index / fs`` at constant speed).
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field
 from enum import IntEnum
 from typing import Any
 
-__all__ = ["FaultEvent", "FaultType"]
+__all__ = ["FINAL", "PROVISIONAL", "WITHDRAWN", "FaultEvent", "FaultType", "event_status"]
+
+#: ``evidence["status"]`` of the events of a monitor with provisional classes
+#: (``MonitorConfig.provisional_revs``): an early class, the decision that confirms or revises
+#: it (with ``provisional_class`` and ``revised``), and a copy of a provisional event that the
+#: decision found void (another fault's consequence). Events without it are final.
+PROVISIONAL, FINAL, WITHDRAWN = "provisional", "final", "withdrawn"
+
+
+def event_status(evidence: Mapping[str, Any]) -> tuple[str, bool]:
+    """
+    ``(status, revised)`` of an event's evidence (``""`` and False when it has none).
+
+    Takes the core's :attr:`FaultEvent.evidence` (``revised`` a bool) or a ``FaultEvent``
+    message's key-value pairs as a dict (values as text: ``"True"``).
+    """
+    revised = evidence.get("revised", False)
+    return str(evidence.get("status", "")), revised is True or revised == "True"
 
 
 class FaultType(IntEnum):

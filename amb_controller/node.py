@@ -103,6 +103,7 @@ from rclpy.node import Node
 from amb_common import topics
 from amb_common.config_fields import default_of, parameter_fields
 from amb_common.errors import RigError
+from amb_common.faults import event_status
 from amb_common.paths import config_file
 from amb_common.rig import load_rig
 from amb_controller.config import ControllerConfig
@@ -540,9 +541,7 @@ class WaveletControllerNode(Node):
 
     # ------------------------------------------------------------------ services, events
     def _on_fault(self, msg: FaultEvent) -> None:
-        evidence = {kv.key: kv.value for kv in msg.evidence}
-        status = evidence.get("status", "")
-        revised = evidence.get("revised") == "True"  # the monitor's str(bool)
+        status, revised = event_status({kv.key: kv.value for kv in msg.evidence})
         action = self._pipe.on_fault(msg.fault_type, status, revised)
         what = f" ({status})" if status else ""
         self.get_logger().info(f"fault event type {msg.fault_type}{what}: {action}")

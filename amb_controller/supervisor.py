@@ -93,6 +93,7 @@ from enum import IntEnum
 
 import numpy as np
 
+from amb_common.faults import FINAL, PROVISIONAL, WITHDRAWN, FaultType
 from amb_controller.errors import ControllerValueError, NotIdentifiedError
 from amb_controller.guard import DivergenceGuard
 from amb_controller.identification import IdentificationResult, MarkovIdentifier, StepExperiment
@@ -110,8 +111,8 @@ class Mode(IntEnum):
 
 
 #: FaultEvent.fault_type values (amb_msgs/FaultEvent.msg).
-AUX_BEARING_CONTACT = 2
-COIL_FAILURE = 5
+AUX_BEARING_CONTACT = int(FaultType.AUX_BEARING_CONTACT)
+COIL_FAILURE = int(FaultType.COIL_FAILURE)
 #: The reconfiguration on a fault (thesis 3.3.2): on a contact hold the force that acts (the
 #: rotor touches; a changing force would rub it on), on a coil or amplifier failure stop (the
 #: plant the model was identified on has lost an actuator axis: its commands no longer mean
@@ -383,7 +384,7 @@ class WaveletControlSupervisor:
         if (
             self._provisional_hold
             and self.mode == Mode.HOLD
-            and (status == "withdrawn" or (status == "final" and revised))
+            and (status == WITHDRAWN or (status == FINAL and revised))
         ):
             resumed, why = self.set_mode(Mode.ACTIVE)
             self.message = (
@@ -391,12 +392,12 @@ class WaveletControlSupervisor:
                 if resumed
                 else f"hold: the provisional fault was {status}, but {why}"
             )
-        if status == "withdrawn":
+        if status == WITHDRAWN:
             return "resume" if resumed else "ignore"
         action = self.fault_actions.get(int(fault_type), "ignore")
         if action == "hold" and self.mode == Mode.ACTIVE:
             self._enter(Mode.HOLD)
-            self._provisional_hold = status == "provisional"
+            self._provisional_hold = status == PROVISIONAL
             self.message = f"hold on fault {fault_type}"
         elif action == "off" and self.mode in (Mode.ACTIVE, Mode.HOLD):
             self.set_mode(Mode.OFF)

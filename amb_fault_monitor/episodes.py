@@ -13,11 +13,11 @@ bursts of its ring-down (:class:`amb_fault_monitor.bursts.ContactBursts`).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from amb_common.faults import FaultEvent
+from amb_common.faults import WITHDRAWN, FaultEvent
 from amb_common.names import N_SENSORS
 from amb_fault_monitor.bursts import ContactBursts
 from amb_fault_monitor.classifier import EpisodeEvidence
@@ -168,9 +168,8 @@ class Episode:
         """
         if self.provisional is None:
             return []
-        ev = FaultEvent.from_dict(self.provisional.to_dict())
-        ev.evidence.update(status="withdrawn", explained_by=explained_by)
-        return [ev]
+        evidence = {**self.provisional.evidence, "status": WITHDRAWN, "explained_by": explained_by}
+        return [replace(self.provisional, evidence=evidence)]
 
     def add_low_change(self, delta: np.ndarray, mask: np.ndarray) -> None:
         """

@@ -74,7 +74,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from amb_common.faults import FaultEvent, FaultType
+from amb_common.faults import FINAL, PROVISIONAL, FaultEvent, FaultType
 from amb_common.names import N_SENSORS
 from amb_fault_monitor.calibration import Calibration, CalibrationWindow
 from amb_fault_monitor.classifier import Decision, classify, classify_provisional
@@ -481,18 +481,20 @@ class FaultMonitor:
                 self._episode = None
             return
         if ep.decided is None:
-            if cfg.provisional_revs > 0 and ep.provisional_due:
-                onset = estimate_onset(ep.crossings)
-                if n - onset >= cfg.provisional_revs * spr:
-                    self._provisional(n, ep, onset, events)
-            status = self._sync_status(ep)
+            # confirmed, so it has crossings (Episode.add_crossings): the onset once per sample
+            onset = estimate_onset(ep.crossings)
+            provisional = cfg.provisional_revs > 0 and ep.provisional_due
+            if provisional and n - onset >= cfg.provisional_revs * spr:
+                self._provisional(n, ep, onset, events)
+            status = self._sync.series(ep.p_ref, onset, self._mask)[0]
             extra = max(self._sync.support - spr, 0)
             waited = n - ep.alarm
             due = waited >= cfg.decision_revs * spr + extra and not (
-                self._sync_moving(ep) and waited < cfg.decision_max_revs * spr + extra
+                self._sync.moving(ep.p_ref, onset, self._mask)
+                and waited < cfg.decision_max_revs * spr + extra
             )
             if status is not None or due:
-                ev = self._decide(n, ep)
+                ev = self._decide(n, ep, onset)
                 ep.control = self._control_run(ep) or False
                 ep.decided = ev
                 if ep.control:
@@ -516,7 +518,7 @@ class FaultMonitor:
                     ev = ep.decided = self._bias.revise(ev, ep.start, self._mask)
                 if ep.provisional is not None:
                     ev.evidence.update(
-                        status="final",
+                        status=FINAL,
                         provisional_class=ep.provisional.fault_type.name,
                         revised=ev.fault_type != ep.provisional.fault_type,
                     )
@@ -555,7 +557,7 @@ class FaultMonitor:
         ev = self._event(n, ep, onset, decision)
         if self._coil_explains(ev):
             return
-        ev.evidence["status"] = "provisional"
+        ev.evidence["status"] = PROVISIONAL
         ep.provisional = ev
         events.append(ev)
 
@@ -582,19 +584,8 @@ class FaultMonitor:
         after = "CONTROL_TRANSIENT" if ep.control else ep.explained or ep.decided.fault_type.name
         events.append(ep.contacts.event(n, self._omega, after, self._config))
 
-    def _sync_status(self, ep: Episode) -> str | None:
-        if not ep.crossings:
-            return None
-        return self._sync.series(ep.p_ref, estimate_onset(ep.crossings), self._mask)[0]
-
-    def _sync_moving(self, ep: Episode) -> bool:
-        if not ep.crossings:
-            return False
-        return self._sync.moving(ep.p_ref, estimate_onset(ep.crossings), self._mask)
-
-    def _decide(self, n: int, ep: Episode) -> FaultEvent:
+    def _decide(self, n: int, ep: Episode, onset: int) -> FaultEvent:
         cfg = self._config
-        onset = estimate_onset(ep.crossings)
         status, sync_ratio, sync_change = self._sync.series(ep.p_ref, onset, self._mask, True)
         if status != "settled":
             sync_ratio = np.zeros(4)

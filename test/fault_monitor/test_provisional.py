@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from amb_apps.evaluation import FIRST_ANSWER_REVS, first_answers, run_case, simulate_case
-from amb_common.faults import FaultEvent, FaultType
+from amb_common.faults import FaultEvent, FaultType, event_status
 from amb_common.rig import load_rig
 from amb_fault_monitor.classifier import EpisodeEvidence, classify_provisional
 from amb_fault_monitor.config import MonitorConfig
@@ -234,3 +234,12 @@ def test_figure_labels_say_which_events_are_provisional():
         "MASS_LOSS plane 2 (final, provisionally AUX_BEARING_CONTACT)"
     )
     assert _event_label(event("MASS_LOSS", status="withdrawn")) == "MASS_LOSS plane 2 (withdrawn)"
+
+
+def test_event_status_reads_the_core_and_the_message_evidence():
+    """The core's evidence carries a bool, a FaultEvent message's key-values text."""
+    assert event_status({}) == ("", False)
+    assert event_status({"status": "final", "revised": True}) == ("final", True)
+    assert event_status({"status": "final", "revised": "True"}) == ("final", True)
+    assert event_status({"status": "final", "revised": "False"}) == ("final", False)
+    assert event_status({"status": "provisional"}) == ("provisional", False)
