@@ -52,6 +52,7 @@ from amb_common.faults import WITHDRAWN, event_status
 from amb_common.names import SENSOR_NAMES
 from amb_controller.baselines import HarmonicPipeline
 from amb_controller.config import BASELINE_CONTROLLERS, ControllerConfig
+from amb_controller.early_action import EarlyAction, EarlyActionConfig, EarlyStage
 from amb_controller.errors import ControllerValueError, NotIdentifiedError
 from amb_controller.inverse import pseudo_inverse_series
 from amb_controller.model_file import WaveletModel
@@ -429,6 +430,7 @@ def run_closed_loop(
     engage_on: tuple[int, ...] = (),
     stop=None,
     controller=None,
+    early_model=None,
 ) -> RunResult:
     """
     Run one scenario in lock step with the wavelet controller ACTIVE from period 0.
@@ -477,6 +479,9 @@ def run_closed_loop(
         and control layout as ``config``), e.g. the per-level
         :class:`~amb_controller.multilevel.MultiLevelController`; ``model`` must still be
         given (the pipeline checks its layout and reports it).
+    early_model : amb_controller.early_action.EarlyActionModel, optional
+        Adds the early action on a sudden unbalance (:mod:`amb_controller.early_action`,
+        default settings) to the controller's commands.
 
     Returns
     -------
@@ -492,6 +497,15 @@ def run_closed_loop(
     loop.engage_on = tuple(int(c) for c in engage_on)
     if controller is not None:
         loop.pipeline.set_controller(controller)
+    if early_model is not None:
+        early = EarlyAction(
+            early_model,
+            EarlyActionConfig(),
+            config.delay_periods,
+            max(config.force_limit),
+            min(c.radial_clearance for c in rig.clearance_bearings),
+        )
+        loop.pipeline.early = EarlyStage(early, config.force_limit)
     if engage_on and not fault_monitor:
         raise ControllerValueError("engage_on needs fault_monitor=True (events engage control)")
     if config.controller != "none" and not engage_on:

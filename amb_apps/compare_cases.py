@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import ClassVar
 
 from amb_apps.closed_loop import fe_model, run_closed_loop
-from amb_apps.plant_models import harmonic_model, influence_by_trials
+from amb_apps.plant_models import early_action_model, harmonic_model, influence_by_trials
 from amb_common.rig import load_rig
 from amb_controller.config import ControllerConfig
 from amb_plant_sim.scenario import load_scenario
@@ -33,6 +33,8 @@ CONTROLLERS = (
     "wavelet_sin_i2",
     "predictive_i1",
     "predictive_i2",
+    "predictive_early_i1",
+    "predictive_early_i2",
     "harmonic_i1",
     "synchronous_i1",
 )
@@ -56,6 +58,7 @@ class Spec:
     delay: int = 1
     model: str = "fe"  # fe | harmonic | trials | none
     output_basis: str = "wavelet"  # ControllerConfig.output_basis
+    early: bool = False  # add the early action on a sudden unbalance (amb_controller.early_action)
 
 
 SPECS = {
@@ -68,6 +71,9 @@ SPECS = {
     # receding horizon on the same coefficients and model, sinusoidal force (item 2)
     "predictive_i1": Spec("predictive_i1", "predictive", 1, "fe", "sinusoid"),
     "predictive_i2": Spec("predictive_i2", "predictive", 2, "fe", "sinusoid"),
+    # the same with the fault's own period read for a sudden unbalance (item 4)
+    "predictive_early_i1": Spec("predictive_early_i1", "predictive", 1, "fe", "sinusoid", True),
+    "predictive_early_i2": Spec("predictive_early_i2", "predictive", 2, "fe", "sinusoid", True),
     "harmonic_i1": Spec("harmonic_i1", "harmonic", 1, "harmonic"),
     "synchronous_i1": Spec("synchronous_i1", "synchronous", 1, "trials"),
 }
@@ -156,6 +162,15 @@ class Matrix:
         config = self.config(spec, scenario)
         if model is None:
             model = self.model(spec, scenario, config)
+        if spec.early:  # the model of the scenario's (nominal) speed, as the others'
+            kw.setdefault("early_model", self.early_model(scenario, config))
         if speed_hz is not None:
             scenario = replace(scenario, speed_hz=speed_hz)
         return run_closed_loop(self.rig, scenario, config, model, **kw)
+
+    def early_model(self, scenario, config):
+        """Return (and cache) the early action's sample-domain model at ``scenario``'s speed."""
+        key = ("early", round(scenario.speed_hz, 6), config.samples_per_rev)
+        if key not in self._models:
+            self._models[key] = early_action_model(self.rig, scenario, config.samples_per_rev)
+        return self._models[key]

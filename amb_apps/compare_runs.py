@@ -450,6 +450,23 @@ ROBUSTNESS_CASES = {
 ROBUSTNESS_ROWS = tuple(name for name in CONTROLLERS if name != "pid")
 
 
+def perturb_early_model(model, gain: float, phase: float):
+    """
+    The early action's model with its force path off by ``gain`` and ``phase`` (rad at 1 x).
+
+    The bearing Markov parameters (the controller's model of its own force) are scaled by
+    ``gain`` and delayed by ``phase / (2 pi) N`` samples (rounded; negative: advanced), the
+    1 x phase error of a pure delay; the planes' responses (the unbalance model) are kept.
+    """
+    h = model.bearing_markov * gain
+    shift = round(phase / (2 * math.pi) * model.samples_per_rev)
+    if shift > 0:
+        h = np.concatenate([np.zeros_like(h[:shift]), h[:-shift]])
+    elif shift < 0:
+        h = np.concatenate([h[-shift:], np.zeros_like(h[:-shift])])
+    return replace(model, bearing_markov=h)
+
+
 def _robustness_task(task: tuple) -> dict:
     """Worker of :func:`robustness`: ``(matrix args, row, case)`` -> the run's metrics."""
     args, name, case = task
@@ -462,7 +479,11 @@ def _robustness_task(task: tuple) -> dict:
     nominal = matrix.model(spec, scenario, config)
     model = perturb_model(nominal, p.get("gain", 1.0), p.get("phase", 0.0), config.inverse_order)
     hz = scenario.speed_hz * p.get("speed", 1.0)
-    result = matrix.run(spec, key, model=model, speed_hz=hz)
+    kw = {}
+    if spec.early:
+        early = matrix.early_model(scenario, config)
+        kw["early_model"] = perturb_early_model(early, p.get("gain", 1.0), p.get("phase", 0.0))
+    result = matrix.run(spec, key, model=model, speed_hz=hz, **kw)
     pid = matrix.run(SPECS["pid"], key, speed_hz=hz) if "speed" in p else None
     pid_steady = None if pid is None else run_metrics(pid, hz)["steady_1x"]
     m = run_metrics(result, hz, pid_steady)

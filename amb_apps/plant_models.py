@@ -5,7 +5,8 @@ These run the plant model, so they sit above the controller core: the baselines'
 (:mod:`amb_controller.baselines`), the sampled-harmonic one from the FE model's PID closed
 loop and the influence coefficients from trial injections on the simulated rig, and the
 multilevel controller's per-level models (:mod:`amb_controller.multilevel`) from the chapter-6
-FE route or a simulated identification (section 6.4).
+FE route or a simulated identification (section 6.4), and the sample-domain model of the
+early action on a sudden unbalance (:mod:`amb_controller.early_action`).
 """
 
 from __future__ import annotations
@@ -16,8 +17,9 @@ from dataclasses import replace
 import numpy as np
 
 from amb_apps.closed_loop import fe_model, identify_model
-from amb_common.names import N_AXES
+from amb_common.names import N_AXES, N_SENSORS
 from amb_controller.baselines import BaselineSettings, fourier_model
+from amb_controller.early_action import EarlyActionModel
 from amb_controller.errors import ControllerValueError
 from amb_controller.fourier_basis import (
     complex_from_real,
@@ -28,9 +30,11 @@ from amb_controller.fourier_basis import (
 from amb_controller.model_file import WaveletModel
 from amb_controller.wavelet_dynamics import wavelet_markov
 from amb_plant_sim.closed_loop import build_closed_loop
+from amb_plant_sim.control_limit import linear_rig
+from amb_plant_sim.events import Event
 from amb_plant_sim.simulator import PlantSimulator
 
-__all__ = ["harmonic_model", "influence_by_trials", "level_models"]
+__all__ = ["early_action_model", "harmonic_model", "influence_by_trials", "level_models"]
 
 
 def harmonic_model(rig, omega: float, config, n_terms: int = 60) -> WaveletModel:
@@ -170,3 +174,63 @@ def level_models(rig, omega: float, config, route: str = "fe", scenario=None,
             sc = replace(scenario, speed_hz=omega / (2 * math.pi))
             out[int(p)] = identify_model(rig, sc, cfg, seed=seed)
     return out
+
+
+def early_action_model(rig, scenario, samples_per_rev: int, horizon_periods: int = 6):
+    """
+    The sample-domain model of :mod:`amb_controller.early_action` from the FE route.
+
+    Runs the simulated rig's PID loop, linearised (:func:`amb_plant_sim.control_limit
+    .linear_rig`), noise-free, at ``scenario``'s constant speed: 1 N held over one sample on
+    each bearing axis (the bearing Markov parameters), and a unit sudden unbalance (1 kg m,
+    angle 0 and pi/2) appearing at a sample instant in each disk's plane. Sensors: all eight,
+    so that the estimate uses every probe and the clearance check sees the rotor's ends (with
+    the inner four only, a plan that held the inner probes swung the ends into the retainers
+    on the figure-5.27 case 1); the plan minimises the feedback sensors, the controllers'
+    objective.
+
+    Parameters
+    ----------
+    rig : amb_common.rig.Rig
+    scenario : amb_plant_sim.scenario.Scenario
+        Resolved, constant speed (only its speed is used).
+    samples_per_rev : int
+    horizon_periods : int
+        ``L / N`` of the bearing responses (the plane responses run 4 periods longer).
+
+    Returns
+    -------
+    amb_controller.early_action.EarlyActionModel
+    """
+    N = int(samples_per_rev)
+    L = horizon_periods * N
+    lp = L + 4 * N
+    fs = scenario.speed_hz * N
+    lin = linear_rig(rig)
+    sensors = list(range(N_SENSORS))
+    quiet = replace(scenario, events=(), measurement_noise=0.0, duration=(2 * N + lp + 2) / fs)
+    still = PlantSimulator(lin, quiet, N)
+    cols = []
+    for a in range(N_AXES):
+        force = np.zeros((L, N_AXES))
+        force[0, a] = 1.0
+        still.reset()
+        cols.append(still.advance(L, force).displacement[:, sensors])
+    bearing = np.stack(cols, axis=2)
+    s0 = 2 * N  # the loss appears at this sample
+    planes = []
+    for disk in rig.disks:
+        pair = []
+        for angle in (0.0, math.pi / 2):
+            ev = Event("mass_loss", s0 / fs, None, {"disk": disk.tag, "me": 1.0, "angle": angle})
+            sim = PlantSimulator(lin, replace(quiet, events=(ev,)), N)
+            pair.append(sim.advance(s0 + lp).displacement[s0:, sensors])
+        planes.append(np.stack(pair, axis=2))
+    return EarlyActionModel(
+        samples_per_rev=N,
+        bearing_markov=bearing,
+        plane_responses=np.array(planes),
+        planes=tuple(d.tag for d in rig.disks),
+        sensors=tuple(sensors),
+        objective=tuple(sensors.index(c) for c in rig.feedback_channels),
+    )

@@ -56,6 +56,7 @@ from amb_controller.config import (
     ConfigError,
     ControllerConfig,
 )
+from amb_controller.early_action import EarlyStage
 from amb_controller.errors import ControllerValueError
 from amb_controller.fourier_basis import sinusoid_control_basis
 from amb_controller.guard import DivergenceGuard, GuardConfig
@@ -214,6 +215,7 @@ class ControllerPipeline:
         self._period_message = ""
         self._expected: int | None = None
         self.last_measured: np.ndarray | None = None
+        self.early: EarlyStage | None = None
         self._new_period(None)
         if model is None and config.model_file:
             model = WaveletModel.load(config.model_file)
@@ -474,8 +476,12 @@ class ControllerPipeline:
         self._expected = n + 1
         if command_missing and self.supervisor.command_missing(m):
             self._stats["commands_late"] += 1
+        if command_missing and self.early is not None:
+            self.early.command_missing(m)
         if displacement is not None:
             d = np.asarray(displacement, dtype=float)
+            if self.early is not None:
+                self.early.sample(pos, d)
             self._peak = max(self._peak, float(np.max(np.abs(d))) if d.size else 0.0)
         for rec in records:
             if rec.kind != "detail" or rec.level not in self._levels_j:
@@ -516,6 +522,11 @@ class ControllerPipeline:
             self._after_identification()
         else:
             command = self._skip(m)
+        if self.early is not None:  # issue 18 item 4: amb_controller.early_action
+            force, _ = self.early.end_period(
+                m, command.target_period, command.force, sup.mode == Mode.ACTIVE, complete
+            )
+            command = replace(command, force=force)
         self._last_period = m
         self._last_command = command
         self._stats["commands_sent"] += 1

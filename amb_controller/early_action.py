@@ -1,0 +1,612 @@
+"""
+Early action on a sudden unbalance: estimate it from the fault's own period, cancel it next.
+
+Issue 18, item 4. The period-rate controllers (eq. 8.10, :mod:`amb_controller.predictive`,
+the baselines) see a fault through the coefficients of whole periods: a mass loss late in its
+period gives them a partial coefficient, and their first informed force comes a period or more
+after the fault, while the response of a rotor at a critical speed has by then grown several
+times (``docs/results.md#bound``: at the first critical speed the best force from 0.11
+revolution after the fault keeps the peak at the pre-fault 25.6 um, the best period-rate
+controller reaches 82.5 um). The samples of the fault's period already say what happened: a
+430 g cm loss at the first critical speed moves the inner probes 0.5 um four samples (of 64)
+after it and 5.7 um after seven, against 0.2 um of probe noise. This module reads them.
+
+Model
+-----
+Both parts are sample-domain responses of the rig's PID loop at the running speed (``N``
+samples per revolution, one control period per revolution), linear and time invariant:
+
+* ``bearing_markov[n, s, a]``: sensor ``s`` at sample ``n`` after 1 N held over sample 0 on
+  bearing axis ``a`` (the wavelet force's own input, zero-order hold), m/N;
+* ``plane_responses[p, n, s, c]``: sensor ``s`` at sample ``n`` after a unit sudden unbalance
+  (1 kg m) appears in plane ``p`` at sample 0, with angle 0 (``c = 0``) and pi/2 (``c = 1``)
+  at that instant, m/(kg m). An unbalance is a forward-rotating force
+  ``Re(me omega^2 e^{i(theta + omega t)})`` (eq. 3.3), so the response to a loss appearing at
+  sample ``k`` with any angle is this pair shifted by ``k`` and combined with two real weights
+  ``theta = (me cos phi_k, me sin phi_k)``, ``phi_k`` the unbalance's angle at its onset.
+
+From the measured displacements ``y`` and the applied wavelet force ``f`` the controller
+removes its own force's effect, ``z[n] = y[n] - sum_j H[j] f[n - j]`` (``H`` =
+``bearing_markov``), so that ``z`` is periodic whenever the disturbances are, whatever the
+feedback law does.
+
+Detection and estimate (a generalised likelihood ratio test)
+-------------------------------------------------------------
+At the end of period ``m``, with ``ref`` the mean of ``z`` over the ``R`` periods before
+``m - 1`` (all quiet), the innovation over the last two periods is
+``e = z[m-1, m] - (ref, ref)`` (``2 N n_s`` values). For every plane ``p`` and onset ``k`` in
+the window, the least-squares weights and the energy they explain are::
+
+    theta_{p,k} = (A_{p,k}^T A_{p,k})^-1 A_{p,k}^T e,     E_{p,k} = e^T A_{p,k} theta_{p,k}   (E1)
+
+(``A_{p,k}``: the plane's pair shifted to ``k``, zero before it). The most likely change
+maximises ``E``; it is accepted when
+
+* ``E / sigma_e^2 >= threshold`` (the likelihood ratio of "an unbalance appeared" against
+  "noise only", ``sigma_e^2`` the innovation's variance per value, measured over the quiet
+  periods), and
+* the residual ``(||e||^2 - E) / (2 N n_s sigma_e^2) <= max_residual`` (what is left is
+  noise: a contact, a sensor offset or a controller step is not an unbalance and is left to
+  the feedback law and the fault monitor).
+
+The magnitude ``me = ||theta||`` and the plane are reported (:attr:`EarlyAction.detections`).
+
+The force
+---------
+The first sample a command made now can reach is ``k0 = (m + i) N`` (delay ``i``,
+``ARCHITECTURE.md`` "Time"). The estimated change's response from ``k0`` on is
+``y_d = A_{p,k} theta`` continued; the added force is
+
+* a steady 1 x force at the bearings, forward whirl at both (4 real weights ``w``), that
+  cancels ``y_d`` in the least-squares sense over its last two revolutions of the horizon (the
+  unbalance's steady response), applied in every period from ``k0`` on::
+
+      w = -(C_t^T C_t)^-1 C_t^T y_d[tail],                                             (E2)
+
+* and, over the first ``M`` samples from ``k0``, the force ``df`` that damps what the change
+  excited before ``k0`` (the transient that no steady force removes)::
+
+      df = -(H_M^T H_M + (lambda ||H_M||)^2 I)^-1 H_M^T (y_d + C w)                       (E3)
+
+  (``H_M``: the bearing Markov parameters as a block Toeplitz matrix from ``M`` force samples
+  to the ``L``-sample horizon, ``lambda`` = ``transient_weight``).
+
+(E1)-(E3) are matrix products with matrices computed once from the model (:meth:`EarlyAction
+.__init__`): the test costs one product of ``(planes 2N 2) x (2N n_s)`` per period. After a
+detection the reference is formed again from the periods after it (``arm_periods`` quiet
+periods), so a second loss is estimated on top of the first and added to the plan. The
+feedback law keeps running: it sees the rotor with the change cancelled and trims what the
+estimate missed.
+
+What it does not do: it acts on a sudden unbalance only (a mass loss, eq. 3.3), and it needs
+the sample-domain model above (the FE route: :func:`amb_apps.plant_models.early_action_model`;
+on a rig the bearing part can be identified as the coefficient model is, section 6.4, with the
+step response taken per sample, and the plane part by trial masses).
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from amb_controller.errors import ControllerValueError, ShapeError
+
+__all__ = ["Detection", "EarlyAction", "EarlyActionConfig", "EarlyActionModel", "EarlyStage"]
+
+
+@dataclass(frozen=True)
+class EarlyActionModel:
+    """
+    Sample-domain responses of the PID loop at one running speed (module docstring, "Model").
+
+    Attributes
+    ----------
+    samples_per_rev : int
+        ``N``, samples per revolution (= per control period).
+    bearing_markov : numpy.ndarray
+        Shape ``(L, n_s, 4)``: sensor response to 1 N held over sample 0 per bearing axis
+        ``[b1x, b1y, b2x, b2y]``, m/N.
+    plane_responses : numpy.ndarray
+        Shape ``(n_planes, L_p, n_s, 2)``: sensor response to a unit sudden unbalance (1 kg m)
+        appearing at sample 0 with angle 0 and pi/2, m/(kg m); ``L_p >= L + 2 N``.
+    planes : tuple of str
+        The planes' names (the rig's disk tags).
+    sensors : tuple of int
+        The ``n_s`` sensor channels of the responses (indices of ``[x1, y1, .., x4, y4]``):
+        the estimate and the clearance check use them all.
+    objective : tuple of int
+        Positions in ``sensors`` whose displacement the plan minimises (E2-E3); empty: all.
+    """
+
+    samples_per_rev: int
+    bearing_markov: np.ndarray
+    plane_responses: np.ndarray
+    planes: tuple[str, ...]
+    sensors: tuple[int, ...]
+    objective: tuple[int, ...] = ()
+
+    def __post_init__(self) -> None:
+        h = np.asarray(self.bearing_markov, dtype=float)
+        g = np.asarray(self.plane_responses, dtype=float)
+        n = int(self.samples_per_rev)
+        if h.ndim != 3 or h.shape[2] != 4:
+            raise ShapeError(f"bearing_markov must be (L, n_s, 4), got {h.shape}")
+        if g.ndim != 4 or g.shape[2] != h.shape[1] or g.shape[3] != 2:
+            raise ShapeError(
+                f"plane_responses must be (n_planes, L_p, {h.shape[1]}, 2), got {g.shape}"
+            )
+        if len(self.sensors) != h.shape[1]:
+            raise ShapeError(f"{len(self.sensors)} sensors for {h.shape[1]} response columns")
+        objective = tuple(int(i) for i in self.objective) or tuple(range(h.shape[1]))
+        if any(not 0 <= i < h.shape[1] for i in objective):
+            raise ShapeError(f"objective {objective} outside the {h.shape[1]} sensors")
+        object.__setattr__(self, "objective", objective)
+        if len(self.planes) != g.shape[0]:
+            raise ShapeError(f"{len(self.planes)} plane names for {g.shape[0]} planes")
+        if n < 4 or h.shape[0] < 2 * n or g.shape[1] < h.shape[0] + 2 * n:
+            raise ShapeError(
+                f"need L >= 2 N and L_p >= L + 2 N (N = {n}), got L = {h.shape[0]}, "
+                f"L_p = {g.shape[1]}"
+            )
+        if not (np.all(np.isfinite(h)) and np.all(np.isfinite(g))):
+            raise ControllerValueError("early-action model contains NaN or inf")
+        object.__setattr__(self, "bearing_markov", h)
+        object.__setattr__(self, "plane_responses", g)
+
+
+@dataclass(frozen=True)
+class EarlyActionConfig:
+    """
+    Settings of :class:`EarlyAction` (module docstring for the equations).
+
+    Attributes
+    ----------
+    threshold : float
+        Likelihood-ratio threshold ``E / sigma_e^2`` of (E1), >= 10. Default 60: a false
+        detection needs a noise excursion of about 7.7 standard deviations along one of the
+        ``planes x 2 N`` candidate directions.
+    max_residual : float
+        Largest residual of the best fit, per value, as a multiple of ``sigma_e^2`` (> 1).
+    reference_periods : int
+        ``R`` >= 1, quiet periods averaged into the reference.
+    arm_periods : int
+        Quiet periods needed (after start or after a detection) before the test runs, >= R.
+    transient_samples : int
+        ``M`` >= 0, samples of the transient force (E3) from ``k0`` (0: steady force only).
+    transient_weight : float
+        ``lambda`` >= 0 of (E3), relative to ``||H_M||``.
+    horizon_periods : int
+        ``L / N``, periods of the predicted response used by (E2)-(E3), >= 2.
+    min_noise : float
+        Floor of the innovation's standard deviation ``sigma_e``, m (a noise-free simulation
+        would otherwise make every rounding error a detection).
+    force_budget : float
+        In (0, 1]: the plan (steady + transient) stays within this fraction of the force
+        limit; a larger transient force (E3) is scaled down as a whole. The limiter would
+        otherwise clip it sample by sample into a force that no longer cancels anything: on
+        the figure-5.27 contact case a clipped 2430 N plan put the rotor on its auxiliary
+        bearing. Scaling keeps the plan's shape, so what is left of the transient is
+        ``(1 - scale)`` of it: never more than without the transient force.
+    gain_margin : float
+        In [0, 1): the relative error ``m`` of the model's force path the plan is made robust
+        to. The plan is an open-loop force: a path ``g`` times the model's leaves ``1 -
+        c / g`` of the change for the feedback law when the plan is scaled by ``c``; the
+        worst case over ``g`` in ``[1 - m, 1 + m]`` is smallest for ``c = 1 - m^2`` (both
+        ends equal, ``m``), against ``m / (1 - m)`` unscaled (43 % at m = 0.3).
+    min_effect : float
+        A change is acted on only if its predicted response over the horizon peaks at
+        ``min_effect`` innovation standard deviations or more: a change the probes can hardly
+        see is not worth an open-loop force (and is, more likely, model error: on the
+        second-critical run two such "changes" of 0.03 and 0.15 g cm passed the likelihood
+        test at 220 and 279).
+    """
+
+    threshold: float = 200.0
+    max_residual: float = 1.5
+    reference_periods: int = 4
+    arm_periods: int = 8
+    transient_samples: int = 64
+    transient_weight: float = 0.03
+    horizon_periods: int = 6
+    min_noise: float = 1e-9
+    force_budget: float = 0.6
+    gain_margin: float = 0.3
+    min_effect: float = 10.0
+
+    def __post_init__(self) -> None:
+        checks = [
+            (self.threshold >= 10.0, f"threshold must be >= 10, got {self.threshold}"),
+            (self.max_residual > 1.0, f"max_residual must be > 1, got {self.max_residual}"),
+            (self.reference_periods >= 1, "reference_periods must be >= 1"),
+            (
+                self.arm_periods >= self.reference_periods,
+                f"arm_periods ({self.arm_periods}) must be >= reference_periods "
+                f"({self.reference_periods})",
+            ),
+            (self.transient_samples >= 0, "transient_samples must be >= 0"),
+            (self.transient_weight >= 0.0, "transient_weight must be >= 0"),
+            (self.horizon_periods >= 2, "horizon_periods must be >= 2"),
+            (self.min_noise > 0.0, "min_noise must be > 0 m"),
+            (0.0 < self.force_budget <= 1.0, "force_budget must be in (0, 1]"),
+            (0.0 <= self.gain_margin < 1.0, "gain_margin must be in [0, 1)"),
+            (self.min_effect >= 0.0, "min_effect must be >= 0"),
+        ]
+        for ok, message in checks:
+            if not ok:
+                raise ControllerValueError(message)
+
+
+@dataclass(frozen=True)
+class Detection:
+    """One accepted change: period of the decision, onset sample, plane, unbalance."""
+
+    period: int
+    onset_sample: int
+    plane: str
+    me: float
+    angle: float
+    likelihood_ratio: float
+    residual: float
+    first_period: int
+    acted: bool = True
+    predicted_peak: float = 0.0
+
+
+@dataclass
+class _Plan:
+    steady: np.ndarray  # (N, 4) per period from first_period on
+    transient: dict[int, np.ndarray] = field(default_factory=dict)  # period -> (N, 4)
+
+
+def _forward_whirl(n: int, N: int) -> np.ndarray:
+    """Force patterns (n, 4 axes, 4 weights) of a 1 x forward whirl at both bearings."""
+    phi = 2.0 * math.pi * np.arange(n) / N
+    c, s = np.cos(phi), np.sin(phi)
+    r = np.zeros((n, 4, 4))
+    for b in (0, 1):  # x = Re(D e^{i phi}), y = Re(-i D e^{i phi}) (eq. 3.3's convention)
+        r[:, 2 * b, 2 * b], r[:, 2 * b, 2 * b + 1] = c, -s
+        r[:, 2 * b + 1, 2 * b], r[:, 2 * b + 1, 2 * b + 1] = s, c
+    return r
+
+
+def _toeplitz(h: np.ndarray, n_in: int, n_out: int) -> np.ndarray:
+    """Block Toeplitz ``(n_out n_s, n_in 4)``: outputs 0..n_out-1 of forces at 0..n_in-1."""
+    L, n_s, n_a = h.shape
+    t = np.zeros((n_out, n_s, n_in, n_a))
+    for j in range(n_in):
+        ln = min(n_out - j, L)
+        if ln > 0:
+            t[j : j + ln, :, j, :] = h[:ln]
+    return t.reshape(n_out * n_s, n_in * n_a)
+
+
+class EarlyAction:
+    """
+    Streaming detector and canceller of sudden unbalance changes (module docstring).
+
+    Feed it every period's measured inner displacements and the wavelet force applied in that
+    period (:meth:`end_period`); add :meth:`force` of a period to the command for it.
+
+    Parameters
+    ----------
+    model : EarlyActionModel
+    config : EarlyActionConfig
+    delay : int
+        The controller's delay ``i`` >= 1: a decision at the end of period ``m`` acts from
+        period ``m + i``.
+    force_limit : float
+        Per-axis limit of the wavelet force, N (with ``config.force_budget``).
+    clearance : float
+        The smallest auxiliary-bearing or retainer clearance, m: a plan is applied only if
+        the displacement it predicts at every sensor (the reference's peak plus the planned
+        residual change), raised by ``1 + gain_margin``, stays inside it. Beyond it contacts
+        and the magnets' nonlinearity, which the linear model does not hold, decide the
+        motion, and the change is left to the feedback law (on the figure-5.27 cases the
+        exact estimate's plan, applied, put the rotor on its bearings where the feedback law
+        alone kept it off).
+    """
+
+    def __init__(
+        self,
+        model: EarlyActionModel,
+        config: EarlyActionConfig,
+        delay: int,
+        force_limit: float = math.inf,
+        clearance: float = math.inf,
+    ) -> None:
+        if int(delay) < 1:
+            raise ControllerValueError(f"delay must be >= 1, got {delay}")
+        self.model = model
+        self.config = config
+        self.delay = int(delay)
+        self.budget = config.force_budget * float(force_limit)
+        # the plan's linear prediction, with the model's relative error, inside the clearance
+        self.safe_displacement = float(clearance) / (1.0 + config.gain_margin)
+        self._scale = 1.0 - config.gain_margin**2
+        N = model.samples_per_rev
+        self.N = N
+        h = model.bearing_markov
+        L = min(config.horizon_periods * N, h.shape[0])
+        g = model.plane_responses
+        if g.shape[1] < L + 2 * N:
+            raise ShapeError(f"plane_responses need {L + 2 * N} samples, have {g.shape[1]}")
+        self.L = L
+        n_s = h.shape[1]
+        self.n_s = n_s
+        # z = y - sum_j T_j f[m - j]: T_j maps period m - j's force to period m's outputs
+        n_hist = math.ceil(h.shape[0] / N) + 1
+        full = _toeplitz(h, n_hist * N, n_hist * N)
+        self._t = [
+            full[(n_hist - 1) * N * n_s :, (n_hist - 1 - j) * N * 4 : (n_hist - j) * N * 4]
+            for j in range(n_hist)
+        ]
+        # (E1): every plane p and onset k of the 2 N-sample window
+        W = 2 * N
+        rows, grams = [], []
+        for p in range(g.shape[0]):
+            for k in range(W):
+                a = np.zeros((W, n_s, 2))
+                a[k:] = g[p, : W - k]
+                a = a.reshape(W * n_s, 2)
+                # pinv: onsets at the window's end see (almost) nothing of the change
+                rows.append(np.linalg.pinv(a, rcond=1e-9))
+                grams.append(a.T @ a)
+        self._q = np.concatenate(rows)  # (planes W 2, W n_s)
+        self._gram = np.array(grams).reshape(g.shape[0], W, 2, 2)
+        # rows of the plan's objective: the objective sensors at every horizon sample
+        obj = np.zeros((L, n_s), dtype=bool)
+        obj[:, list(model.objective)] = True
+        obj = obj.ravel()
+        # (E2): steady forward-whirl force from k0 against the horizon's last two periods
+        fw = _forward_whirl(L, N)
+        hz = _toeplitz(h, L, L)
+        self._c = np.stack([hz @ fw[:, :, u].ravel() for u in range(4)], axis=1)  # (L n_s, 4)
+        tail = np.zeros(L * n_s, dtype=bool)
+        tail[(L - 2 * N) * n_s :] = True
+        self._tail = tail & obj
+        self._steady_gain = -np.linalg.pinv(self._c[self._tail])
+        self._steady_pattern = fw[:N]  # (N, 4, 4)
+        # (E3): transient force over M samples
+        M = config.transient_samples
+        self.M = M
+        if M:
+            hm = _toeplitz(h, M, L)
+            self._h_m = hm
+            ho = hm[obj]
+            lam = config.transient_weight * np.linalg.norm(ho, 2)
+            self._k_tr = -np.linalg.solve(ho.T @ ho + lam**2 * np.eye(M * 4), ho.T)
+            self._obj = obj
+        self.reset()
+
+    # ------------------------------------------------------------------ state
+    def reset(self) -> None:
+        """Forget the history, the plan and the detections (e.g. after a gap or a restart)."""
+        n_hist = len(self._t)
+        self._forces: deque[np.ndarray] = deque([np.zeros(self.N * 4)] * n_hist, maxlen=n_hist)
+        self._z: deque[np.ndarray] = deque(maxlen=self.config.reference_periods + 2)
+        self._quiet = 0
+        self._history_periods = 0
+        self._noise2: float | None = None
+        self._quiet_values: deque[float] = deque(maxlen=16)
+        self._plans: list[tuple[int, _Plan]] = []
+        self.detections: list[Detection] = []
+
+    @property
+    def armed(self) -> bool:
+        """Whether the test runs at the next period's end."""
+        return self._quiet >= self.config.arm_periods and self._noise2 is not None
+
+    # ------------------------------------------------------------------ per period
+    def force(self, period: int) -> np.ndarray:
+        """The added force for ``period``, shape ``(N, 4)`` [b1x, b1y, b2x, b2y], N."""
+        out = np.zeros((self.N, 4))
+        for first, plan in self._plans:
+            if period >= first:
+                out += plan.steady
+                out += plan.transient.get(period, 0.0)
+        return out
+
+    def end_period(self, period: int, displacement, applied_force) -> Detection | None:
+        """
+        Take period ``period``'s inner displacements and applied wavelet force; test.
+
+        Parameters
+        ----------
+        period : int
+            Consecutive period index (a gap: call :meth:`reset` first).
+        displacement : array_like
+            Shape ``(N, n_s)``, m: the sensors of the model (the feedback sensors).
+        applied_force : array_like
+            Shape ``(N, 4)``, N: the wavelet force the plant applied in the period (all of
+            it: feedback, this module's and limits).
+
+        Returns
+        -------
+        Detection or None
+            A change accepted at this period's end (its force acts from ``period + delay``).
+        """
+        N, n_s = self.N, self.n_s
+        y = np.asarray(displacement, dtype=float)
+        f = np.asarray(applied_force, dtype=float)
+        if y.shape != (N, n_s) or f.shape != (N, 4):
+            raise ShapeError(f"need displacement ({N}, {n_s}) and force ({N}, 4)")
+        self._forces.appendleft(f.ravel())
+        z = y.ravel() - sum(t @ fj for t, fj in zip(self._t, self._forces, strict=True))
+        self._z.append(z)
+        self._history_periods += 1
+        R = self.config.reference_periods
+        if len(self._z) < R + 2 or self._history_periods < len(self._t):
+            return None
+        zs = list(self._z)
+        ref = np.mean(zs[:R], axis=0)
+        e = np.concatenate([zs[R] - ref, zs[R + 1] - ref])
+        energy = float(e @ e)
+        n_val = e.size
+        if not self.armed:
+            self._update_quiet(zs, ref)
+            return None
+        theta = (self._q @ e).reshape(-1, 2 * N, 2)  # (planes, W, 2)
+        explained = np.einsum("pkc,pkcd,pkd->pk", theta, self._gram, theta)
+        p, k = np.unravel_index(int(np.argmax(explained)), explained.shape)
+        best = float(explained[p, k])
+        lr = best / self._noise2
+        residual = (energy - best) / (n_val * self._noise2)
+        if lr < self.config.threshold or residual > self.config.max_residual:
+            self._update_quiet(zs, ref)
+            return None
+        th = theta[p, k]
+        first = period + self.delay
+        plan, predicted, effect = self._plan(p, k, th, period, first)
+        if effect < self.config.min_effect * math.sqrt(self._noise2):
+            self._update_quiet(zs, ref)
+            return None
+        predicted += float(np.max(np.abs(ref)))
+        acted = predicted <= self.safe_displacement
+        if acted:
+            self._plans.append((first, plan))
+        onset = (period - 1) * N + int(k)
+        det = Detection(
+            period=period,
+            onset_sample=onset,
+            plane=self.model.planes[p],
+            me=float(math.hypot(*th)),
+            angle=float(math.atan2(th[1], th[0])),
+            likelihood_ratio=float(lr),
+            residual=float(residual),
+            first_period=first,
+            acted=acted,
+            predicted_peak=predicted,
+        )
+        self.detections.append(det)
+        self._quiet = 0  # a new reference after the change
+        self._z.clear()
+        return det
+
+    def _update_quiet(self, zs: list[np.ndarray], ref: np.ndarray) -> None:
+        """Count the newest period quiet when it is noise about the reference; learn sigma_e."""
+        newest = zs[-1] - ref
+        per_value = float(newest @ newest) / newest.size
+        if self._noise2 is None or per_value <= 4.0 * self._noise2:
+            self._quiet += 1
+            # the median of the last quiet periods' innovation variance (measured, robust
+            # to a period of start-up transient taken for quiet)
+            self._quiet_values.append(per_value)
+            self._noise2 = max(self.config.min_noise**2, float(np.median(self._quiet_values)))
+        else:
+            self._quiet = 0
+            self._z.clear()
+
+    def _plan(
+        self, p: int, k: int, theta: np.ndarray, period: int, first: int
+    ) -> tuple[_Plan, float, float]:
+        """(E2)-(E3) for the change at window sample ``k`` in plane ``p``.
+
+        Returns the plan, the planned residual's peak and the change's own predicted peak
+        from ``k0`` on, m.
+        """
+        N, n_s, L = self.N, self.n_s, self.L
+        g = self.model.plane_responses[p]
+        # window starts at period - 1; k0 = first * N; offset of k0 from the onset:
+        off = (first - period + 1) * N - int(k)
+        yd = (g[off : off + L] @ theta).ravel()  # (L n_s,)
+        w = self._scale * (self._steady_gain @ yd[self._tail])
+        steady = np.einsum("nau,u->na", self._steady_pattern, w)
+        plan = _Plan(steady=steady)
+        if self.M:
+            free = (yd + self._c @ w / self._scale)[self._obj]
+            df = self._scale * (self._k_tr @ free).reshape(self.M, 4)
+            room = self.budget - float(np.max(np.abs(steady)))
+            peak = float(np.max(np.abs(df)))
+            if peak > max(room, 0.0):
+                df *= max(room, 0.0) / peak
+            residual = yd + self._c @ w + self._h_m @ df.ravel()
+            for j in range(0, self.M, N):
+                block = np.zeros((N, 4))
+                part = df[j : j + N]
+                block[: len(part)] = part
+                plan.transient[first + j // N] = block
+        else:
+            residual = yd + self._c @ w
+        return plan, float(np.max(np.abs(residual))), float(np.max(np.abs(yd)))
+
+
+class EarlyStage:
+    """
+    :class:`EarlyAction` on a sample stream, as the controller pipeline feeds it.
+
+    It keeps the period's displacements of the model's sensors and the force of every command
+    it passed on, so that :meth:`EarlyAction.end_period` gets the force the plant applied
+    (zero for a command the plant did not apply).
+
+    Parameters
+    ----------
+    early : EarlyAction
+    force_limit : array_like
+        Per-axis limit of the total wavelet force, N (the added force never lifts a command
+        past it).
+    """
+
+    def __init__(self, early: EarlyAction, force_limit) -> None:
+        self.early = early
+        self.force_limit = np.broadcast_to(np.asarray(force_limit, dtype=float), (4,)).copy()
+        self._sensors = np.asarray(early.model.sensors, dtype=int)
+        N = early.N
+        self._y = np.zeros((N, len(self._sensors)))
+        self._seen = np.zeros(N, dtype=bool)
+        self._sent: dict[int, np.ndarray] = {}
+        self._missing: set[int] = set()
+
+    def sample(self, position: int, displacement) -> None:
+        """Keep sample ``position`` of the current period (all 8 sensors, m)."""
+        self._y[position] = np.asarray(displacement, dtype=float)[self._sensors]
+        self._seen[position] = True
+
+    def command_missing(self, period: int) -> None:
+        """Period ``period`` ran without its command (zero wavelet force applied)."""
+        self._missing.add(int(period))
+
+    def end_period(self, period: int, target: int, force: np.ndarray, active: bool,
+                   complete: bool) -> tuple[np.ndarray, Detection | None]:  # fmt: skip
+        """
+        Test period ``period`` and return the command force for ``target`` with the plan added.
+
+        Parameters
+        ----------
+        period, target : int
+            The measured period and the period the command is for.
+        force : numpy.ndarray
+            The feedback law's command force, shape ``(4, N)``, N.
+        active : bool
+            Whether the controller acts (the plan is added only then; it is kept otherwise).
+        complete : bool
+            Whether every sample of the period was seen in order (else the history restarts).
+
+        Returns
+        -------
+        force : numpy.ndarray
+            ``(4, N)``, limited per axis to ``force_limit``.
+        detection : Detection or None
+        """
+        N = self.early.N
+        applied = self._sent.pop(period, None)
+        if applied is None or period in self._missing:
+            applied = np.zeros((4, N))
+        self._missing.discard(period)
+        detection = None
+        if complete and self._seen.all():
+            detection = self.early.end_period(period, self._y, applied.T)
+        else:
+            self.early.reset()
+        self._seen[:] = False
+        out = np.asarray(force, dtype=float)
+        added = self.early.force(target).T if active else None
+        if added is not None and added.any():  # else the command passes untouched
+            lim = self.force_limit[:, None]
+            out = np.clip(out + added, -lim, lim)
+        self._sent[target] = out
+        for old in [p for p in self._sent if p < period]:
+            del self._sent[old]
+        return out, detection
