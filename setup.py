@@ -20,6 +20,7 @@ TOOLS = {
     "amb-acceptability": "amb_apps.acceptability:main",
     "amb-bound": "amb_apps.bound_cli:main",
     "amb-compare": "amb_apps.compare_cli:main",
+    "amb-early-model": "amb_apps.early_model_cli:main",
     "amb-fault-eval": "amb_apps.eval_cli:main",
     "amb-modal": "amb_plant_sim.modal_cli:main",
     "amb-prediction": "amb_apps.prediction_cli:main",

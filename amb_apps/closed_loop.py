@@ -52,7 +52,6 @@ from amb_common.faults import WITHDRAWN, event_status
 from amb_common.names import SENSOR_NAMES
 from amb_controller.baselines import HarmonicPipeline
 from amb_controller.config import BASELINE_CONTROLLERS, ControllerConfig
-from amb_controller.early_action import EarlyAction, EarlyActionConfig, EarlyStage
 from amb_controller.errors import ControllerValueError, NotIdentifiedError
 from amb_controller.inverse import pseudo_inverse_series
 from amb_controller.model_file import WaveletModel
@@ -498,14 +497,7 @@ def run_closed_loop(
     if controller is not None:
         loop.pipeline.set_controller(controller)
     if early_model is not None:
-        early = EarlyAction(
-            early_model,
-            EarlyActionConfig(),
-            config.delay_periods,
-            max(config.force_limit),
-            min(c.radial_clearance for c in rig.clearance_bearings),
-        )
-        loop.pipeline.early = EarlyStage(early, config.force_limit)
+        loop.pipeline.set_early_model(early_model)
     if engage_on and not fault_monitor:
         raise ControllerValueError("engage_on needs fault_monitor=True (events engage control)")
     if config.controller != "none" and not engage_on:

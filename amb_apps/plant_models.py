@@ -19,7 +19,7 @@ import numpy as np
 from amb_apps.closed_loop import fe_model, identify_model
 from amb_common.names import N_AXES, N_SENSORS
 from amb_controller.baselines import BaselineSettings, fourier_model
-from amb_controller.early_action import EarlyActionModel
+from amb_controller.early_model import EarlyActionModel
 from amb_controller.errors import ControllerValueError
 from amb_controller.fourier_basis import (
     complex_from_real,
@@ -233,4 +233,7 @@ def early_action_model(rig, scenario, samples_per_rev: int, horizon_periods: int
         planes=tuple(d.tag for d in rig.disks),
         sensors=tuple(sensors),
         objective=tuple(sensors.index(c) for c in rig.feedback_channels),
+        clearance=min(c.radial_clearance for c in rig.clearance_bearings),
+        omega=2 * math.pi * scenario.speed_hz,
+        source="fe",
     )

@@ -255,6 +255,12 @@ class ControllerConfig:
         description="wavelet model .npz to load at start ('' = none)",
         allowed="a path string ('' = none)",
     )
+    early_model_file: str = param(
+        "",
+        description="early-action model .npz (amb-early-model): read the fault's own period "
+        "for a sudden unbalance and cancel it from the next ('' = off)",
+        allowed="a path string ('' = off)",
+    )
     identification_order: int = param(
         12,
         description="Markov order K fitted by on-line identification",
@@ -440,6 +446,8 @@ class ControllerConfig:
                 raise _fail("fault_actions", dict(self.fault_actions))
         if not isinstance(self.model_file, str):
             raise _fail("model_file", self.model_file)
+        if not isinstance(self.early_model_file, str):
+            raise _fail("early_model_file", self.early_model_file)
         if not _is_int(self.identification_order) or not 1 <= self.identification_order <= 60:
             raise _fail("identification_order", self.identification_order)
         if not (_finite(self.identification_amplitude) and self.identification_amplitude != 0):

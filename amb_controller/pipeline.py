@@ -56,7 +56,8 @@ from amb_controller.config import (
     ConfigError,
     ControllerConfig,
 )
-from amb_controller.early_action import EarlyStage
+from amb_controller.early_model import EarlyActionModel
+from amb_controller.early_stage import EarlyStage
 from amb_controller.errors import ControllerValueError
 from amb_controller.fourier_basis import sinusoid_control_basis
 from amb_controller.guard import DivergenceGuard, GuardConfig
@@ -222,6 +223,8 @@ class ControllerPipeline:
             self._model_file = str(config.model_file)
         if model is not None:
             self.set_model(model)
+        if config.early_model_file:
+            self.set_early_model(EarlyActionModel.load(config.early_model_file))
 
     # ------------------------------------------------------------------ model
     @property
@@ -267,6 +270,12 @@ class ControllerPipeline:
             self.set_controller(controller)
         else:
             self.supervisor.controller = None
+
+    def set_early_model(self, model: EarlyActionModel) -> None:
+        """Add the early action on a sudden unbalance (:mod:`amb_controller.early_action`)."""
+        self.early = EarlyStage.from_model(
+            model, self.config.delay_periods, self.config.force_limit, self.samples_per_period
+        )
 
     def set_controller(self, controller) -> None:
         """
@@ -524,7 +533,12 @@ class ControllerPipeline:
             command = self._skip(m)
         if self.early is not None:  # issue 18 item 4: amb_controller.early_action
             force, _ = self.early.end_period(
-                m, command.target_period, command.force, sup.mode == Mode.ACTIVE, complete
+                m,
+                command.target_period,
+                command.force,
+                sup.mode == Mode.ACTIVE,
+                complete,
+                self.limiter.limit,
             )
             command = replace(command, force=force)
         self._last_period = m

@@ -15,11 +15,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from amb_controller.early_action import (
-    EarlyAction,
-    EarlyActionConfig,
-    EarlyActionModel,
-)
+from amb_controller.early_action import EarlyAction, EarlyActionConfig
+from amb_controller.early_model import EarlyActionModel
 from amb_controller.errors import ControllerValueError, ShapeError
 
 N = 16  # samples per revolution
