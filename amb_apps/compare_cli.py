@@ -18,6 +18,9 @@ Controllers (all at the same per-axis force limit, the rig's bearing capacity un
   coefficients and FE-route model with a 1 x sinusoidal force (issue 18 item 2,
   :mod:`amb_controller.predictive`) with ``ControllerConfig``'s default horizon, moves and
   weights;
+* ``predictive_early_i1`` / ``predictive_early_i2``: the same with the early action on a
+  sudden unbalance (issue 18 item 4, :mod:`amb_controller.early_action`, its FE-route
+  sample-domain model at the scenario's speed);
 * ``harmonic_i1``: sampled-harmonic transient control (Keogh et al. 2002), same w, v, order;
 * ``synchronous_i1``: adaptive influence-coefficient control (Burrows & Sahinkaya 1983,
   Knospe et al. 1995), T identified by trial injections, gain a = 0.5, 2-period window;

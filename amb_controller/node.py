@@ -205,6 +205,22 @@ class WaveletControllerNode(Node):
         )
         self.add_on_set_parameters_callback(self._on_set_parameters)
 
+    def _log_early(self, d) -> None:
+        """Say what the early action found (amb_controller.early_action) and what it does."""
+        if not d.acted:
+            what = (
+                f"left to the feedback law (predicted {d.predicted_peak * 1e6:.0f} um: too "
+                "near the clearance for the linear model)"
+            )
+        elif self._pipe.supervisor.mode == Mode.ACTIVE:
+            what = f"cancelling it from period {d.first_period}"
+        else:
+            what = "the controller is not active: no force"
+        self.get_logger().warning(
+            f"early action: sudden unbalance {d.me * 1e5:.0f} g cm at {d.plane}, onset sample "
+            f"{d.onset_sample} (period {d.period}), {what}"
+        )
+
     def _configure(self) -> None:
         values = {name: self.get_parameter(name).value for name in PARAMETERS}
         rig_file = self.get_parameter("rig_file").value or str(config_file("rig.yaml"))
@@ -460,6 +476,8 @@ class WaveletControllerNode(Node):
         )
         if command is None:
             return
+        if self._pipe.early_detection is not None:
+            self._log_early(self._pipe.early_detection)
         cfg = self._pipe.config
         labels = self._pipe.control.labels
         n = self._pipe.samples_per_period

@@ -217,6 +217,8 @@ class ControllerPipeline:
         self._expected: int | None = None
         self.last_measured: np.ndarray | None = None
         self.early: EarlyStage | None = None
+        #: the early action's decision at the last period's end (None: none)
+        self.early_detection = None
         self._new_period(None)
         if model is None and config.model_file:
             model = WaveletModel.load(config.model_file)
@@ -532,7 +534,7 @@ class ControllerPipeline:
         else:
             command = self._skip(m)
         if self.early is not None:  # issue 18 item 4: amb_controller.early_action
-            force, _ = self.early.end_period(
+            force, self.early_detection = self.early.end_period(
                 m,
                 command.target_period,
                 command.force,
