@@ -299,10 +299,15 @@ class EarlyAction:
         # z = y - sum_j T_j f[m - j]: T_j maps period m - j's force to period m's outputs
         n_hist = math.ceil(h.shape[0] / N) + 1
         full = _toeplitz(h, n_hist * N, n_hist * N)
-        self._t = [
-            full[(n_hist - 1) * N * n_s :, (n_hist - 1 - j) * N * 4 : (n_hist - j) * N * 4]
-            for j in range(n_hist)
-        ]
+        # [T_0 T_1 .. T_J] in one float32 matrix (the products are memory-bound: 7 MB of
+        # float64 at 64 samples per revolution; float32's 1e-7 is far below the noise)
+        self._n_hist = n_hist
+        self._t = np.hstack(
+            [
+                full[(n_hist - 1) * N * n_s :, (n_hist - 1 - j) * N * 4 : (n_hist - j) * N * 4]
+                for j in range(n_hist)
+            ]
+        ).astype(np.float32)
         # (E1): every plane p and onset k of the 2 N-sample window
         W = 2 * N
         rows, grams = [], []
@@ -314,7 +319,7 @@ class EarlyAction:
                 # pinv: onsets at the window's end see (almost) nothing of the change
                 rows.append(np.linalg.pinv(a, rcond=1e-9))
                 grams.append(a.T @ a)
-        self._q = np.concatenate(rows)  # (planes W 2, W n_s)
+        self._q = np.concatenate(rows).astype(np.float32)  # (planes W 2, W n_s)
         self._gram = np.array(grams).reshape(g.shape[0], W, 2, 2)
         # rows of the plan's objective: the objective sensors at every horizon sample
         obj = np.zeros((L, n_s), dtype=bool)
@@ -334,7 +339,7 @@ class EarlyAction:
         self.M = M
         if M:
             hm = _toeplitz(h, M, L)
-            self._h_m = hm
+            self._h_m = hm.astype(np.float32)  # the residual check only
             ho = hm[obj]
             scale = np.linalg.norm(ho, 2)
             lam = config.transient_weight * scale
@@ -343,7 +348,7 @@ class EarlyAction:
             # before k0 (row 0) to the steady force after them (row M)
             d = np.kron(np.eye(M + 1, M) - np.eye(M + 1, M, -1), np.eye(4))
             a = ho.T @ ho + lam**2 * np.eye(M * 4) + mu**2 * (d.T @ d)
-            self._k_tr = -np.linalg.solve(a, ho.T)
+            self._k_tr = (-np.linalg.solve(a, ho.T)).astype(np.float32)
             self._k_smooth = -(mu**2) * np.linalg.solve(a, d.T)
             self._obj = obj
         self.reset()
@@ -351,7 +356,7 @@ class EarlyAction:
     # ------------------------------------------------------------------ state
     def reset(self) -> None:
         """Forget the history, the plan and the detections (e.g. after a gap or a restart)."""
-        n_hist = len(self._t)
+        n_hist = self._n_hist
         self._forces: deque[np.ndarray] = deque([np.zeros(self.N * 4)] * n_hist, maxlen=n_hist)
         self._z: deque[np.ndarray] = deque(maxlen=self.config.reference_periods + 2)
         self._quiet = 0
@@ -401,11 +406,12 @@ class EarlyAction:
         if y.shape != (N, n_s) or f.shape != (N, 4):
             raise ShapeError(f"need displacement ({N}, {n_s}) and force ({N}, 4)")
         self._forces.appendleft(f.ravel())
-        z = y.ravel() - sum(t @ fj for t, fj in zip(self._t, self._forces, strict=True))
+        applied = np.concatenate(self._forces).astype(np.float32)
+        z = y.ravel() - (self._t @ applied).astype(float)
         self._z.append(z)
         self._history_periods += 1
         R = self.config.reference_periods
-        if len(self._z) < R + 2 or self._history_periods < len(self._t):
+        if len(self._z) < R + 2 or self._history_periods < self._n_hist:
             return None
         zs = list(self._z)
         ref = np.mean(zs[:R], axis=0)
@@ -415,8 +421,11 @@ class EarlyAction:
         if not self.armed:
             self._update_quiet(zs, ref)
             return None
-        theta = (self._q @ e).reshape(-1, 2 * N, 2)  # (planes, W, 2)
-        explained = np.einsum("pkc,pkcd,pkd->pk", theta, self._gram, theta)
+        theta = (self._q @ e.astype(np.float32)).astype(float).reshape(-1, 2 * N, 2)
+        g, t0, t1 = self._gram, theta[..., 0], theta[..., 1]  # E of (E1): theta^T G theta
+        explained = t0 * (g[..., 0, 0] * t0 + g[..., 0, 1] * t1) + t1 * (
+            g[..., 1, 0] * t0 + g[..., 1, 1] * t1
+        )
         p, k = np.unravel_index(int(np.argmax(explained)), explained.shape)
         best = float(explained[p, k])
         lr = best / self._noise2
@@ -488,14 +497,15 @@ class EarlyAction:
             reps = -(-(self.M + 1) // N)
             tiled = np.concatenate([np.zeros((1, 4)), np.tile(steady, (reps, 1))[: self.M + 1]])
             jumps = np.diff(tiled, axis=0).ravel()
-            df = self._scale * (self._k_tr @ free).reshape(self.M, 4)
+            df = (self._k_tr @ free.astype(np.float32)).astype(float).reshape(self.M, 4)
+            df *= self._scale
             df += (self._k_smooth @ jumps).reshape(self.M, 4)
             budget = self.config.force_budget * self.force_limit
             room = budget - float(np.max(np.abs(steady)))
             peak = float(np.max(np.abs(df)))
             if peak > max(room, 0.0):
                 df *= max(room, 0.0) / peak
-            residual = yd + self._c @ w + self._h_m @ df.ravel()
+            residual = yd + self._c @ w + (self._h_m @ df.ravel().astype(np.float32)).astype(float)
             for j in range(0, self.M, N):
                 block = np.zeros((N, 4))
                 part = df[j : j + N]

@@ -10,7 +10,9 @@ full ``WaveletControlSupervisor.step`` (controller + synthesis of the force samp
 saturation). Reported: median and 99th
 percentile over many periods, the median as a fraction of the control period at 11 Hz and
 67 Hz running speed (one revolution per period), and the p99 as a fraction at 67 Hz (issue
-18's target: <= 5 %).
+18's target: <= 5 %). The early action on a sudden unbalance
+(:mod:`amb_controller.early_action`, 8 sensors, 4 planes): its per-period test
+(``end_period`` on quiet periods) and the plan it makes once when it decides.
 
 Run from the repository root: ``PYTHONPATH=. python bench/controller.py [--periods N]``.
 """
@@ -24,6 +26,8 @@ import numpy as np
 
 from amb_controller.basis import control_basis
 from amb_controller.config import ControllerConfig
+from amb_controller.early_action import EarlyAction, EarlyActionConfig
+from amb_controller.early_model import EarlyActionModel
 from amb_controller.predictive import PredictiveController
 from amb_controller.response import PrescribedResponse
 from amb_controller.supervisor import Mode, WaveletControlSupervisor
@@ -94,6 +98,43 @@ def main() -> None:
                     f"{law:>10} {len(levels):>6} {order:>5} {n_y:>4} {n_u:>4} {part:>10} "
                     f"{med * 1e6:10.1f} {p99 * 1e6:8.1f} {fracs} {p99 * 67.0:9.2e}"
                 )
+
+    _early(rng, args.samples_per_rev, min(args.periods, 500))
+
+
+def _early(rng: np.random.Generator, n: int, periods: int) -> None:
+    """Time the early action's period test and its plan on a random model of the real size."""
+    config = EarlyActionConfig()
+    L = config.horizon_periods * n
+    model = EarlyActionModel(
+        n,
+        rng.normal(size=(L, 8, 4)) * 1e-7,
+        rng.normal(size=(4, L + 4 * n, 8, 2)) * 1e-3,
+        ("D1", "D2", "D3", "D4"),
+        tuple(range(8)),
+        (2, 3, 4, 5),
+    )
+    early = EarlyAction(model, config, 2)
+    y = rng.normal(size=(periods, n, 8)) * 2e-7
+    f = np.zeros((n, 4))
+    times = np.empty(periods)
+    for k in range(periods):
+        t0 = time.perf_counter()
+        early.end_period(k, y[k], f)
+        times[k] = time.perf_counter() - t0
+    theta = np.array([1e-3, 0.0])
+    plans = np.empty(50)
+    for k in range(len(plans)):
+        t0 = time.perf_counter()
+        early._plan(0, n // 2, theta, 100, 102)
+        plans[k] = time.perf_counter() - t0
+    for part, t in (("test", times), ("plan", plans)):
+        med, p99 = np.median(t), np.percentile(t, 99)
+        fracs = " ".join(f"{med * f:11.2e}" for f in SPEEDS_HZ)
+        print(
+            f"{'early':>10} {1:>6} {'-':>5} {8:>4} {4:>4} {part:>10} "
+            f"{med * 1e6:10.1f} {p99 * 1e6:8.1f} {fracs} {p99 * 67.0:9.2e}"
+        )
 
 
 if __name__ == "__main__":
