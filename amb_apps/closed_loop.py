@@ -128,6 +128,8 @@ class RunResult:
         Closed-loop spectral radius of the controller on its own model
         (:func:`~amb_controller.stability.own_model_radius`; None: no controller or none to
         check).
+    early_detections : list of amb_controller.early_action.Detection
+        The early action's decisions (empty without ``early_model``).
 
     """
 
@@ -145,6 +147,7 @@ class RunResult:
     fault_events: list[dict] = field(default_factory=list)
     refused: str = ""
     model_radius: float | None = None
+    early_detections: list = field(default_factory=list)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -497,6 +500,11 @@ def run_closed_loop(
     if controller is not None:
         loop.pipeline.set_controller(controller)
     if early_model is not None:
+        if not hasattr(loop.pipeline, "set_early_model"):
+            raise ControllerValueError(
+                f"the early action runs with the wavelet pipeline's controllers, not "
+                f"{config.controller!r}"
+            )
         loop.pipeline.set_early_model(early_model)
     if engage_on and not fault_monitor:
         raise ControllerValueError("engage_on needs fault_monitor=True (events engage control)")
@@ -529,6 +537,11 @@ def run_closed_loop(
         fault_events=loop.fault_events,
         refused=loop.pipeline.supervisor.unsafe_reason(),
         model_radius=loop.pipeline.supervisor.radius,
+        early_detections=(
+            list(loop.pipeline.early.early.detections)
+            if getattr(loop.pipeline, "early", None) is not None
+            else []
+        ),
     )
 
 

@@ -13,7 +13,8 @@ lock-step order of the ROS nodes (:mod:`amb_apps.closed_loop`) and writes
   ``/amb/control/command``, ``/amb/control/status`` and ``/amb/fault/events`` (with
   ``--fault-monitor``), byte-identical to what the nodes publish;
 * ``DIR/metrics.json``: :func:`amb_controller.metrics.compute_metrics` plus the
-  configuration, the model source and the run time;
+  configuration, the model source, the run time and the early action's decisions
+  (``--early fe|FILE``: :mod:`amb_controller.early_action`);
 * ``DIR/model.npz``: the wavelet model used (identified, FE or copied).
 
 Exit status 0 on success, 2 on invalid arguments or configuration.
@@ -26,7 +27,7 @@ import json
 import math
 import sys
 import time
-from dataclasses import fields, replace
+from dataclasses import asdict, fields, replace
 from pathlib import Path
 
 import numpy as np
@@ -37,12 +38,13 @@ from amb_apps.closed_loop import (
     identify_model,
     run_closed_loop,
 )
-from amb_apps.plant_models import harmonic_model, influence_by_trials
+from amb_apps.plant_models import early_action_model, harmonic_model, influence_by_trials
 from amb_apps.report_metrics import json_default
 from amb_common.config_fields import default_of
 from amb_common.rig import load_rig
 from amb_controller.baselines import BaselineSettings
 from amb_controller.config import CONTROLLERS, OUTPUT_BASES, ControllerConfig
+from amb_controller.early_model import EarlyActionModel
 from amb_controller.metrics import compute_metrics, inner_summary
 from amb_controller.model_file import WaveletModel
 from amb_plant_sim.scenario import load_scenario, resolve_samples_per_rev
@@ -125,6 +127,12 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--model", default="fe", help="identify | fe | FILE (.npz)")
     ap.add_argument(
         "--window", type=int, default=2, help="synchronous: periods per influence update"
+    )
+    ap.add_argument(
+        "--early",
+        default=None,
+        help="add the early action on a sudden unbalance: fe (the rig's FE model at the "
+        "scenario's speed) | FILE (.npz of amb-early-model)",
     )
     ap.add_argument("--duration", type=float, default=None, help="override scenario duration, s")
     ap.add_argument("--seed", type=int, default=0, help="noise seed")
@@ -224,6 +232,11 @@ def run(args) -> dict:
             model = WaveletModel.load(args.model)
             source = str(args.model)
         model.save(out / "model.npz")
+    early = None
+    if args.early == "fe":
+        early = early_action_model(rig, scenario, spr)
+    elif args.early:
+        early = EarlyActionModel.load(args.early)
     recorder = None
     if not args.no_bag:
         recorder = BagRecorder(out / "bag", config, rig.amb.force_limit)
@@ -238,6 +251,7 @@ def run(args) -> dict:
             fault_monitor=args.fault_monitor,
             progress=_Progress("run", args.progress),
             baseline=baseline,
+            early_model=early,
         )
     finally:
         if recorder is not None:
@@ -255,6 +269,7 @@ def run(args) -> dict:
             "wall_time": time.perf_counter() - t0,
             "model_radius": result.model_radius,
             "refused": result.refused,
+            "early_detections": [asdict(d) for d in result.early_detections],
         }
     )
     if result.refused:

@@ -112,3 +112,32 @@ def test_the_predictive_options_reach_its_configuration(tmp_path, capsys):
     assert sim_cli.main([*common, "--horizon", "8", "--moves", "2", "--out", str(out)]) == 0
     metrics = json.loads((out / "metrics.json").read_text())
     assert metrics["refused"] == "" and 0.0 < metrics["model_radius"] < 0.98
+
+
+def test_the_early_action_from_a_model_file_reports_the_scenario_s_loss(tmp_path, capsys):
+    """``--early FILE`` (amb-early-model's file): the 430 g cm loss at D1 in metrics.json.
+
+    Reference: the scenario's own mass-loss event (disk, me, onset); 5 % on me as in
+    test/beyond/test_compare.py (the likelihood ratio of a loss late in its period).
+    """
+    from amb_apps import early_model_cli
+    from amb_common.rig import load_rig
+    from amb_plant_sim.scenario import load_scenario
+
+    model = tmp_path / "early.npz"
+    args = ["--scenario", str(SCENARIO), "--samples-per-rev", str(SPR), "--out", str(model)]
+    assert early_model_cli.main(args) == 0
+    assert early_model_cli.main([*args[:-1], str(tmp_path / "no" / "x.npz")]) == 2
+    out = tmp_path / "run"
+    common = ["--scenario", str(SCENARIO), "--samples-per-rev", str(SPR), "--duration", "4.5",
+              "--no-bag", "--controller", "predictive", "--output-basis", "sinusoid"]  # fmt: skip
+    assert sim_cli.main([*common, "--early", str(model), "--out", str(out)]) == 0
+    (found,) = json.loads((out / "metrics.json").read_text())["early_detections"]
+    scenario = load_scenario(SCENARIO, load_rig())
+    loss = next(e for e in scenario.events if e.kind == "mass_loss")
+    assert found["plane"] == loss.get("disk") and found["acted"]
+    assert found["me"] == pytest.approx(loss.get("me"), rel=0.05)
+    assert found["period"] == math.ceil(loss.time * scenario.speed_hz * SPR) // SPR
+    bad = sim_cli.main([*common[:-4], "--controller", "harmonic", "--early", str(model),
+                        "--out", str(tmp_path / "h")])  # fmt: skip
+    assert bad == 2 and "early action" in capsys.readouterr().err
