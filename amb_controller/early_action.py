@@ -132,9 +132,10 @@ class EarlyActionConfig:
         finest wavelet level like a contact: with the fault monitor in the loop (its
         AUX_BEARING_CONTACT makes the controller HOLD), the 430 g cm losses at the first and
         second critical speeds, five fault phases each, i = 1 and 2, were called contacts in
-        11 of 20 runs with ``mu = 0``, 6 with 1, 2 with 2, 1 with 3 (the predictive law alone:
-        2); the peak at the first critical speed, i = 1, rises from 10 to 44 um (82.5 without
-        the early action).
+        11 of 20 runs with ``mu = 0``, 6 with 1, 2 with 2 (the predictive law alone: 2); the
+        default is the smallest with no more of them than the law alone
+        (docs/controller_notes.md; the peak at the first critical speed, i = 1, goes from 10
+        to 37 um, 82.5 without the early action).
     horizon_periods : int
         ``L / N``, periods of the predicted response used by (E2)-(E3), >= 2.
     min_noise : float
@@ -167,7 +168,7 @@ class EarlyActionConfig:
     arm_periods: int = 8
     transient_samples: int = 64
     transient_weight: float = 0.03
-    transient_smoothing: float = 3.0
+    transient_smoothing: float = 2.0
     horizon_periods: int = 6
     min_noise: float = 1e-9
     force_budget: float = 0.6

@@ -317,7 +317,7 @@ def test_early_action_finds_the_scenario_s_loss_and_beats_the_period_rate_law():
     with the likelihood ratio found there (~1.6e3, energy over noise variance) the amplitude's
     relative standard deviation is about 1 / sqrt(1.6e3) = 2.5 %, so 5 % is two of them. Its
     force, from the next period, must lower the peak of the same predictive law without it
-    (82.5 um in docs/results.md#compare) by 30 % or more (measured: 46 %).
+    (82.5 um in docs/results.md#compare) by 30 % or more (measured: 56 %).
     """
     from amb_apps.compare_cases import SPECS, Matrix
     from amb_common.paths import config_file
