@@ -48,6 +48,7 @@ NOT_IN_BAG = {
     "model_radius": "the closed-loop radius on the controller's own model is on /diagnostics "
     "(closed_loop_radius) of a node run, not in amb-sim's bag",
     "refused": "a refusal to go ACTIVE is in the ControllerStatus message text, not a field",
+    "early_detections": "the early action's decisions are in the controller's log, not published",
     "controller": "only controller name, mode, delay, wavelet and periods are published "
     "(ControllerStatus, ControlCommand, WaveletCoefficients); gains are not",
 }
