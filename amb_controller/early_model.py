@@ -10,7 +10,6 @@ an ``.npz``, read with ``allow_pickle=False``. ``amb-early-model`` writes one fr
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -18,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from amb_controller.errors import ControllerValueError, ShapeError
+from amb_controller.model_file import read_npz, write_npz
 
 __all__ = ["FORMAT", "EarlyActionModel"]
 
@@ -95,7 +95,6 @@ class EarlyActionModel:
 
     def save(self, path: str | Path) -> Path:
         """Write the model to ``path`` (``.npz``, arrays and a JSON ``meta``); return it."""
-        path = Path(path)
         meta = {
             "format": FORMAT,
             "samples_per_rev": int(self.samples_per_rev),
@@ -106,36 +105,24 @@ class EarlyActionModel:
             "omega": float(self.omega),
             "source": self.source,
         }
-        with path.open("wb") as fh:
-            np.savez(
-                fh,
-                bearing_markov=self.bearing_markov,
-                plane_responses=self.plane_responses,
-                meta=np.array(json.dumps(meta)),
-            )
-        return path
+        return write_npz(
+            path, meta, bearing_markov=self.bearing_markov, plane_responses=self.plane_responses
+        )
 
     @classmethod
     def load(cls, path: str | Path) -> EarlyActionModel:
         """Read a model written by :meth:`save` (``allow_pickle=False``)."""
-        path = Path(path)
-        try:
-            with np.load(path, allow_pickle=False) as data:
-                meta = json.loads(str(data["meta"]))
-                h, g = data["bearing_markov"], data["plane_responses"]
-        except (OSError, KeyError, ValueError) as exc:
-            raise ControllerValueError(
-                f"cannot read early-action model {path}: {exc}; expected an .npz written by "
-                "amb-early-model"
-            ) from exc
+        meta, arrays = read_npz(
+            path, ("bearing_markov", "plane_responses"), "early-action model", "amb-early-model"
+        )
         if meta.get("format") != FORMAT:
             raise ControllerValueError(
                 f"{path}: format {meta.get('format')!r}, expected {FORMAT!r} (amb-early-model)"
             )
         return cls(
             samples_per_rev=meta["samples_per_rev"],
-            bearing_markov=h,
-            plane_responses=g,
+            bearing_markov=arrays["bearing_markov"],
+            plane_responses=arrays["plane_responses"],
             planes=tuple(meta["planes"]),
             sensors=tuple(meta["sensors"]),
             objective=tuple(meta["objective"]),

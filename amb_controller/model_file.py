@@ -7,7 +7,8 @@ Arrays: ``markov`` (A^(k), eq. 6.34), ``inverse`` (B^(k), eq. 6.35), ``offset`` 
 ``residual_rms`` of the fit. Metadata (JSON string ``meta``): wavelet, samples_per_rev,
 omega (rad/s), levels, quadratures, n_axes, n_sensor_channels, delay, date (ISO 8601,
 UTC), source, and the control/measured coefficient labels. Loaded with
-``allow_pickle=False``.
+``allow_pickle=False``. :func:`write_npz` and :func:`read_npz` (arrays and a JSON ``meta``)
+serve the early action's model file too (:mod:`amb_controller.early_model`).
 """
 
 from __future__ import annotations
@@ -23,6 +24,31 @@ from amb_common.topics import DELAY_PERIODS
 from amb_controller.errors import ControllerValueError
 
 FORMAT_VERSION = 1
+
+
+def write_npz(path: str | Path, meta: dict, **arrays: np.ndarray) -> Path:
+    """Write ``arrays`` and ``meta`` (a JSON string array ``meta``) to ``path``; return it."""
+    path = Path(path)
+    with path.open("wb") as fh:
+        np.savez(fh, **arrays, meta=np.array(json.dumps(meta)))
+    return path
+
+
+def read_npz(path: str | Path, names, what: str, hint: str) -> tuple[dict, dict]:
+    """
+    Read ``meta`` and the arrays ``names`` of a file :func:`write_npz` wrote.
+
+    ``allow_pickle=False``. A missing file, array or a file of another kind raises
+    :class:`ControllerValueError` "cannot read {what} {path}: ...; expected an .npz written by
+    {hint}".
+    """
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            return json.loads(str(data["meta"])), {k: data[k] for k in names}
+    except (OSError, KeyError, ValueError) as exc:
+        raise ControllerValueError(
+            f"cannot read {what} {path}: {exc}; expected an .npz written by {hint}"
+        ) from exc
 
 
 @dataclass(frozen=True)
@@ -102,7 +128,6 @@ class WaveletModel:
 
     def save(self, path: str | Path) -> Path:
         """Write the model to ``path`` (``.npz``); return the path written."""
-        path = Path(path)
         meta = {
             "format_version": FORMAT_VERSION,
             "wavelet": self.wavelet,
@@ -118,30 +143,24 @@ class WaveletModel:
             "control_labels": list(self.control_labels),
             "measured_labels": list(self.measured_labels),
         }
-        with path.open("wb") as fh:
-            np.savez(
-                fh,
-                markov=self.markov,
-                inverse=self.inverse,
-                offset=self.offset,
-                residual_rms=self.residual_rms,
-                meta=np.array(json.dumps(meta)),
-            )
-        return path
+        return write_npz(
+            path,
+            meta,
+            markov=self.markov,
+            inverse=self.inverse,
+            offset=self.offset,
+            residual_rms=self.residual_rms,
+        )
 
     @classmethod
     def load(cls, path: str | Path) -> WaveletModel:
         """Read a model written by :meth:`save`."""
-        path = Path(path)
-        try:
-            with np.load(path, allow_pickle=False) as data:
-                meta = json.loads(str(data["meta"]))
-                arrays = {k: data[k] for k in ("markov", "inverse", "offset", "residual_rms")}
-        except (OSError, KeyError, ValueError) as exc:
-            raise ControllerValueError(
-                f"cannot read wavelet model {path}: {exc}; expected an .npz written by "
-                "WaveletModel.save (identify again to create one)"
-            ) from exc
+        meta, arrays = read_npz(
+            path,
+            ("markov", "inverse", "offset", "residual_rms"),
+            "wavelet model",
+            "WaveletModel.save (identify again to create one)",
+        )
         if meta.get("format_version") != FORMAT_VERSION:
             raise ControllerValueError(
                 f"model {path} has format_version {meta.get('format_version')}, expected "
