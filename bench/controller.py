@@ -41,6 +41,16 @@ DEFAULT = ControllerConfig()
 PREDICTIVE_ORDER = DEFAULT.identification_order
 
 
+def _print_row(law: str, levels: int, order, n_y: int, n_u: int, part: str, times) -> None:
+    """One table row: median and p99 (us), the median as a fraction of each period, p99 at 67 Hz."""
+    med, p99 = np.median(times), np.percentile(times, 99)
+    fracs = " ".join(f"{med * f:11.2e}" for f in SPEEDS_HZ)
+    print(
+        f"{law:>10} {levels:>6} {order:>5} {n_y:>4} {n_u:>4} {part:>10} "
+        f"{med * 1e6:10.1f} {p99 * 1e6:8.1f} {fracs} {p99 * 67.0:9.2e}"
+    )
+
+
 def _time_steps(step, measured: np.ndarray) -> np.ndarray:
     out = np.empty(measured.shape[0])
     for k in range(measured.shape[0]):
@@ -92,12 +102,7 @@ def main() -> None:
             sup.set_mode(Mode.ACTIVE)
             sup_times = _time_steps(sup.step, measured)
             for part, times in (("controller", ctrl_times), ("supervisor", sup_times)):
-                med, p99 = np.median(times), np.percentile(times, 99)
-                fracs = " ".join(f"{med * f:11.2e}" for f in SPEEDS_HZ)
-                print(
-                    f"{law:>10} {len(levels):>6} {order:>5} {n_y:>4} {n_u:>4} {part:>10} "
-                    f"{med * 1e6:10.1f} {p99 * 1e6:8.1f} {fracs} {p99 * 67.0:9.2e}"
-                )
+                _print_row(law, len(levels), order, n_y, n_u, part, times)
 
     _early(rng, args.samples_per_rev, min(args.periods, 500))
 
@@ -129,12 +134,7 @@ def _early(rng: np.random.Generator, n: int, periods: int) -> None:
         early._plan(0, n // 2, theta, 100, 102)
         plans[k] = time.perf_counter() - t0
     for part, t in (("test", times), ("plan", plans)):
-        med, p99 = np.median(t), np.percentile(t, 99)
-        fracs = " ".join(f"{med * f:11.2e}" for f in SPEEDS_HZ)
-        print(
-            f"{'early':>10} {1:>6} {'-':>5} {8:>4} {4:>4} {part:>10} "
-            f"{med * 1e6:10.1f} {p99 * 1e6:8.1f} {fracs} {p99 * 67.0:9.2e}"
-        )
+        _print_row("early", 1, "-", 8, 4, part, t)
 
 
 if __name__ == "__main__":
