@@ -500,7 +500,7 @@ def run_closed_loop(
     if controller is not None:
         loop.pipeline.set_controller(controller)
     if early_model is not None:
-        if not hasattr(loop.pipeline, "set_early_model"):
+        if config.controller in BASELINE_CONTROLLERS:
             raise ControllerValueError(
                 f"the early action runs with the wavelet pipeline's controllers, not "
                 f"{config.controller!r}"
@@ -537,11 +537,7 @@ def run_closed_loop(
         fault_events=loop.fault_events,
         refused=loop.pipeline.supervisor.unsafe_reason(),
         model_radius=loop.pipeline.supervisor.radius,
-        early_detections=(
-            list(loop.pipeline.early.early.detections)
-            if getattr(loop.pipeline, "early", None) is not None
-            else []
-        ),
+        early_detections=[] if early_model is None else loop.pipeline.early.early.detections,
     )
 
 

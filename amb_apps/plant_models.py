@@ -207,7 +207,6 @@ def early_action_model(rig, scenario, samples_per_rev: int, horizon_periods: int
     lp = L + 4 * N
     fs = scenario.speed_hz * N
     lin = linear_rig(rig)
-    sensors = list(range(N_SENSORS))
     quiet = replace(scenario, events=(), measurement_noise=0.0, duration=(2 * N + lp + 2) / fs)
     still = PlantSimulator(lin, quiet, N)
     cols = []
@@ -215,7 +214,7 @@ def early_action_model(rig, scenario, samples_per_rev: int, horizon_periods: int
         force = np.zeros((L, N_AXES))
         force[0, a] = 1.0
         still.reset()
-        cols.append(still.advance(L, force).displacement[:, sensors])
+        cols.append(still.advance(L, force).displacement)
     bearing = np.stack(cols, axis=2)
     s0 = 2 * N  # the loss appears at this sample
     planes = []
@@ -224,15 +223,15 @@ def early_action_model(rig, scenario, samples_per_rev: int, horizon_periods: int
         for angle in (0.0, math.pi / 2):
             ev = Event("mass_loss", s0 / fs, None, {"disk": disk.tag, "me": 1.0, "angle": angle})
             sim = PlantSimulator(lin, replace(quiet, events=(ev,)), N)
-            pair.append(sim.advance(s0 + lp).displacement[s0:, sensors])
+            pair.append(sim.advance(s0 + lp).displacement[s0:])
         planes.append(np.stack(pair, axis=2))
     return EarlyActionModel(
         samples_per_rev=N,
         bearing_markov=bearing,
         plane_responses=np.array(planes),
         planes=tuple(d.tag for d in rig.disks),
-        sensors=tuple(sensors),
-        objective=tuple(sensors.index(c) for c in rig.feedback_channels),
+        sensors=tuple(range(N_SENSORS)),  # displacement's columns [x1, y1, .., x4, y4]
+        objective=tuple(rig.feedback_channels),
         clearance=min(c.radial_clearance for c in rig.clearance_bearings),
         omega=2 * math.pi * scenario.speed_hz,
         source="fe",

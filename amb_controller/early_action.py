@@ -113,9 +113,11 @@ class EarlyActionConfig:
     Attributes
     ----------
     threshold : float
-        Likelihood-ratio threshold ``E / sigma_e^2`` of (E1), >= 10. Default 60: a false
-        detection needs a noise excursion of about 7.7 standard deviations along one of the
-        ``planes x 2 N`` candidate directions.
+        Likelihood-ratio threshold ``E / sigma_e^2`` of (E1), >= 10. Default 200: a false
+        detection needs a noise excursion of about 14 standard deviations along one of the
+        ``planes x 2 N`` candidate directions (at 60, model error under a +30 % gain
+        perturbation passed as a 0.7 g cm "change" three periods before the real loss, and
+        the re-arming after it missed the loss).
     max_residual : float
         Largest residual of the best fit, per value, as a multiple of ``sigma_e^2`` (> 1).
     reference_periods : int
@@ -247,8 +249,8 @@ class EarlyAction:
     """
     Streaming detector and canceller of sudden unbalance changes (module docstring).
 
-    Feed it every period's measured inner displacements and the wavelet force applied in that
-    period (:meth:`end_period`); add :meth:`force` of a period to the command for it.
+    Feed it every period's displacements at the model's sensors and the wavelet force applied
+    in that period (:meth:`end_period`); add :meth:`force` of a period to the command for it.
 
     Parameters
     ----------
@@ -260,14 +262,15 @@ class EarlyAction:
     force_limit : float
         Per-axis limit of the wavelet force, N (with ``config.force_budget``); the attribute
         of that name may be changed between periods (a run-time parameter change).
-    clearance : float
-        The smallest auxiliary-bearing or retainer clearance, m: a plan is applied only if
-        the displacement it predicts at every sensor (the reference's peak plus the planned
-        residual change), raised by ``1 + gain_margin``, stays inside it. Beyond it contacts
-        and the magnets' nonlinearity, which the linear model does not hold, decide the
-        motion, and the change is left to the feedback law (on the figure-5.27 cases the
-        exact estimate's plan, applied, put the rotor on its bearings where the feedback law
-        alone kept it off).
+
+    Notes
+    -----
+    A plan is applied only if the displacement it predicts at every sensor (the reference's
+    peak plus the planned residual change), raised by ``1 + gain_margin``, stays inside the
+    model's ``clearance``. Beyond it contacts and the magnets' nonlinearity, which the linear
+    model does not hold, decide the motion, and the change is left to the feedback law (on
+    the figure-5.27 cases the exact estimate's plan, applied, put the rotor on its bearings
+    where the feedback law alone kept it off).
     """
 
     def __init__(
@@ -276,7 +279,6 @@ class EarlyAction:
         config: EarlyActionConfig,
         delay: int,
         force_limit: float = math.inf,
-        clearance: float = math.inf,
     ) -> None:
         if int(delay) < 1:
             raise ControllerValueError(f"delay must be >= 1, got {delay}")
@@ -285,7 +287,7 @@ class EarlyAction:
         self.delay = int(delay)
         self.force_limit = float(force_limit)
         # the plan's linear prediction, with the model's relative error, inside the clearance
-        self.safe_displacement = float(clearance) / (1.0 + config.gain_margin)
+        self.safe_displacement = float(model.clearance) / (1.0 + config.gain_margin)
         self._scale = 1.0 - config.gain_margin**2
         N = model.samples_per_rev
         self.N = N
@@ -384,14 +386,14 @@ class EarlyAction:
 
     def end_period(self, period: int, displacement, applied_force) -> Detection | None:
         """
-        Take period ``period``'s inner displacements and applied wavelet force; test.
+        Take period ``period``'s displacements and applied wavelet force; test.
 
         Parameters
         ----------
         period : int
             Consecutive period index (a gap: call :meth:`reset` first).
         displacement : array_like
-            Shape ``(N, n_s)``, m: the sensors of the model (the feedback sensors).
+            Shape ``(N, n_s)``, m: the model's sensors (``model.sensors``).
         applied_force : array_like
             Shape ``(N, 4)``, N: the wavelet force the plant applied in the period (all of
             it: feedback, this module's and limits).
@@ -416,12 +418,11 @@ class EarlyAction:
             return None
         zs = list(self._z)
         ref = np.mean(zs[:R], axis=0)
-        e = np.concatenate([zs[R] - ref, zs[R + 1] - ref])
-        energy = float(e @ e)
-        n_val = e.size
         if not self.armed:
             self._update_quiet(zs, ref)
             return None
+        e = np.concatenate([zs[R] - ref, zs[R + 1] - ref])
+        energy = float(e @ e)
         theta = (self._q @ e.astype(np.float32)).astype(float).reshape(-1, 2 * N, 2)
         g, t0, t1 = self._gram, theta[..., 0], theta[..., 1]  # E of (E1): theta^T G theta
         explained = t0 * (g[..., 0, 0] * t0 + g[..., 0, 1] * t1) + t1 * (
@@ -430,7 +431,7 @@ class EarlyAction:
         p, k = np.unravel_index(int(np.argmax(explained)), explained.shape)
         best = float(explained[p, k])
         lr = best / self._noise2
-        residual = (energy - best) / (n_val * self._noise2)
+        residual = (energy - best) / (e.size * self._noise2)
         if lr < self.config.threshold or residual > self.config.max_residual:
             self._update_quiet(zs, ref)
             return None
@@ -489,11 +490,12 @@ class EarlyAction:
         # window starts at period - 1; k0 = first * N; offset of k0 from the onset:
         off = (first - period + 1) * N - int(k)
         yd = (g[off : off + L] @ theta).ravel()  # (L n_s,)
-        w = self._scale * (self._steady_gain @ yd[self._tail])
+        w_full = self._steady_gain @ yd[self._tail]  # (E2) before the robust scale
+        w = self._scale * w_full
         steady = np.einsum("nau,u->na", self._steady_pattern, w)
         plan = _Plan(steady=steady)
         if self.M:
-            free = (yd + self._c @ w / self._scale)[self._obj]
+            free = (yd + self._c @ w_full)[self._obj]
             # the steady force's own steps: switched on at k0, then sample to sample
             reps = -(-(self.M + 1) // N)
             tiled = np.concatenate([np.zeros((1, 4)), np.tile(steady, (reps, 1))[: self.M + 1]])

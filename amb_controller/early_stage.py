@@ -25,17 +25,17 @@ class EarlyStage:
     """
 
     @classmethod
-    def from_model(
-        cls, model: EarlyActionModel, delay: int, force_limit, samples_per_period: int
-    ) -> EarlyStage:
-        """The stage of ``model`` with the default :class:`EarlyActionConfig`."""
+    def from_model(cls, model: EarlyActionModel, delay: int, samples_per_period: int) -> EarlyStage:
+        """The stage of ``model`` with the default :class:`EarlyActionConfig`.
+
+        The force limit comes with each period (:meth:`end_period`: a run-time change).
+        """
         if model.samples_per_rev != samples_per_period:
             raise ControllerValueError(
                 f"early-action model for {model.samples_per_rev} samples per period, the "
                 f"controller runs {samples_per_period}"
             )
-        limit = float(np.max(force_limit))
-        return cls(EarlyAction(model, EarlyActionConfig(), delay, limit, model.clearance))
+        return cls(EarlyAction(model, EarlyActionConfig(), delay))
 
     def __init__(self, early: EarlyAction) -> None:
         self.early = early

@@ -276,7 +276,7 @@ class ControllerPipeline:
     def set_early_model(self, model: EarlyActionModel) -> None:
         """Add the early action on a sudden unbalance (:mod:`amb_controller.early_action`)."""
         self.early = EarlyStage.from_model(
-            model, self.config.delay_periods, self.config.force_limit, self.samples_per_period
+            model, self.config.delay_periods, self.samples_per_period
         )
 
     def set_controller(self, controller) -> None:

@@ -157,7 +157,7 @@ def test_the_plan_cancels_the_change_on_the_linear_plant():
 
 def test_the_plan_stands_down_when_it_would_reach_the_clearance():
     model = _synthetic_model()
-    early = EarlyAction(model, EarlyActionConfig(), delay=1, clearance=1e-9)
+    early = EarlyAction(replace(model, clearance=1e-9), EarlyActionConfig(), delay=1)
     found = _run(early, _measure(model, 26, 20 * N + 5, 0, np.array([0.3, -0.2])))
     assert len(found) == 1 and not found[0].acted
     assert not early.force(22).any()
