@@ -11,6 +11,12 @@ otherwise its integrators wind up while the rotor sits on its PID, and the first
 gets through throws it beyond the PID-only response (the failure of a loaded CI run of
 ``test_restart.py``: 0.76 mm at x2). Reference: the same scenario on PID alone (in process).
 
+The controller talks over UDP alone (``UDP_ONLY``): stopped 2.5 s at a time, it outlasts Fast
+DDS's shared-memory health check, which then stops feeding its measurement reader for good in
+about one run in six on a loaded machine (docs/history.md, "A reader the transport stopped
+feeding"; stop 36's CI). That is the transport's limit, not the controller's, and this test is
+about the controller.
+
 With the controller blind to the flag (the old node) a starvation of this kind gave 0.91 /
 0.92 mm at the end planes and 0.76 mm at the inner ones (x2, y2): 2.2-5.4 times PID alone.
 """
@@ -21,6 +27,7 @@ import numpy as np
 import pytest
 from amb_msgs.msg import ControllerStatus, Measurement
 from reliability_helpers import fe_model_file
+from ros_harness import UDP_ONLY
 from scenarios import SAMPLES_PER_REV, first_critical_mass_loss
 from throttle import Throttle
 
@@ -55,6 +62,7 @@ def test_a_starved_controller_does_not_wind_up(ros, node_process, tmp_path) -> N
         "wavelet_controller",
         params={"samples_per_rev": SPR, "controller": "transient", "start_mode": "active",
                 "model_file": str(model)},
+        env=UDP_ONLY,
     )  # fmt: skip
     assert ros.spin_until(lambda: status_sub.get_publisher_count() >= 1, 60.0), controller.log()
     # command_timeout: long enough that a controller slowed by a loaded machine (its first
