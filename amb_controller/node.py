@@ -35,7 +35,11 @@ the lock-step loop keeps running on the PID. (A message for a later sample is no
 towards this one: a filterbank restarted past it never sends it.) If neither a measurement nor
 a coefficient message arrives for ``measurement_timeout`` s, the controller reports it and
 forgets its history, so that it holds zero until the stream returns; it then resumes without a
-restart. A command the pipeline made with a non-finite value (never expected) is replaced by a
+restart. Coefficients that run ahead of the measurements while no measurement has come for
+``measurement_timeout`` s mean the filterbank is fed and this node is not: the node says so once
+per silence, as an error (the transport stopped feeding its reader: Fast DDS's shared memory after
+the process was stopped longer than the port's health check; docs/history.md). A command the
+pipeline made with a non-finite value (never expected) is replaced by a
 zero command. A period whose measurements carry ``STATUS_COMMAND_MISSING`` ran without the
 command sent for it (lost, late, or the plant's watchdog): it is counted ``commands_late`` and
 the controller's step that made it is undone, so that the integrators do not wind up
@@ -184,6 +188,7 @@ class WaveletControllerNode(Node):
         self._last_wall: float | None = None
         self._last_coefficient: tuple[int, float] | None = None  # last accepted: index, wall s
         self._stale = False
+        self._blind_reported = False  # the error of a reader not fed (module notes), this silence
         self._pending_config: ControllerConfig | None = None
         self.counts = dict.fromkeys(
             (
@@ -330,6 +335,7 @@ class WaveletControllerNode(Node):
             return
         now = time.monotonic()
         self._last_wall = now
+        self._blind_reported = False
         if self._stale:
             self._stale = False
             self.get_logger().info(f"measurements resumed at sample {msg.sample_index}")
@@ -380,6 +386,7 @@ class WaveletControllerNode(Node):
             reason = (
                 f"coefficients of sample {n}: measurements only reach {newest}, from the future"
             )
+            self._report_blind_reader()
         elif n in self._coefficients:
             reason = f"coefficients of sample {n} repeated"
         elif (
@@ -456,6 +463,21 @@ class WaveletControllerNode(Node):
             )
             self.get_logger().warning(self._last_reason)
             self._publish_diagnostics()
+
+    def _report_blind_reader(self) -> None:
+        """Say once per silence that the filterbank is fed and this node is not (module notes)."""
+        timeout = self.get_parameter("measurement_timeout").value
+        if self._blind_reported or self._last_wall is None:
+            return
+        if time.monotonic() - self._last_wall > timeout:
+            self._blind_reported = True
+            self.get_logger().error(
+                f"no measurement for over {timeout:g} s while the filterbank's coefficients "
+                "still arrive: the transport no longer feeds this node's measurement reader "
+                "(Fast DDS shared memory, after this process was stopped longer than the port's "
+                "health check, 1 s); restart the node, or run the nodes with "
+                "FASTDDS_BUILTIN_TRANSPORTS=UDPv4"
+            )
 
     def _process(self, m: MeasurementView, coeffs: CoefficientsView | None) -> None:
         records = []

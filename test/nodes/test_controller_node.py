@@ -381,3 +381,38 @@ def test_the_early_action_reports_a_sudden_unbalance_from_its_model_file(
     bad = _start(node_process, early_model_file=str(tmp_path / "none.npz"))
     assert bad.wait(60) == 2, bad.log()
     assert "early-action model" in bad.log()
+
+
+def test_coefficients_ahead_of_silent_measurements_are_reported_once(ros, node_process) -> None:
+    """A measurement reader the transport no longer feeds, while the filterbank's is fed.
+
+    The coefficients run on ahead of the last measurement (here: the test stops sending
+    measurements after two periods, as the shared-memory transport did to a controller stopped
+    for seconds, docs/history.md). Coefficients from the future alone are not the error (they
+    are also a burst the measurements will follow); after ``measurement_timeout`` without a
+    measurement they are, and the node says it once, naming the transport.
+    """
+    ctrl = _start(node_process, measurement_timeout=1.5)  # the first check's margin under load
+    node = ros.node("amb_test_blind_reader")
+    commands: list[ControlCommand] = []
+    node.create_subscription(ControlCommand, "/amb/control/command", commands.append, COMMAND_QOS)
+    pm, pc = ros.stream_writers(node, SPR, ctrl)
+    _command_reader_matched(ros, node, ctrl)
+    stream = _stream(16)
+    for m, c in stream[: 2 * SPR]:
+        if c is not None:
+            pc.publish(c)
+        pm.publish(m)
+    assert ros.spin_until(lambda: len(commands) == 2, 30.0), ctrl.log()
+    future = [c for _m, c in stream[12 * SPR :] if c is not None]
+    error = "transport no longer feeds"
+    pc.publish(future[0])  # at once: ahead, but measurements may still follow
+    assert ros.spin_until(lambda: "from the future" in ctrl.log(), 10.0), ctrl.log()
+    assert error not in ctrl.log()
+    ros.spin_for(2.0)  # the measurements' silence outlasts measurement_timeout
+    for c in future[1:]:
+        pc.publish(c)
+        ros.spin_for(0.01)
+    assert ros.spin_until(lambda: error in ctrl.log(), 10.0), ctrl.log()
+    ros.spin_for(0.5)
+    assert ctrl.log().count(error) == 1, ctrl.log()
