@@ -63,7 +63,7 @@ class EarlyStage:
         active: bool,
         complete: bool,
         force_limit,
-    ) -> tuple[np.ndarray, Detection | None]:
+    ) -> tuple[np.ndarray, Detection | None, np.ndarray]:
         """
         Test period ``period`` and return the command force for ``target`` with the plan added.
 
@@ -86,6 +86,9 @@ class EarlyStage:
         force : numpy.ndarray
             ``(4, N)``, limited per axis to ``force_limit``.
         detection : Detection or None
+        clipped : numpy.ndarray of bool
+            ``(4,)``: the axes whose command the limit cut once the plan was added (the
+            command's ``saturated`` flag must say so too).
         """
         N = self.early.N
         limit = np.broadcast_to(np.asarray(force_limit, dtype=float), (4,))
@@ -102,9 +105,12 @@ class EarlyStage:
         self._seen[:] = False
         out = np.asarray(force, dtype=float)
         added = self.early.force(target).T if active else None
+        clipped = np.zeros(4, dtype=bool)
         if added is not None and added.any():  # else the command passes untouched
-            out = np.clip(out + added, -limit[:, None], limit[:, None])
+            total = out + added
+            clipped = (np.abs(total) > limit[:, None]).any(axis=1)
+            out = np.clip(total, -limit[:, None], limit[:, None])
         self._sent[target] = out
         for old in [p for p in self._sent if p < period]:
             del self._sent[old]
-        return out, detection
+        return out, detection, clipped

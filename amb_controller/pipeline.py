@@ -534,7 +534,7 @@ class ControllerPipeline:
         else:
             command = self._skip(m)
         if self.early is not None:  # issue 18 item 4: amb_controller.early_action
-            force, self.early_detection = self.early.end_period(
+            force, self.early_detection, clipped = self.early.end_period(
                 m,
                 command.target_period,
                 command.force,
@@ -542,7 +542,9 @@ class ControllerPipeline:
                 complete,
                 self.limiter.limit,
             )
-            command = replace(command, force=force)
+            command = replace(
+                command, force=force, saturated=np.asarray(command.saturated) | clipped
+            )
         self._last_period = m
         self._last_command = command
         self._stats["commands_sent"] += 1

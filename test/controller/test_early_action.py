@@ -17,6 +17,7 @@ import pytest
 
 from amb_controller.early_action import EarlyAction, EarlyActionConfig
 from amb_controller.early_model import EarlyActionModel
+from amb_controller.early_stage import EarlyStage
 from amb_controller.errors import ControllerValueError, ShapeError
 
 N = 16  # samples per revolution
@@ -161,6 +162,46 @@ def test_the_plan_stands_down_when_it_would_reach_the_clearance():
     found = _run(early, _measure(model, 26, 20 * N + 5, 0, np.array([0.3, -0.2])))
     assert len(found) == 1 and not found[0].acted
     assert not early.force(22).any()
+
+
+def test_the_stage_flags_the_axes_whose_command_the_limit_cut():
+    """The plan added to the law's command may pass the force limit: the stage clips it and says
+    on which axes (the command's ``saturated``), and leaves a command it adds nothing to as is.
+
+    The law's force on the period the plan starts is set, on one axis, just inside the limit and
+    in the plan's direction: the sum passes the limit there and nowhere else. (3 kN: the
+    plan's peak is 143 N, its transient far inside its share of the limit.)
+    """
+    import copy
+
+    model = _synthetic_model()
+    y = _measure(model, 26, 20 * N + 5, 0, np.array([0.3, -0.2]))
+
+    def first_plan(limit):
+        stage = EarlyStage(EarlyAction(model, EarlyActionConfig(), delay=1))
+        zeros = np.zeros((4, N))
+        for m in range(26):
+            for k in range(N):
+                stage.sample(k, y[m * N + k])
+            before = copy.deepcopy(stage)
+            out, _, clipped = stage.end_period(m, m + 1, zeros, True, True, limit)
+            if out.any():
+                return out, clipped, before, m
+            assert out is zeros and not clipped.any()  # nothing added: passed on as is
+        raise AssertionError("no plan: the stage found no change")
+
+    limit = np.full(4, 3000.0)
+    plan, clipped, law_stage, period = first_plan(limit)
+    assert not clipped.any() and (np.abs(plan) < 0.1 * limit[:, None]).all()
+    axis = int(np.argmax(np.abs(plan).max(axis=1)))
+    k = int(np.argmax(np.abs(plan[axis])))
+    law = np.zeros((4, N))
+    law[axis] = 0.99 * limit[axis] * np.sign(plan[axis, k])
+    out, _, clipped = law_stage.end_period(period, period + 1, law, True, True, limit)
+    expected = (np.abs(law + plan) > limit[:, None]).any(axis=1)
+    assert expected[axis] and expected.sum() == 1
+    np.testing.assert_array_equal(clipped, expected)
+    np.testing.assert_array_equal(out, np.clip(law + plan, -limit[:, None], limit[:, None]))
 
 
 def test_bad_settings_and_shapes_are_refused():
