@@ -32,14 +32,10 @@ from pathlib import Path
 
 import numpy as np
 
-from amb_apps.closed_loop import (
-    BagRecorder,
-    fe_model,
-    identify_model,
-    run_closed_loop,
-)
+from amb_apps.closed_loop import fe_model, identify_model, run_closed_loop
 from amb_apps.plant_models import early_action_model, harmonic_model, influence_by_trials
 from amb_apps.report_metrics import json_default
+from amb_apps.run_bag import BagRecorder
 from amb_common.config_fields import default_of
 from amb_common.rig import load_rig
 from amb_controller.baselines import BaselineSettings
