@@ -533,5 +533,5 @@ def run_closed_loop(
         fault_events=loop.fault_events,
         refused=loop.pipeline.supervisor.unsafe_reason(),
         model_radius=loop.pipeline.supervisor.radius,
-        early_detections=[] if early_model is None else loop.pipeline.early.early.detections,
+        early_detections=[] if early_model is None else loop.pipeline.early.detections,
     )

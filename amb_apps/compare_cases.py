@@ -14,7 +14,12 @@ from pathlib import Path
 from typing import ClassVar
 
 from amb_apps.closed_loop import fe_model, run_closed_loop
-from amb_apps.plant_models import early_action_model, harmonic_model, influence_by_trials
+from amb_apps.plant_models import (
+    band_speeds,
+    early_action_bank,
+    harmonic_model,
+    influence_by_trials,
+)
 from amb_common.rig import load_rig
 from amb_controller.config import ControllerConfig
 from amb_plant_sim.scenario import load_scenario
@@ -47,6 +52,9 @@ AUX_BEARING_CONTACT = 2
 MARGINAL_RADIUS = 0.95
 #: HOLD ramp-to-zero of ``wavelet_reconf_alarm_ramp`` (periods; supervisor module docstring)
 HOLD_RAMP_PERIODS = 4
+#: +- percent of the early action's bank about each scenario's speed (covers the robustness
+#: matrix's +-10 % speed cases; models every 1 %, 25 in all)
+EARLY_BAND_PERCENT = 12.0
 
 
 @dataclass(frozen=True)
@@ -162,15 +170,23 @@ class Matrix:
         config = self.config(spec, scenario)
         if model is None:
             model = self.model(spec, scenario, config)
-        if spec.early:  # the model of the scenario's (nominal) speed, as the others'
+        if spec.early:  # the models about the scenario's (nominal) speed
             kw.setdefault("early_model", self.early_model(scenario, config))
         if speed_hz is not None:
             scenario = replace(scenario, speed_hz=speed_hz)
         return run_closed_loop(self.rig, scenario, config, model, **kw)
 
     def early_model(self, scenario, config):
-        """Return (and cache) the early action's sample-domain model at ``scenario``'s speed."""
+        """Return (and cache) the early action's models about ``scenario``'s speed.
+
+        A bank from ``EARLY_BAND_PERCENT`` below to above it (:func:`band_speeds`), as a user
+        would make for a rig that runs within that band: the robustness matrix's speed cases
+        (+-10 %) find a model there.
+        """
         key = ("early", round(scenario.speed_hz, 6), config.samples_per_rev)
         if key not in self._models:
-            self._models[key] = early_action_model(self.rig, scenario, config.samples_per_rev)
+            speeds = band_speeds(scenario.speed_hz, EARLY_BAND_PERCENT)
+            self._models[key] = early_action_bank(
+                self.rig, scenario, config.samples_per_rev, speeds
+            )
         return self._models[key]

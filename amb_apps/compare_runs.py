@@ -61,6 +61,7 @@ from amb_apps.parallel import run_jobs
 from amb_common.rig import load_rig
 from amb_controller.baselines import perturb_model
 from amb_controller.basis import control_basis
+from amb_controller.early_model import EarlyModelBank
 from amb_controller.influence_coefficient import InfluenceCoefficientController
 from amb_controller.metrics import (
     INNER,
@@ -456,8 +457,11 @@ def perturb_early_model(model, gain: float, phase: float):
 
     The bearing Markov parameters (the controller's model of its own force) are scaled by
     ``gain`` and delayed by ``phase / (2 pi) N`` samples (rounded; negative: advanced), the
-    1 x phase error of a pure delay; the planes' responses (the unbalance model) are kept.
+    1 x phase error of a pure delay; the planes' responses (the unbalance model) are kept. A
+    bank: each of its models.
     """
+    if isinstance(model, EarlyModelBank):
+        return EarlyModelBank(tuple(perturb_early_model(m, gain, phase) for m in model.models))
     h = model.bearing_markov * gain
     shift = round(phase / (2 * math.pi) * model.samples_per_rev)
     if shift > 0:

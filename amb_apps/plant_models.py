@@ -19,7 +19,8 @@ import numpy as np
 from amb_apps.closed_loop import fe_model, identify_model
 from amb_common.names import N_AXES, N_SENSORS
 from amb_controller.baselines import BaselineSettings, fourier_model
-from amb_controller.early_model import EarlyActionModel
+from amb_controller.early_action import EarlyActionConfig
+from amb_controller.early_model import EarlyActionModel, EarlyModelBank
 from amb_controller.errors import ControllerValueError
 from amb_controller.fourier_basis import (
     complex_from_real,
@@ -34,7 +35,14 @@ from amb_plant_sim.control_limit import linear_rig
 from amb_plant_sim.events import Event
 from amb_plant_sim.simulator import PlantSimulator
 
-__all__ = ["early_action_model", "harmonic_model", "influence_by_trials", "level_models"]
+__all__ = [
+    "band_speeds",
+    "early_action_bank",
+    "early_action_model",
+    "harmonic_model",
+    "influence_by_trials",
+    "level_models",
+]
 
 
 def harmonic_model(rig, omega: float, config, n_terms: int = 60) -> WaveletModel:
@@ -236,3 +244,33 @@ def early_action_model(rig, scenario, samples_per_rev: int, horizon_periods: int
         omega=2 * math.pi * scenario.speed_hz,
         source="fe",
     )
+
+
+def early_action_bank(rig, scenario, samples_per_rev: int, speeds_hz, progress=None):
+    """
+    :func:`early_action_model` at each of ``speeds_hz`` (Hz), as an :class:`EarlyModelBank`.
+
+    ``progress(k, K, hz)``, if given, is called before each model (a bank of tens of models
+    takes seconds to tens of seconds).
+    """
+    speeds = sorted({float(hz) for hz in speeds_hz})
+    if not speeds or speeds[0] <= 0.0:
+        raise ValueError(f"speeds must be > 0 Hz, got {speeds}")
+    models = []
+    for k, hz in enumerate(speeds):
+        if progress is not None:
+            progress(k, len(speeds), hz)
+        models.append(early_action_model(rig, replace(scenario, speed_hz=hz), samples_per_rev))
+    return EarlyModelBank(tuple(models))
+
+
+def band_speeds(speed_hz: float, percent: float) -> list[float]:
+    """Speeds from ``percent`` % below to above ``speed_hz`` (Hz), 2 ``speed_tolerance`` apart.
+
+    Every speed of the band is then within the early action's tolerance of one of them.
+    """
+    if not 0.0 < percent <= 50.0:
+        raise ValueError(f"band {percent} %: expected a percentage in (0, 50]")
+    step = 2.0 * EarlyActionConfig().speed_tolerance
+    k = math.ceil(percent / 100.0 / step - 1e-9)
+    return [float(speed_hz * (1.0 + step * j)) for j in range(-k, k + 1)]

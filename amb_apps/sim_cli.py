@@ -40,7 +40,7 @@ from amb_common.config_fields import default_of
 from amb_common.rig import load_rig
 from amb_controller.baselines import BaselineSettings
 from amb_controller.config import CONTROLLERS, OUTPUT_BASES, ControllerConfig
-from amb_controller.early_model import EarlyActionModel
+from amb_controller.early_model import EarlyModelBank
 from amb_controller.metrics import compute_metrics, inner_summary
 from amb_controller.model_file import WaveletModel
 from amb_plant_sim.scenario import load_scenario, resolve_samples_per_rev
@@ -232,7 +232,7 @@ def run(args) -> dict:
     if args.early == "fe":
         early = early_action_model(rig, scenario, spr)
     elif args.early:
-        early = EarlyActionModel.load(args.early)
+        early = EarlyModelBank.load(args.early)
     recorder = None
     if not args.no_bag:
         recorder = BagRecorder(out / "bag", config, rig.amb.force_limit)

@@ -162,6 +162,13 @@ class EarlyActionConfig:
         see is not worth an open-loop force (and is, more likely, model error: on the
         second-critical run two such "changes" of 0.03 and 0.15 g cm passed the likelihood
         test at 220 and 279).
+    speed_tolerance : float
+        In (0, 0.1]: the largest relative difference between the measured speed and the speed
+        of the model in use (:meth:`amb_controller.early_model.EarlyModelBank.select`);
+        farther from every model of its bank the stage does not test. Default 0.005: within
+        it the 430 g cm losses at the first and second critical speeds run as with the exact
+        model; at 1 % the second critical's loss is not decided, and the first's is not with
+        the plant 1 % faster than its model (docs/controller_notes.md).
     """
 
     threshold: float = 200.0
@@ -176,6 +183,7 @@ class EarlyActionConfig:
     force_budget: float = 0.6
     gain_margin: float = 0.3
     min_effect: float = 10.0
+    speed_tolerance: float = 0.005
 
     def __post_init__(self) -> None:
         checks = [
@@ -195,6 +203,7 @@ class EarlyActionConfig:
             (0.0 < self.force_budget <= 1.0, "force_budget must be in (0, 1]"),
             (0.0 <= self.gain_margin < 1.0, "gain_margin must be in [0, 1)"),
             (self.min_effect >= 0.0, "min_effect must be >= 0"),
+            (0.0 < self.speed_tolerance <= 0.1, "speed_tolerance must be in (0, 0.1]"),
         ]
         for ok, message in checks:
             if not ok:

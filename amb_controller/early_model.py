@@ -1,9 +1,19 @@
 """
-The sample-domain model of the early action (:mod:`amb_controller.early_action`) and its file.
+The sample-domain models of the early action (:mod:`amb_controller.early_action`) and their file.
 
-Arrays ``bearing_markov`` and ``plane_responses`` (defined in :class:`EarlyActionModel`) and a
-JSON ``meta`` (samples per revolution, planes, sensors, objective, clearance, speed, source) in
-an ``.npz``, read with ``allow_pickle=False``. ``amb-early-model`` writes one from the FE route
+The responses hold at one running speed only: sampled at ``N`` per revolution, they change with
+the speed, and near a critical speed fast (the 430 g cm loss at the first critical speed, the
+plant 1 % faster than the model: no decision; the second critical with the model 1 % off
+either way: none; within 0.5 % the runs equal those with the exact model;
+docs/controller_notes.md). An :class:`EarlyModelBank` holds models at several speeds; the
+stage uses the one nearest the measured speed, and none farther than the early action's
+``speed_tolerance``.
+
+File: arrays ``bearing_markov`` and ``plane_responses`` (defined in :class:`EarlyActionModel`)
+stacked over the bank's ``K`` speeds (a leading axis), and a JSON ``meta`` (samples per
+revolution, planes, sensors, objective, clearance, the ``K`` speeds, source) in an ``.npz``,
+read with ``allow_pickle=False``; a file of format 1 (one model, no leading axis) reads as a
+bank of one. ``amb-early-model`` writes one from the FE route
 (:func:`amb_apps.plant_models.early_action_model`); the ``wavelet_controller`` node reads it
 (parameter ``early_model_file``).
 """
@@ -19,10 +29,11 @@ import numpy as np
 from amb_controller.errors import ControllerValueError, ShapeError
 from amb_controller.model_file import read_npz, write_npz
 
-__all__ = ["FORMAT", "EarlyActionModel"]
+__all__ = ["FORMAT", "EarlyActionModel", "EarlyModelBank"]
 
-#: the ``format`` entry of the file's ``meta``
-FORMAT = "amb-early-action-1"
+#: the ``format`` entry of the file's ``meta`` (a bank; "amb-early-action-1": one model)
+FORMAT = "amb-early-action-2"
+_FORMAT_ONE = "amb-early-action-1"
 
 
 @dataclass(frozen=True)
@@ -94,39 +105,139 @@ class EarlyActionModel:
         object.__setattr__(self, "plane_responses", g)
 
     def save(self, path: str | Path) -> Path:
-        """Write the model to ``path`` (``.npz``, arrays and a JSON ``meta``); return it."""
-        meta = {
-            "format": FORMAT,
-            "samples_per_rev": int(self.samples_per_rev),
-            "planes": list(self.planes),
-            "sensors": [int(i) for i in self.sensors],
-            "objective": [int(i) for i in self.objective],
-            "clearance": float(self.clearance),
-            "omega": float(self.omega),
-            "source": self.source,
-        }
-        return write_npz(
-            path, meta, bearing_markov=self.bearing_markov, plane_responses=self.plane_responses
-        )
+        """Write the model as a bank of one (:meth:`EarlyModelBank.save`); return the path."""
+        return EarlyModelBank((self,)).save(path)
 
     @classmethod
     def load(cls, path: str | Path) -> EarlyActionModel:
-        """Read a model written by :meth:`save` (``allow_pickle=False``)."""
+        """Read a file of one model (:meth:`EarlyModelBank.load` reads banks)."""
+        bank = EarlyModelBank.load(path)
+        if len(bank.models) != 1:
+            raise ControllerValueError(
+                f"{path}: a bank of {len(bank.models)} models; read it with EarlyModelBank.load"
+            )
+        return bank.models[0]
+
+
+@dataclass(frozen=True)
+class EarlyModelBank:
+    """
+    Early-action models of one rig at several running speeds (module docstring).
+
+    Attributes
+    ----------
+    models : tuple of EarlyActionModel
+        Sorted by ``omega`` on construction; the same ``samples_per_rev``, response lengths,
+        planes, sensors, objective and clearance, distinct speeds (> 0 when more than one).
+    """
+
+    models: tuple[EarlyActionModel, ...]
+
+    def __post_init__(self) -> None:
+        models = tuple(sorted(self.models, key=lambda m: m.omega))
+        if not models:
+            raise ControllerValueError("an early-action model bank needs at least one model")
+        first = models[0]
+        for m in models[1:]:
+            same = (
+                m.samples_per_rev == first.samples_per_rev
+                and m.bearing_markov.shape == first.bearing_markov.shape
+                and m.plane_responses.shape == first.plane_responses.shape
+                and (m.planes, m.sensors, m.objective) == (first.planes, first.sensors,
+                                                           first.objective)
+                and m.clearance == first.clearance
+            )  # fmt: skip
+            if not same:
+                raise ShapeError(
+                    f"the model at {m.omega:.6g} rad/s differs from the one at "
+                    f"{first.omega:.6g} rad/s in more than its responses"
+                )
+        omegas = np.array([m.omega for m in models])
+        if len(models) > 1 and (omegas[0] <= 0.0 or np.any(np.diff(omegas) <= 0.0)):
+            raise ControllerValueError(
+                f"a bank's speeds must be > 0 and distinct, got {omegas.tolist()} rad/s"
+            )
+        object.__setattr__(self, "models", models)
+
+    @property
+    def omegas(self) -> np.ndarray:
+        """The models' speeds, rad/s, ascending."""
+        return np.array([m.omega for m in self.models])
+
+    def select(self, omega: float, tolerance: float, current: int | None = None) -> int | None:
+        """
+        Index of the model to use at the measured speed ``omega`` (rad/s), or None.
+
+        The nearest model, if its speed is within ``tolerance`` (relative) of ``omega``; a
+        bank of one model of speed 0 (unknown) is always used. ``current`` is kept while it
+        is within the tolerance and no other model is nearer by a quarter of their spacing
+        (no switching back and forth at a midpoint: each switch starts the test afresh).
+        """
+        omegas = self.omegas
+        if len(omegas) == 1 and omegas[0] == 0.0:
+            return 0
+        off = np.abs(omegas - omega)
+        best = int(np.argmin(off))
+        if off[best] > tolerance * omega:
+            return None
+        if current is not None and current != best and off[current] <= tolerance * omega:
+            if off[current] - off[best] < 0.25 * abs(omegas[current] - omegas[best]):
+                return current
+        return best
+
+    def save(self, path: str | Path) -> Path:
+        """Write the bank to ``path`` (``.npz``, arrays and a JSON ``meta``); return it."""
+        m = self.models[0]
+        meta = {
+            "format": FORMAT,
+            "samples_per_rev": int(m.samples_per_rev),
+            "planes": list(m.planes),
+            "sensors": [int(i) for i in m.sensors],
+            "objective": [int(i) for i in m.objective],
+            "clearance": float(m.clearance),
+            "omegas": [float(x.omega) for x in self.models],
+            "source": m.source,
+        }
+        return write_npz(
+            path,
+            meta,
+            bearing_markov=np.stack([x.bearing_markov for x in self.models]),
+            plane_responses=np.stack([x.plane_responses for x in self.models]),
+        )
+
+    @classmethod
+    def load(cls, path: str | Path) -> EarlyModelBank:
+        """Read a bank (or a single model of format 1) written by :meth:`save`."""
         meta, arrays = read_npz(
             path, ("bearing_markov", "plane_responses"), "early-action model", "amb-early-model"
         )
-        if meta.get("format") != FORMAT:
+        fmt = meta.get("format")
+        h, g = arrays["bearing_markov"], arrays["plane_responses"]
+        if fmt == _FORMAT_ONE:
+            h, g, omegas = h[None], g[None], [meta["omega"]]
+        elif fmt == FORMAT:
+            omegas = meta["omegas"]
+        else:
             raise ControllerValueError(
-                f"{path}: format {meta.get('format')!r}, expected {FORMAT!r} (amb-early-model)"
+                f"{path}: format {fmt!r}, expected {FORMAT!r} (amb-early-model)"
+            )
+        if h.shape[0] != len(omegas) or g.shape[0] != len(omegas):
+            raise ShapeError(
+                f"{path}: {len(omegas)} speeds for {h.shape[0]} / {g.shape[0]} responses"
             )
         return cls(
-            samples_per_rev=meta["samples_per_rev"],
-            bearing_markov=arrays["bearing_markov"],
-            plane_responses=arrays["plane_responses"],
-            planes=tuple(meta["planes"]),
-            sensors=tuple(meta["sensors"]),
-            objective=tuple(meta["objective"]),
-            clearance=meta["clearance"],
-            omega=meta["omega"],
-            source=meta["source"],
+            tuple(
+                EarlyActionModel(
+                    samples_per_rev=meta["samples_per_rev"],
+                    bearing_markov=h[k],
+                    plane_responses=g[k],
+                    planes=tuple(meta["planes"]),
+                    sensors=tuple(meta["sensors"]),
+                    objective=tuple(meta["objective"]),
+                    clearance=meta["clearance"],
+                    omega=omegas[k],
+                    source=meta["source"],
+                )
+                for k in range(len(omegas))
+            )
         )

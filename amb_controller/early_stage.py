@@ -2,53 +2,115 @@
 
 from __future__ import annotations
 
+from collections import OrderedDict
+
 import numpy as np
 
 from amb_controller.early_action import Detection, EarlyAction, EarlyActionConfig
-from amb_controller.early_model import EarlyActionModel
+from amb_controller.early_model import EarlyActionModel, EarlyModelBank
 from amb_controller.errors import ControllerValueError
 
 __all__ = ["EarlyStage"]
+
+#: Early actions kept built (a switch back to a recent speed costs no construction: 44 ms at
+#: 32 samples per revolution, 168 ms at 64, on the development machine).
+_KEPT = 3
 
 
 class EarlyStage:
     """
     :class:`EarlyAction` on a sample stream, as the controller pipeline feeds it.
 
-    It keeps the period's displacements of the model's sensors and the force of every command
-    it passed on, so that :meth:`EarlyAction.end_period` gets the force the plant applied
-    (zero for a command the plant did not apply).
+    It keeps the period's displacements of the model's sensors, its measured speeds and the
+    force of every command it passed on, so that :meth:`EarlyAction.end_period` gets the force
+    the plant applied (zero for a command the plant did not apply). At each period's end it
+    picks the bank's model for the period's mean measured speed
+    (:meth:`EarlyModelBank.select`, within ``config.speed_tolerance``): a change of model
+    starts that model's test afresh (its history, plan and arming; a plan of the previous one
+    is dropped), and with no model near the speed the stage tests nothing and adds nothing.
 
     Parameters
     ----------
-    early : EarlyAction
+    bank : EarlyModelBank or EarlyActionModel
+        The models (one model: a bank of one).
+    config : EarlyActionConfig
+    delay : int
+        The controller's delay ``i``, periods.
+
+    Attributes
+    ----------
+    early : EarlyAction or None
+        The early action of the model in use (None: no model near the speed).
+    detections : list of Detection
+        Every decision of the run, whichever model made it.
+    speed_idle_periods : int
+        Periods with no model within the tolerance of the measured speed.
     """
 
     @classmethod
-    def from_model(cls, model: EarlyActionModel, delay: int, samples_per_period: int) -> EarlyStage:
-        """The stage of ``model`` with the default :class:`EarlyActionConfig`.
+    def from_model(
+        cls, bank: EarlyModelBank | EarlyActionModel, delay: int, samples_per_period: int
+    ) -> EarlyStage:
+        """The stage of ``bank`` with the default :class:`EarlyActionConfig`.
 
         The force limit comes with each period (:meth:`end_period`: a run-time change).
         """
-        if model.samples_per_rev != samples_per_period:
+        if isinstance(bank, EarlyActionModel):
+            bank = EarlyModelBank((bank,))
+        if bank.models[0].samples_per_rev != samples_per_period:
             raise ControllerValueError(
-                f"early-action model for {model.samples_per_rev} samples per period, the "
-                f"controller runs {samples_per_period}"
+                f"early-action model for {bank.models[0].samples_per_rev} samples per period, "
+                f"the controller runs {samples_per_period}"
             )
-        return cls(EarlyAction(model, EarlyActionConfig(), delay))
+        return cls(bank, EarlyActionConfig(), delay)
 
-    def __init__(self, early: EarlyAction) -> None:
-        self.early = early
-        self._sensors = np.asarray(early.model.sensors, dtype=int)
-        N = early.N
+    def __init__(
+        self, bank: EarlyModelBank | EarlyActionModel, config: EarlyActionConfig, delay: int
+    ) -> None:
+        if isinstance(bank, EarlyActionModel):
+            bank = EarlyModelBank((bank,))
+        self.bank, self.config, self.delay = bank, config, int(delay)
+        first = bank.models[0]
+        self.N = N = first.samples_per_rev
+        self._sensors = np.asarray(first.sensors, dtype=int)
         self._y = np.zeros((N, len(self._sensors)))
+        self._omega = np.zeros(N)
         self._seen = np.zeros(N, dtype=bool)
         self._sent: dict[int, np.ndarray] = {}
         self._missing: set[int] = set()
+        self._built: OrderedDict[int, EarlyAction] = OrderedDict()
+        self._index: int | None = None
+        self.early: EarlyAction | None = None
+        self.detections: list[Detection] = []
+        self.speed_idle_periods = 0
+        if len(bank.models) == 1 and first.omega == 0.0:  # speed unknown: always this one
+            self._use(0)
 
-    def sample(self, position: int, displacement) -> None:
-        """Keep sample ``position`` of the current period (all 8 sensors, m)."""
+    @property
+    def model_omega(self) -> float | None:
+        """Speed of the model in use, rad/s (None: none)."""
+        return None if self.early is None else self.early.model.omega
+
+    def _use(self, index: int | None) -> None:
+        """Make model ``index`` the one in use, its test started afresh (None: none)."""
+        self._index = index
+        if index is None:
+            self.early = None
+            return
+        early = self._built.pop(index, None)
+        if early is None:
+            early = EarlyAction(self.bank.models[index], self.config, self.delay)
+        else:
+            early.reset()
+        self._built[index] = early
+        while len(self._built) > _KEPT:
+            self._built.popitem(last=False)
+        self.early = early
+
+    def sample(self, position: int, displacement, omega: float = 0.0) -> None:
+        """Keep sample ``position`` of the current period (all 8 sensors, m; speed, rad/s)."""
         self._y[position] = np.asarray(displacement, dtype=float)[self._sensors]
+        self._omega[position] = omega
         self._seen[position] = True
 
     def command_missing(self, period: int) -> None:
@@ -90,21 +152,31 @@ class EarlyStage:
             ``(4,)``: the axes whose command the limit cut once the plan was added (the
             command's ``saturated`` flag must say so too).
         """
-        N = self.early.N
+        N = self.N
         limit = np.broadcast_to(np.asarray(force_limit, dtype=float), (4,))
-        self.early.force_limit = float(np.max(limit))
         applied = self._sent.pop(period, None)
         if applied is None or period in self._missing:
             applied = np.zeros((4, N))
         self._missing.discard(period)
+        if self._seen.any():
+            omega = float(self._omega[self._seen].mean())
+            index = self.bank.select(omega, self.config.speed_tolerance, self._index)
+            if index != self._index:
+                self._use(index)
         detection = None
-        if complete and self._seen.all():
-            detection = self.early.end_period(period, self._y, applied.T)
+        early = self.early
+        if early is None:
+            self.speed_idle_periods += 1
+        elif complete and self._seen.all():
+            early.force_limit = float(np.max(limit))
+            detection = early.end_period(period, self._y, applied.T)
+            if detection is not None:
+                self.detections.append(detection)
         else:
-            self.early.reset()
+            early.reset()
         self._seen[:] = False
         out = np.asarray(force, dtype=float)
-        added = self.early.force(target).T if active else None
+        added = early.force(target).T if (active and early is not None) else None
         clipped = np.zeros(4, dtype=bool)
         if added is not None and added.any():  # else the command passes untouched
             total = out + added

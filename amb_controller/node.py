@@ -111,6 +111,7 @@ from amb_common.faults import event_status
 from amb_common.paths import config_file
 from amb_common.rig import load_rig
 from amb_controller.config import ControllerConfig
+from amb_controller.early_messages import decision_message, model_change_message
 from amb_controller.errors import ControllerValueError
 from amb_controller.node_params import (
     PARAMETERS,
@@ -188,6 +189,7 @@ class WaveletControllerNode(Node):
         self._last_wall: float | None = None
         self._last_coefficient: tuple[int, float] | None = None  # last accepted: index, wall s
         self._stale = False
+        self._early_omega: float | None = -1.0  # the early action's model speed last logged
         self._blind_reported = False  # the error of a reader not fed (module notes), this silence
         self._pending_config: ControllerConfig | None = None
         self.counts = dict.fromkeys(
@@ -209,22 +211,6 @@ class WaveletControllerNode(Node):
             self.get_parameter("status_period").value, self._publish_diagnostics
         )
         self.add_on_set_parameters_callback(self._on_set_parameters)
-
-    def _log_early(self, d) -> None:
-        """Say what the early action found (amb_controller.early_action) and what it does."""
-        if not d.acted:
-            what = (
-                f"left to the feedback law (predicted {d.predicted_peak * 1e6:.0f} um: too "
-                "near the clearance for the linear model)"
-            )
-        elif self._pipe.supervisor.mode == Mode.ACTIVE:
-            what = f"cancelling it from period {d.first_period}"
-        else:
-            what = "the controller is not active: no force"
-        self.get_logger().warning(
-            f"early action: sudden unbalance {d.me * 1e5:.0f} g cm at {d.plane}, onset sample "
-            f"{d.onset_sample} (period {d.period}), {what}"
-        )
 
     def _configure(self) -> None:
         values = {name: self.get_parameter(name).value for name in PARAMETERS}
@@ -498,8 +484,14 @@ class WaveletControllerNode(Node):
         )
         if command is None:
             return
+        early = self._pipe.early
+        if early is not None and early.model_omega != self._early_omega:
+            self._early_omega = early.model_omega
+            ok, text = model_change_message(early, m.rotor_speed)
+            (self.get_logger().info if ok else self.get_logger().warning)(text)
         if self._pipe.early_detection is not None:
-            self._log_early(self._pipe.early_detection)
+            active = self._pipe.supervisor.mode == Mode.ACTIVE
+            self.get_logger().warning(decision_message(self._pipe.early_detection, active))
         cfg = self._pipe.config
         labels = self._pipe.control.labels
         n = self._pipe.samples_per_period

@@ -56,7 +56,7 @@ from amb_controller.config import (
     ConfigError,
     ControllerConfig,
 )
-from amb_controller.early_model import EarlyActionModel
+from amb_controller.early_model import EarlyActionModel, EarlyModelBank
 from amb_controller.early_stage import EarlyStage
 from amb_controller.errors import ControllerValueError
 from amb_controller.fourier_basis import sinusoid_control_basis
@@ -226,7 +226,7 @@ class ControllerPipeline:
         if model is not None:
             self.set_model(model)
         if config.early_model_file:
-            self.set_early_model(EarlyActionModel.load(config.early_model_file))
+            self.set_early_model(EarlyModelBank.load(config.early_model_file))
 
     # ------------------------------------------------------------------ model
     @property
@@ -273,8 +273,11 @@ class ControllerPipeline:
         else:
             self.supervisor.controller = None
 
-    def set_early_model(self, model: EarlyActionModel) -> None:
-        """Add the early action on a sudden unbalance (:mod:`amb_controller.early_action`)."""
+    def set_early_model(self, model: EarlyModelBank | EarlyActionModel) -> None:
+        """Add the early action on a sudden unbalance (:mod:`amb_controller.early_action`).
+
+        ``model``: a bank of models at several speeds, or one model (:mod:`.early_model`).
+        """
         self.early = EarlyStage.from_model(
             model, self.config.delay_periods, self.samples_per_period
         )
@@ -492,7 +495,7 @@ class ControllerPipeline:
         if displacement is not None:
             d = np.asarray(displacement, dtype=float)
             if self.early is not None:
-                self.early.sample(pos, d)
+                self.early.sample(pos, d, self._omega)
             self._peak = max(self._peak, float(np.max(np.abs(d))) if d.size else 0.0)
         for rec in records:
             if rec.kind != "detail" or rec.level not in self._levels_j:

@@ -96,7 +96,7 @@ def faults(matrix: Matrix) -> None:
         b = matrix.run(SPECS["predictive_early_i1"], path.stem, stop=keep)
         pa, pb = (run_metrics(r, sc.speed_hz)["peak"] * 1e6 for r in (a, b))
         ca, cb = (int(r.contact.any(axis=1).sum()) for r in (a, b))
-        dets = holder["loop"].pipeline.early.early.detections
+        dets = holder["loop"].pipeline.early.detections
         said = "; ".join(
             f"period {d.period} {d.plane} {d.me * 1e5:.0f} g cm "
             f"{'acted' if d.acted else f'stood down ({d.predicted_peak * 1e6:.0f} um)'}"

@@ -331,7 +331,7 @@ def test_early_action_finds_the_scenario_s_loss_and_beats_the_period_rate_law():
 
     early = matrix.run(SPECS["predictive_early_i1"], "mass_loss_1st", stop=keep)
     plain = matrix.run(SPECS["predictive_i1"], "mass_loss_1st")
-    (found,) = holder["loop"].pipeline.early.early.detections
+    (found,) = holder["loop"].pipeline.early.detections
     scenario = matrix.scenarios["mass_loss_1st"]
     loss = next(e for e in scenario.events if e.kind == "mass_loss")
     fs = scenario.speed_hz * 64

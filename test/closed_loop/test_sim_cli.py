@@ -141,3 +141,32 @@ def test_the_early_action_from_a_model_file_reports_the_scenario_s_loss(tmp_path
     bad = sim_cli.main([*common[:-4], "--controller", "harmonic", "--early", str(model),
                         "--out", str(tmp_path / "h")])  # fmt: skip
     assert bad == 2 and "early action" in capsys.readouterr().err
+
+
+def test_amb_early_model_writes_a_bank_over_a_band_and_refuses_bad_speeds(tmp_path, capsys):
+    """``--band 1``: models at the scenario's speed and 1 % below and above it (spacing twice
+    the 0.5 % tolerance); ``--speeds`` lists and ranges; bad input exits 2 with a reason."""
+    from amb_apps import early_model_cli
+    from amb_common.rig import load_rig
+    from amb_controller.early_model import EarlyModelBank
+    from amb_plant_sim.scenario import load_scenario
+
+    hz = load_scenario(SCENARIO, load_rig()).speed_hz
+    common = ["--scenario", str(SCENARIO), "--samples-per-rev", "16"]
+    out = tmp_path / "band.npz"
+    assert early_model_cli.main([*common, "--band", "1", "--out", str(out)]) == 0
+    omegas = EarlyModelBank.load(out).omegas
+    np.testing.assert_allclose(omegas / (2 * math.pi), [0.99 * hz, hz, 1.01 * hz], rtol=1e-12)
+    out = tmp_path / "list.npz"
+    assert early_model_cli.main([*common, "--speeds", "9,10:11:0.5", "--out", str(out)]) == 0
+    np.testing.assert_allclose(EarlyModelBank.load(out).omegas / (2 * math.pi),
+                               [9.0, 10.0, 10.5, 11.0], rtol=1e-12)  # fmt: skip
+    capsys.readouterr()
+    for bad, words in (
+        (["--speeds", "10:9:0.5"], "HI >= LO"),
+        (["--speeds", "ten"], "expected HZ"),
+        (["--speeds", "0"], "> 0 Hz"),
+        (["--band", "60"], "(0, 50]"),
+    ):
+        assert early_model_cli.main([*common, *bad, "--out", str(tmp_path / "x.npz")]) == 2
+        assert words in capsys.readouterr().err

@@ -16,9 +16,10 @@ import numpy as np
 import pytest
 
 from amb_controller.early_action import EarlyAction, EarlyActionConfig
-from amb_controller.early_model import EarlyActionModel
+from amb_controller.early_model import EarlyActionModel, EarlyModelBank
 from amb_controller.early_stage import EarlyStage
 from amb_controller.errors import ControllerValueError, ShapeError
+from amb_controller.model_file import write_npz
 
 N = 16  # samples per revolution
 L = 6 * N
@@ -178,7 +179,7 @@ def test_the_stage_flags_the_axes_whose_command_the_limit_cut():
     y = _measure(model, 26, 20 * N + 5, 0, np.array([0.3, -0.2]))
 
     def first_plan(limit):
-        stage = EarlyStage(EarlyAction(model, EarlyActionConfig(), delay=1))
+        stage = EarlyStage(model, EarlyActionConfig(), delay=1)
         zeros = np.zeros((4, N))
         for m in range(26):
             for k in range(N):
@@ -221,3 +222,96 @@ def test_bad_settings_and_shapes_are_refused():
         early.end_period(0, np.zeros((N, 3)), np.zeros((N, 4)))
     with pytest.raises(ControllerValueError, match="delay"):
         EarlyAction(model, EarlyActionConfig(), delay=0)
+
+
+def _banked(model, omegas):
+    """Copies of ``model`` at speeds ``omegas`` (rad/s); the k-th response scaled by k + 1."""
+    return EarlyModelBank(
+        tuple(
+            replace(model, omega=w, plane_responses=model.plane_responses * (k + 1))
+            for k, w in enumerate(omegas)
+        )
+    )
+
+
+def test_the_bank_keeps_its_models_through_its_file_and_reads_a_single_model(tmp_path):
+    model = _synthetic_model()
+    bank = _banked(model, (110.0, 100.0, 105.0))
+    np.testing.assert_array_equal(bank.omegas, [100.0, 105.0, 110.0])  # sorted
+    back = EarlyModelBank.load(bank.save(tmp_path / "bank.npz"))
+    np.testing.assert_array_equal(back.omegas, bank.omegas)
+    for a, b in zip(back.models, bank.models, strict=True):
+        np.testing.assert_array_equal(a.plane_responses, b.plane_responses)
+        np.testing.assert_array_equal(a.bearing_markov, b.bearing_markov)
+        assert (a.planes, a.sensors, a.objective) == (b.planes, b.sensors, b.objective)
+    # a file of format 1 (one model, no leading axis: what amb-early-model wrote before banks)
+    meta = {
+        "format": "amb-early-action-1", "samples_per_rev": N, "planes": list(model.planes),
+        "sensors": list(model.sensors), "objective": list(model.objective),
+        "clearance": 1e-3, "omega": 42.0, "source": "fe",
+    }  # fmt: skip
+    old = write_npz(
+        tmp_path / "one.npz", meta, bearing_markov=model.bearing_markov,
+        plane_responses=model.plane_responses,
+    )  # fmt: skip
+    (one,) = EarlyModelBank.load(old).models
+    assert one.omega == 42.0 and one.clearance == 1e-3
+    assert EarlyActionModel.load(old).omega == 42.0
+    with pytest.raises(ControllerValueError, match="a bank of 3"):
+        EarlyActionModel.load(tmp_path / "bank.npz")
+
+
+def test_a_bank_refuses_models_that_differ_in_more_than_their_speed():
+    model = _synthetic_model()
+    with pytest.raises(ControllerValueError, match="distinct"):
+        _banked(model, (100.0, 100.0))
+    with pytest.raises(ShapeError, match="more than its responses"):
+        EarlyModelBank((replace(model, omega=1.0), replace(model, omega=2.0, clearance=1e-3)))
+    with pytest.raises(ControllerValueError, match="at least one"):
+        EarlyModelBank(())
+
+
+def test_the_bank_picks_the_nearest_model_within_the_tolerance_and_does_not_chatter():
+    bank = _banked(_synthetic_model(), (100.0, 101.0, 102.0))
+    tol = 0.006
+    assert bank.select(100.2, tol) == 0
+    assert bank.select(101.4, tol) == 1
+    assert bank.select(102.5, tol) == 2  # 0.5 rad/s above 102; 0.6 % of 102.5 is 0.615
+    assert bank.select(102.7, tol) is None  # 0.7 rad/s off, 0.616 allowed
+    assert bank.select(98.9, tol) is None
+    # at the midpoint the model in use is kept until another is a quarter spacing nearer
+    assert bank.select(100.6, tol, current=0) == 0  # 0.6 vs 0.4 off: 0.2 < 0.25
+    assert bank.select(100.7, tol, current=0) == 1  # 0.7 vs 0.3: 0.4 >= 0.25
+    assert bank.select(100.4, tol, current=1) == 1
+    assert bank.select(100.3, tol, current=1) == 0
+    # one model of no recorded speed: always that one
+    assert EarlyModelBank((_synthetic_model(),)).select(1234.0, tol) == 0
+
+
+def test_the_stage_tests_with_the_model_of_the_measured_speed():
+    """Two models whose responses differ by a factor 2: the change, made with the second,
+    is estimated at its size only when the measured speed selects the second; at a speed
+    far from both the stage tests nothing (and counts the idle periods)."""
+    model = _synthetic_model()
+    bank = _banked(model, (100.0, 120.0))
+    theta = np.array([0.3, -0.2])
+    y = _measure(replace(model, plane_responses=2 * model.plane_responses), 26, 20 * N + 5, 0,
+                 theta)  # fmt: skip
+
+    def run(omega):
+        stage = EarlyStage(bank, EarlyActionConfig(), delay=1)
+        for m in range(26):
+            for k in range(N):
+                stage.sample(k, y[m * N + k], omega)
+            stage.end_period(m, m + 1, np.zeros((4, N)), True, True, np.full(4, 1e4))
+        return stage
+
+    at = run(120.3)
+    assert at.model_omega == 120.0
+    (d,) = at.detections
+    assert d.me == pytest.approx(math.hypot(*theta), rel=0.01)
+    wrong = run(100.1)
+    assert wrong.model_omega == 100.0
+    assert [d.me for d in wrong.detections] != pytest.approx([math.hypot(*theta)], rel=0.1)
+    idle = run(110.0)
+    assert idle.early is None and idle.detections == [] and idle.speed_idle_periods == 26
