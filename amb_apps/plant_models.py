@@ -265,12 +265,17 @@ def early_action_bank(rig, scenario, samples_per_rev: int, speeds_hz, progress=N
 
 
 def band_speeds(speed_hz: float, percent: float) -> list[float]:
-    """Speeds from ``percent`` % below to above ``speed_hz`` (Hz), 2 ``speed_tolerance`` apart.
+    """Speeds (Hz) covering ``percent`` % below to above ``speed_hz``, ratio ``1 + 2 tol`` apart.
 
-    Every speed of the band is then within the early action's tolerance of one of them.
+    ``tol`` is the early action's ``speed_tolerance``, relative to the measured speed: a speed
+    ``w`` between neighbours ``w_j`` and ``w_j (1 + 2 tol)`` is at most ``tol w_j <= tol w``
+    from the nearer, so every speed of the band has a model within the tolerance (an evenly
+    spaced grid would leave the midpoints below the middle speed out).
     """
     if not 0.0 < percent <= 50.0:
         raise ValueError(f"band {percent} %: expected a percentage in (0, 50]")
-    step = 2.0 * EarlyActionConfig().speed_tolerance
-    k = math.ceil(percent / 100.0 / step - 1e-9)
-    return [float(speed_hz * (1.0 + step * j)) for j in range(-k, k + 1)]
+    ratio = 1.0 + 2.0 * EarlyActionConfig().speed_tolerance
+    p = percent / 100.0
+    up = math.ceil(math.log1p(p) / math.log(ratio) - 1e-9)
+    down = math.ceil(-math.log1p(-p) / math.log(ratio) - 1e-9)
+    return [float(speed_hz * ratio**j) for j in range(-down, up + 1)]
