@@ -6,6 +6,7 @@ Usage (after ``source tools/env.sh``)::
     python tools/early_action_sweep.py phases [--monitor] [--rows R1,R2,..]
     python tools/early_action_sweep.py robustness [--rows ..]
     python tools/early_action_sweep.py faults
+    python tools/early_action_sweep.py speeds [--factors 0.9:1.1:0.005]
 
 ``phases``: the two mass-loss scenarios of ``amb-compare`` (``--quick`` durations) with the
 fault at its own instant and moved to 0, 1/4, 1/2, 3/4 of its revolution (``amb-bound``'s
@@ -17,7 +18,10 @@ contact. ``robustness``: ``amb-compare``'s robustness cases (model gain, phase, 
 early action's force path perturbed as the coefficient model
 (:func:`amb_apps.compare_runs.perturb_early_model`). ``faults``: every constant-speed
 scenario of ``config/scenarios/faults`` with ``predictive_i1`` and ``predictive_early_i1``:
-peaks, contact samples and what the early action decided. Deterministic (seeded noise).
+peaks, contact samples and what the early action decided. ``speeds``: ``mass_loss_1st`` with
+the plant's speed moved by each factor, ``amb-compare``'s bank of early models (+-12 %): the
+peak with and without the early action, its decision, and a count. Deterministic (seeded
+noise).
 """
 
 from __future__ import annotations
@@ -109,10 +113,39 @@ def faults(matrix: Matrix) -> None:
         )
 
 
+def speeds(matrix: Matrix, factors: list[float]) -> None:
+    """Print the peak with and without the early action at each plant speed factor."""
+    key = "mass_loss_1st"
+    hz0 = matrix.scenarios[key].speed_hz
+    counts = {"decided": 0, "lower": 0, "equal": 0, "higher": 0}
+    ratios = []
+    for f in factors:
+        hz = hz0 * f
+        plain = run_metrics(matrix.run(SPECS["predictive_i1"], key, speed_hz=hz), hz)["peak"]
+        r = matrix.run(SPECS["predictive_early_i1"], key, speed_hz=hz)
+        peak = run_metrics(r, hz)["peak"]
+        counts["decided"] += bool(r.early_detections)
+        diff = (peak - plain) * 1e6
+        counts["equal" if abs(diff) <= 0.05 else "lower" if diff < 0 else "higher"] += 1
+        ratios.append(peak / plain)
+        said = ", ".join(f"{d.me * 1e5:.0f} g cm {'acted' if d.acted else 'stood down'}"
+                         for d in r.early_detections)  # fmt: skip
+        print(f"x {f:.3f} ({hz:.3f} Hz): {plain * 1e6:.1f} -> {peak * 1e6:.1f} um "
+              f"({said or 'no decision'})", flush=True)  # fmt: skip
+    print(f"{len(factors)} speeds: " + ", ".join(f"{k} {v}" for k, v in counts.items())
+          + f"; peak / law alone median {np.median(ratios):.2f}")  # fmt: skip
+
+
+def _factors(text: str) -> list[float]:
+    lo, hi, step = (float(x) for x in text.split(":"))
+    return [lo + k * step for k in range(round((hi - lo) / step) + 1)]
+
+
 def main() -> None:
     """Entry point."""
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("what", choices=("phases", "robustness", "faults"))
+    ap.add_argument("what", choices=("phases", "robustness", "faults", "speeds"))
+    ap.add_argument("--factors", default="0.9:1.1:0.005", help="speeds: LO:HI:STEP of the speed")
     ap.add_argument("--rows", default=None, help="comma-separated amb-compare rows")
     ap.add_argument("--monitor", action="store_true", help="phases: fault monitor in the loop")
     args = ap.parse_args()
@@ -121,6 +154,8 @@ def main() -> None:
         phases(matrix, (args.rows or PHASE_ROWS).split(","), args.monitor)
     elif args.what == "robustness":
         robustness(matrix, (args.rows or ROBUST_ROWS).split(","))
+    elif args.what == "speeds":
+        speeds(matrix, _factors(args.factors))
     else:
         faults(matrix)
 
