@@ -315,3 +315,22 @@ def test_the_stage_tests_with_the_model_of_the_measured_speed():
     assert [d.me for d in wrong.detections] != pytest.approx([math.hypot(*theta)], rel=0.1)
     idle = run(110.0)
     assert idle.early is None and idle.detections == [] and idle.speed_idle_periods == 26
+
+
+def test_a_large_change_the_model_fits_all_but_a_sliver_of_is_accepted():
+    """The measured change is the model's response on a time axis stretched by 0.5 % (what a
+    model 0.5 % off the running speed sees, unlike a gain error, which the estimate absorbs):
+    for a large change the residual is many noise variances, yet a sliver of the innovation.
+    ``max_unexplained`` accepts it; with it at 0 (the residual test alone) nothing is decided.
+    The residual test still refuses a probe offset (the test above) and noise."""
+    model = _synthetic_model()
+    theta = np.array([0.9, -0.6])  # 3 x the loss above
+    g = model.plane_responses
+    k = np.arange(g.shape[1])
+    stretched = np.apply_along_axis(lambda r: np.interp(k * 1.005, k, r), 1, g)
+    y = _measure(replace(model, plane_responses=stretched), 26, 20 * N + 6, 0, theta)
+    found = _run(EarlyAction(model, EarlyActionConfig(), delay=1), y)
+    assert len(found) == 1 and found[0].residual > EarlyActionConfig().max_residual
+    assert found[0].me == pytest.approx(math.hypot(*theta), rel=0.05)
+    strict = EarlyAction(model, EarlyActionConfig(max_unexplained=0.0), delay=1)
+    assert _run(strict, y) == []
