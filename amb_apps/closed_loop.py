@@ -477,9 +477,10 @@ def run_closed_loop(
         and control layout as ``config``), e.g. the per-level
         :class:`~amb_controller.multilevel.MultiLevelController`; ``model`` must still be
         given (the pipeline checks its layout and reports it).
-    early_model : amb_controller.early_action.EarlyActionModel, optional
+    early_model : EarlyModelBank or EarlyActionModel, optional
         Adds the early action on a sudden unbalance (:mod:`amb_controller.early_action`,
-        default settings) to the controller's commands.
+        default settings; the models of :mod:`amb_controller.early_model`) to the
+        controller's commands.
 
     Returns
     -------

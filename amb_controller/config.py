@@ -257,8 +257,9 @@ class ControllerConfig:
     )
     early_model_file: str = param(
         "",
-        description="early-action model .npz (amb-early-model): read the fault's own period "
-        "for a sudden unbalance and cancel it from the next ('' = off)",
+        description="early-action model .npz (amb-early-model; one speed or a bank, the model "
+        "nearest the measured speed used): read the fault's own period for a sudden unbalance "
+        "and cancel it from the next ('' = off)",
         allowed="a path string ('' = off)",
     )
     identification_order: int = param(

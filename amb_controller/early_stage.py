@@ -17,6 +17,11 @@ __all__ = ["EarlyStage"]
 _KEPT = 3
 
 
+def _as_bank(models: EarlyModelBank | EarlyActionModel) -> EarlyModelBank:
+    """A bank as it is, one model as a bank of one."""
+    return EarlyModelBank((models,)) if isinstance(models, EarlyActionModel) else models
+
+
 class EarlyStage:
     """
     :class:`EarlyAction` on a sample stream, as the controller pipeline feeds it.
@@ -55,8 +60,7 @@ class EarlyStage:
 
         The force limit comes with each period (:meth:`end_period`: a run-time change).
         """
-        if isinstance(bank, EarlyActionModel):
-            bank = EarlyModelBank((bank,))
+        bank = _as_bank(bank)
         if bank.models[0].samples_per_rev != samples_per_period:
             raise ControllerValueError(
                 f"early-action model for {bank.models[0].samples_per_rev} samples per period, "
@@ -67,8 +71,7 @@ class EarlyStage:
     def __init__(
         self, bank: EarlyModelBank | EarlyActionModel, config: EarlyActionConfig, delay: int
     ) -> None:
-        if isinstance(bank, EarlyActionModel):
-            bank = EarlyModelBank((bank,))
+        bank = _as_bank(bank)
         self.bank, self.config, self.delay = bank, config, int(delay)
         first = bank.models[0]
         self.N = N = first.samples_per_rev
