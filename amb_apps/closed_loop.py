@@ -360,9 +360,14 @@ class _Monitor:
     """
 
     def __init__(
-        self, samples_per_rev: int, wavelet: str, ki: float, feedback_channels: Sequence[int]
+        self,
+        samples_per_rev: int,
+        wavelet: str,
+        ki: float,
+        feedback_channels: Sequence[int],
+        config: MonitorConfig | None = None,
     ) -> None:
-        config = MonitorConfig(samples_per_rev=samples_per_rev)
+        config = config or MonitorConfig(samples_per_rev=samples_per_rev)
         self.core = FaultMonitor(config, ki, feedback_channels)
         self.spr = samples_per_rev
         self.wavelet = wavelet
@@ -429,6 +434,8 @@ def run_closed_loop(
     stop=None,
     controller=None,
     early_model=None,
+    early_config=None,
+    monitor_config: MonitorConfig | None = None,
 ) -> RunResult:
     """
     Run one scenario in lock step with the wavelet controller ACTIVE from period 0.
@@ -481,6 +488,11 @@ def run_closed_loop(
         Adds the early action on a sudden unbalance (:mod:`amb_controller.early_action`,
         default settings; the models of :mod:`amb_controller.early_model`) to the
         controller's commands.
+    early_config : amb_controller.early_action.EarlyActionConfig, optional
+        Its settings (default: the defaults).
+    monitor_config : MonitorConfig, optional
+        The fault monitor's settings (``fault_monitor=True``; default: the defaults at the
+        run's samples per revolution).
 
     Returns
     -------
@@ -490,8 +502,9 @@ def run_closed_loop(
     monitor = None
     if fault_monitor:
         monitor = _Monitor(
-            config.samples_per_rev, config.wavelet, rig.amb.Ki, rig.feedback_channels
-        )
+            config.samples_per_rev, config.wavelet, rig.amb.Ki, rig.feedback_channels,
+            monitor_config,
+        )  # fmt: skip
     loop = _Loop(rig, scenario, config, model, seed, recorder, monitor, baseline)
     loop.engage_on = tuple(int(c) for c in engage_on)
     if controller is not None:
@@ -502,7 +515,7 @@ def run_closed_loop(
                 f"the early action runs with the wavelet pipeline's controllers, not "
                 f"{config.controller!r}"
             )
-        loop.pipeline.set_early_model(early_model)
+        loop.pipeline.set_early_model(early_model, early_config)
     if engage_on and not fault_monitor:
         raise ControllerValueError("engage_on needs fault_monitor=True (events engage control)")
     if config.controller != "none" and not engage_on:

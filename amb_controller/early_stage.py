@@ -54,9 +54,13 @@ class EarlyStage:
 
     @classmethod
     def from_model(
-        cls, bank: EarlyModelBank | EarlyActionModel, delay: int, samples_per_period: int
+        cls,
+        bank: EarlyModelBank | EarlyActionModel,
+        delay: int,
+        samples_per_period: int,
+        config: EarlyActionConfig | None = None,
     ) -> EarlyStage:
-        """The stage of ``bank`` with the default :class:`EarlyActionConfig`.
+        """The stage of ``bank`` with ``config`` (default: the default :class:`EarlyActionConfig`).
 
         The force limit comes with each period (:meth:`end_period`: a run-time change).
         """
@@ -66,7 +70,7 @@ class EarlyStage:
                 f"early-action model for {bank.models[0].samples_per_rev} samples per period, "
                 f"the controller runs {samples_per_period}"
             )
-        return cls(bank, EarlyActionConfig(), delay)
+        return cls(bank, config or EarlyActionConfig(), delay)
 
     def __init__(
         self, bank: EarlyModelBank | EarlyActionModel, config: EarlyActionConfig, delay: int

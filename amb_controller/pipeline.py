@@ -56,6 +56,7 @@ from amb_controller.config import (
     ConfigError,
     ControllerConfig,
 )
+from amb_controller.early_action import EarlyActionConfig
 from amb_controller.early_model import EarlyActionModel, EarlyModelBank
 from amb_controller.early_stage import EarlyStage
 from amb_controller.errors import ControllerValueError
@@ -273,13 +274,16 @@ class ControllerPipeline:
         else:
             self.supervisor.controller = None
 
-    def set_early_model(self, model: EarlyModelBank | EarlyActionModel) -> None:
+    def set_early_model(
+        self, model: EarlyModelBank | EarlyActionModel, config: EarlyActionConfig | None = None
+    ) -> None:
         """Add the early action on a sudden unbalance (:mod:`amb_controller.early_action`).
 
-        ``model``: a bank of models at several speeds, or one model (:mod:`.early_model`).
+        ``model``: a bank of models at several speeds, or one model (:mod:`.early_model`);
+        ``config``: its settings (default: the defaults).
         """
         self.early = EarlyStage.from_model(
-            model, self.config.delay_periods, self.samples_per_period
+            model, self.config.delay_periods, self.samples_per_period, config
         )
 
     def set_controller(self, controller) -> None:

@@ -103,6 +103,12 @@ class MonitorConfig:
         that makes a control step (:mod:`amb_fault_monitor.control_transients`). The default
         lies well above the steady per-revolution adjustments of the controller and below the
         smallest drop that made an event (measurements: ``docs/fault_monitor_notes.md``).
+    control_kink : float
+        N, second difference of the applied control force on an axis from one sample to the
+        next that makes a kink: a contact burst at a kink is the force's own response
+        (:mod:`amb_fault_monitor.control_transients`). Default as ``control_step``: in steady
+        control the sinusoidal force's second difference stays under 0.5 N at 64 samples per
+        revolution; a law's command meeting the previous one while it reacts kinks ~20 N.
     control_window_revs : float
         How long after a step run an episode's estimated onset may lie to be its transient
         (:mod:`amb_fault_monitor.control_transients`). One revolution (one control period)
@@ -191,6 +197,7 @@ class MonitorConfig:
         floats=(1e-3, 1e5),
         runtime=True,
     )
+    control_kink: float = 2.0
     control_window_revs: float = 1.0
     coil_floor: float = param(
         0.1,
@@ -225,8 +232,9 @@ class MonitorConfig:
             "calibration_revs", "settle_ratio", "k", "confirm_ratio", "confirm_revs", "quiet_revs",
             "decision_revs", "max_tail_revs", "isolation", "sync_change", "burst_gap_revs",
             "tail_rise", "tail_rise_median", "dead_revs", "base_coherence", "base_dominance",
-            "rearm_revs", "control_step", "control_window_revs", "coil_floor", "coil_factor",
-            "coil_confirm_revs", "bias_floor", "bias_factor", "bias_steady", "provisional_ratio",
+            "rearm_revs", "control_step", "control_kink", "control_window_revs", "coil_floor",
+            "coil_factor", "coil_confirm_revs", "bias_floor", "bias_factor", "bias_steady",
+            "provisional_ratio",
         )  # fmt: skip
         for name in positive:
             if not getattr(self, name) > 0:

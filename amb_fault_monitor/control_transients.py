@@ -27,6 +27,17 @@ finest level like an impulse) and are not counted; bursts outside are contacts a
 in any episode. Without a force step nothing changes. The price: a fault that begins while a
 control transient's episode is open (its decision wait and its ring-down) is decided with it
 and not reported unless its bursts rise above the ring-down envelope.
+
+Kinks. Within a revolution, the force's own shape can ring the finest level: a command that
+starts a period with a jump of its slope (the early action's transient force, unsmoothed,
+stepped 320-450 N in one sample; a period-rate law's command meets the previous one with a
+kink of ~20 N while it reacts) moves the rotor like an impulse at that sample, and in any
+episode the contact test took it for a contact (the burst's onset at the kink's sample, in
+every such run measured). A sample whose second difference of the applied force exceeds
+``control_kink`` on an axis is a *kink*; a contact burst whose coefficient's support, or as
+many samples before it, holds a kink is the force's response and not counted, in any episode.
+A real contact in such a window is missed once; one that persists is found at its next
+burst.
 """
 
 from __future__ import annotations
@@ -67,6 +78,8 @@ class ControlSteps:
         self._force = [[0.0] * 4 for _ in range(spr)]
         self._force_at = [-(2**62)] * spr
         self._steps: deque[list] = deque(maxlen=32)  # [first, last, largest change N]
+        self._kinks: deque[int] = deque(maxlen=64)  # samples of a force kink (notes)
+        self._last2: tuple[int, list, list] | None = None  # (n, force n - 1, force n)
         self.transients = 0
         self.last_transient: dict | None = None
 
@@ -92,6 +105,14 @@ class ControlSteps:
                     steps.append([n, n, change])
         self._force[slot] = f
         self._force_at[slot] = n
+        last = self._last2
+        if last is not None and last[0] == n - 1:
+            kink = max(abs(a - 2.0 * b + c) for a, b, c in zip(f, last[2], last[1], strict=True))
+            if kink > self.config.control_kink:
+                self._kinks.append(n)
+            self._last2 = (n, last[2], f)
+        else:
+            self._last2 = (n, f, f)  # no sample before: no slope yet
 
     def run_explaining(self, crossings: list[Crossing], start: int) -> list | None:
         """
@@ -111,6 +132,11 @@ class ControlSteps:
             if run[0] < start and run[0] < onset + support and onset <= run[1] + window:
                 return run
         return None
+
+    def kink_near(self, first: int, last: int) -> bool:
+        """True if a kink lies in samples ``first..last`` or as many before (module notes)."""
+        start = first - (last - first + 1)
+        return any(start <= k <= last for k in self._kinks)
 
     def in_window(self, n: int) -> bool:
         """True if sample ``n`` lies in a step run or up to ``control_window_revs`` after it."""

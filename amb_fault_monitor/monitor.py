@@ -461,6 +461,8 @@ class FaultMonitor:
             return
         if self._control_run(ep) and self._control.in_window(n):
             return  # the response to a control step (module notes, step 5)
+        if self._control.kink_near(s.first_sample_index, s.last_sample_index):
+            return  # the force's own kink (step 5, control_transients "Kinks")
         if ep.decided is not None:
             ep.last_crossing = n
         onset = ep.contacts.onset

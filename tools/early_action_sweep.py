@@ -3,7 +3,7 @@ Measure the early action (issue 18 item 4) against the same controllers without 
 
 Usage (after ``source tools/env.sh``)::
 
-    python tools/early_action_sweep.py phases [--monitor] [--rows R1,R2,..]
+    python tools/early_action_sweep.py phases [--monitor] [--smoothing MU] [--rows R1,R2,..]
     python tools/early_action_sweep.py robustness [--rows ..]
     python tools/early_action_sweep.py faults
     python tools/early_action_sweep.py speeds [--factors 0.9:1.1:0.005]
@@ -36,6 +36,7 @@ from amb_apps.bound_cli import moved
 from amb_apps.compare_cases import SPECS, Matrix
 from amb_apps.compare_runs import run_metrics
 from amb_common.paths import config_file
+from amb_controller.early_action import EarlyActionConfig
 from amb_plant_sim.scenario import load_scenario
 
 PHASE_ROWS = "predictive_i1,predictive_early_i1,predictive_i2,predictive_early_i2,harmonic_i1"
@@ -50,7 +51,7 @@ def _floor(result, speed_hz: float, delay: int, n: int) -> float:
     return float(x[(kf // n) * n : k0].max())
 
 
-def phases(matrix: Matrix, rows: list[str], monitor: bool) -> None:
+def phases(matrix: Matrix, rows: list[str], monitor: bool, early_config=None) -> None:
     """Print the peak and its ratio to the run's floor per scenario, fault phase and row."""
     for key in ("mass_loss_1st", "mass_loss_2nd"):
         base = matrix.scenarios[key]
@@ -60,7 +61,7 @@ def phases(matrix: Matrix, rows: list[str], monitor: bool) -> None:
             cells = []
             for name in rows:
                 spec = SPECS[name]
-                r = matrix.run(spec, key, fault_monitor=monitor)
+                r = matrix.run(spec, key, fault_monitor=monitor, early_config=early_config)
                 peak = run_metrics(r, sc.speed_hz)["peak"]
                 delay = spec.delay if spec.controller != "none" else 1
                 ratio = peak / _floor(r, sc.speed_hz, delay, 64)
@@ -148,10 +149,17 @@ def main() -> None:
     ap.add_argument("--factors", default="0.9:1.1:0.005", help="speeds: LO:HI:STEP of the speed")
     ap.add_argument("--rows", default=None, help="comma-separated amb-compare rows")
     ap.add_argument("--monitor", action="store_true", help="phases: fault monitor in the loop")
+    ap.add_argument(
+        "--smoothing", type=float, default=None,
+        help="phases: the early action's transient_smoothing (default: its default)",
+    )  # fmt: skip
     args = ap.parse_args()
     matrix = Matrix(config_file("scenarios"), None, None, True)
     if args.what == "phases":
-        phases(matrix, (args.rows or PHASE_ROWS).split(","), args.monitor)
+        cfg = None
+        if args.smoothing is not None:
+            cfg = EarlyActionConfig(transient_smoothing=args.smoothing)
+        phases(matrix, (args.rows or PHASE_ROWS).split(","), args.monitor, cfg)
     elif args.what == "robustness":
         robustness(matrix, (args.rows or ROBUST_ROWS).split(","))
     elif args.what == "speeds":

@@ -385,3 +385,30 @@ def test_early_action_off_the_nominal_speed(factor, single, peak_ratio):
     assert found.plane == loss.get("disk") and found.acted
     assert found.me == pytest.approx(loss.get("me"), rel=0.05)
     assert run_metrics(early, hz)["peak"] < peak_ratio * run_metrics(plain, hz)["peak"]
+
+
+def test_the_monitor_does_not_take_the_early_action_s_force_kink_for_a_contact():
+    """Issue 19 (the fault monitor in the loop): the early action's transient force unsmoothed
+    (``transient_smoothing`` 0) steps by hundreds of newtons in one sample at the start of its
+    period and rings the finest level like a contact. Reference: the simulator's truth (no
+    contact). With the kink rule (``control_kink``) the monitor reports the loss and no
+    contact; with it off (a threshold no force reaches) it called one (measured: a burst
+    whose onset is the sample of a 321 N step)."""
+    from amb_apps.bound_cli import moved
+    from amb_apps.compare_cases import SPECS, Matrix
+    from amb_common.paths import config_file
+    from amb_controller.early_action import EarlyActionConfig
+    from amb_fault_monitor.config import MonitorConfig
+
+    matrix = Matrix(config_file("scenarios"), 64, None, True)
+    matrix.scenarios["mass_loss_1st"] = moved(matrix.scenarios["mass_loss_1st"], 64, 0.25)[0]
+    kw = {"fault_monitor": True, "early_config": EarlyActionConfig(transient_smoothing=0.0)}
+
+    def kinds(**more):
+        run = matrix.run(SPECS["predictive_early_i1"], "mass_loss_1st", **kw, **more)
+        assert not run.contact.any()  # the truth: no contact in this run
+        return [e["fault_type"] for e in run.fault_events]
+
+    assert kinds() == ["MASS_LOSS"]
+    off = MonitorConfig(samples_per_rev=64, control_kink=1e5)
+    assert "AUX_BEARING_CONTACT" in kinds(monitor_config=off)
