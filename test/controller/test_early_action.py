@@ -334,3 +334,21 @@ def test_a_large_change_the_model_fits_all_but_a_sliver_of_is_accepted():
     assert found[0].me == pytest.approx(math.hypot(*theta), rel=0.05)
     strict = EarlyAction(model, EarlyActionConfig(max_unexplained=0.0), delay=1)
     assert _run(strict, y) == []
+
+
+def test_the_operator_is_told_which_model_is_in_use_and_when_none_is():
+    from amb_controller.early_messages import model_change_message
+
+    bank = _banked(_synthetic_model(), (100.0, 120.0))
+    stage = EarlyStage(bank, EarlyActionConfig(), delay=1)
+
+    def period(omega):
+        for k in range(N):
+            stage.sample(k, np.zeros(2), omega)
+        stage.end_period(0, 1, np.zeros((4, N)), True, True, np.full(4, 1e3))
+        return model_change_message(stage, omega)
+
+    ok, text = period(120.2)
+    assert ok and f"model of {120.0 / (2 * math.pi):.3f} Hz" in text
+    ok, text = period(110.0)
+    assert not ok and "no model within 0.5%" in text and "testing nothing" in text
