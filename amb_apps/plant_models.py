@@ -217,13 +217,7 @@ def early_action_model(rig, scenario, samples_per_rev: int, horizon_periods: int
     lin = linear_rig(rig)
     quiet = replace(scenario, events=(), measurement_noise=0.0, duration=(2 * N + lp + 2) / fs)
     still = PlantSimulator(lin, quiet, N)
-    cols = []
-    for a in range(N_AXES):
-        force = np.zeros((L, N_AXES))
-        force[0, a] = 1.0
-        still.reset()
-        cols.append(still.advance(L, force).displacement)
-    bearing = np.stack(cols, axis=2)
+    bearing = np.stack([b.displacement for b in still.pulse_responses(L)], axis=2)
     s0 = 2 * N  # the loss appears at this sample
     planes = []
     for disk in rig.disks:

@@ -161,12 +161,7 @@ def free_and_markov(
     quiet = replace(scenario, measurement_noise=0.0)
     free = _outputs(PlantSimulator(lin, quiet, samples_per_rev).advance(n), inner)
     still = PlantSimulator(lin, replace(quiet, events=()), samples_per_rev)  # one discretisation
-    cols = []
-    for a in range(4):
-        force = np.zeros((n, 4))
-        force[0, a] = 1.0
-        still.reset()
-        cols.append(_outputs(still.advance(n, force), inner))
+    cols = [_outputs(block, inner) for block in still.pulse_responses(n)]
     markov = [np.stack([c[f] for c in cols], axis=2) for f in range(3)]
     return list(free), markov
 

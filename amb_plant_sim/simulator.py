@@ -221,6 +221,27 @@ class PlantSimulator(EventInputs, StepByStepIntegration):
         self._inp_key = None
         return ev
 
+    def pulse_responses(self, n_samples: int) -> list[MeasurementBlock]:
+        """
+        The loop's responses to 1 N held over sample 0 on each bearing axis in turn.
+
+        Each is ``n_samples`` samples from :meth:`reset` (the Markov parameters of the wavelet
+        force's path on a linear rig, with the scenario's events if it has any); the simulator
+        is left after the last one.
+
+        Returns
+        -------
+        list of MeasurementBlock
+            One per axis [b1x, b1y, b2x, b2y].
+        """
+        blocks = []
+        for axis in range(4):
+            force = np.zeros((int(n_samples), 4))
+            force[0, axis] = 1.0
+            self.reset()
+            blocks.append(self.advance(n_samples, force))
+        return blocks
+
     def advance(
         self, n_samples: int, wavelet_force: NDArray[np.float64] | None = None
     ) -> MeasurementBlock:
