@@ -39,8 +39,8 @@ def build_parser() -> argparse.ArgumentParser:
     """Return the parser of ``amb-early-model``."""
     ap = argparse.ArgumentParser(
         prog="amb-early-model",
-        description="Write the early action's sample-domain model (FE route) at a scenario's "
-        "speed, for wavelet_controller.early_model_file.",
+        description="Write the early action's sample-domain models (FE route) at a scenario's "
+        "speed or a band about it, for wavelet_controller.early_model_file.",
     )
     ap.add_argument("--scenario", required=True, help="scenario YAML (its speed is used)")
     ap.add_argument("--out", required=True, type=Path, help="model file to write (.npz)")

@@ -90,8 +90,9 @@ class EarlyStage:
         self.early: EarlyAction | None = None
         self.detections: list[Detection] = []
         self.speed_idle_periods = 0
-        if len(bank.models) == 1 and first.omega == 0.0:  # speed unknown: always this one
-            self._use(0)
+        # before any speed is measured: the bank's rule (a single model of unrecorded speed
+        # is in use at once, a bank of speeds waits for the first period's speed)
+        self._use(bank.select(0.0, config.speed_tolerance))
 
     @property
     def model_omega(self) -> float | None:
