@@ -37,8 +37,8 @@ a coefficient message arrives for ``measurement_timeout`` s, the controller repo
 forgets its history, so that it holds zero until the stream returns; it then resumes without a
 restart. Coefficients that run ahead of the measurements while no measurement has come for
 ``measurement_timeout`` s mean the filterbank is fed and this node is not: the node says so once
-per silence, as an error (the transport stopped feeding its reader: Fast DDS's shared memory after
-the process was stopped longer than the port's health check; docs/history.md). A command the
+per silence, as an error (the transport stopped feeding its reader, as seen after the process
+was stopped for seconds, with shared memory or UDP; docs/history.md). A command the
 pipeline made with a non-finite value (never expected) is replaced by a
 zero command. A period whose measurements carry ``STATUS_COMMAND_MISSING`` ran without the
 command sent for it (lost, late, or the plant's watchdog): it is counted ``commands_late`` and
@@ -151,6 +151,10 @@ from amb_wavelet.messages import coefficient_records
 
 #: Coefficient messages more than this many periods ahead of the measurements are refused.
 COEFFICIENT_HORIZON_PERIODS = 8
+
+
+#: What the node's error says when its measurement reader is no longer fed (module notes).
+BLIND_READER = "the transport no longer feeds this node's measurement reader"
 
 
 class WaveletControllerNode(Node):
@@ -459,10 +463,8 @@ class WaveletControllerNode(Node):
             self._blind_reported = True
             self.get_logger().error(
                 f"no measurement for over {timeout:g} s while the filterbank's coefficients "
-                "still arrive: the transport no longer feeds this node's measurement reader "
-                "(Fast DDS shared memory, after this process was stopped longer than the port's "
-                "health check, 1 s); restart the node, or run the nodes with "
-                "FASTDDS_BUILTIN_TRANSPORTS=UDPv4"
+                f"still arrive: {BLIND_READER} (seen after this process was stopped for "
+                "seconds; docs/history.md); restart the node"
             )
 
     def _process(self, m: MeasurementView, coeffs: CoefficientsView | None) -> None:

@@ -14,11 +14,6 @@ command in one idle run of 2026-12-02, and periods 4-11 after it in one run with
 busy (2026-12-03): the resent samples came in batches below the bound and were worked through
 in order.
 
-The two consumers talk over UDP alone (``UDP_ONLY``): stopped for ``STOP`` = 1 s, as long as
-Fast DDS's shared-memory health check, a consumer may otherwise never be fed again over
-shared memory (docs/history.md, "A reader the transport stopped feeding"), which is the
-transport's limit and not what this test is about.
-
 Reference: the plant's own ``STATUS_COMMAND_MISSING`` flag on every sample (set on every sample
 of a period that starts without its command) and the consumers' ``backlog_dropped`` counts on
 ``/diagnostics``. A period is judged by any of its samples the test's observer received (with
@@ -41,7 +36,6 @@ import pytest
 import yaml
 from amb_msgs.msg import Measurement
 from reliability_helpers import Diagnostics
-from ros_harness import UDP_ONLY
 
 from amb_tools.conversions import stamp_seconds
 from amb_tools.streams import stream_qos
@@ -86,9 +80,9 @@ def test_the_chain_catches_up_within_two_periods_after_an_overload(
         qos,
     )
     common = {"samples_per_rev": SPR, "max_backlog": BACKLOG}
-    filterbank = node_process("wavelet_filterbank", params=common, env=UDP_ONLY)
+    filterbank = node_process("wavelet_filterbank", params=common)
     controller = node_process(
-        "wavelet_controller", params={**common, "controller": "transient"}, env=UDP_ONLY
+        "wavelet_controller", params={**common, "controller": "transient"}
     )  # OFF: a zero-force command for every period, in time or not
     plant = node_process(
         "plant_sim",

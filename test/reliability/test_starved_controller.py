@@ -11,11 +11,12 @@ otherwise its integrators wind up while the rotor sits on its PID, and the first
 gets through throws it beyond the PID-only response (the failure of a loaded CI run of
 ``test_restart.py``: 0.76 mm at x2). Reference: the same scenario on PID alone (in process).
 
-The controller talks over UDP alone (``UDP_ONLY``): stopped 2.5 s at a time, it outlasts Fast
-DDS's shared-memory health check, which then stops feeding its measurement reader for good in
-about one run in six on a loaded machine (docs/history.md, "A reader the transport stopped
-feeding"; stop 36's CI). That is the transport's limit, not the controller's, and this test is
-about the controller.
+In about one run in six to ten the transport stops feeding the starved controller's
+measurement reader for good (docs/history.md, "A reader the transport stopped feeding"; stop 29's
+and stop 36's CI; with the controller over UDP alone it happened too, stop 37). The controller
+then says so (``amb_controller.node.BLIND_READER``) and can neither resume nor be judged: the
+test reports that run as an expected failure of the transport (issue 17) instead of a verdict on
+the controller, whose wind-up is what it is about.
 
 With the controller blind to the flag (the old node) a starvation of this kind gave 0.91 /
 0.92 mm at the end planes and 0.76 mm at the inner ones (x2, y2): 2.2-5.4 times PID alone.
@@ -27,13 +28,13 @@ import numpy as np
 import pytest
 from amb_msgs.msg import ControllerStatus, Measurement
 from reliability_helpers import fe_model_file
-from ros_harness import UDP_ONLY
 from scenarios import SAMPLES_PER_REV, first_critical_mass_loss
 from throttle import Throttle
 
 from amb_apps.closed_loop import run_closed_loop
 from amb_common.rig import load_rig
 from amb_controller.config import ControllerConfig
+from amb_controller.node import BLIND_READER
 from amb_plant_sim.scenario import load_scenario
 from amb_tools.streams import stream_qos
 
@@ -62,7 +63,6 @@ def test_a_starved_controller_does_not_wind_up(ros, node_process, tmp_path) -> N
         "wavelet_controller",
         params={"samples_per_rev": SPR, "controller": "transient", "start_mode": "active",
                 "model_file": str(model)},
-        env=UDP_ONLY,
     )  # fmt: skip
     assert ros.spin_until(lambda: status_sub.get_publisher_count() >= 1, 60.0), controller.log()
     # command_timeout: long enough that a controller slowed by a loaded machine (its first
@@ -94,6 +94,8 @@ def test_a_starved_controller_does_not_wind_up(ros, node_process, tmp_path) -> N
     # work, which the controller must survive just the same)
     assert any(i >= starved_from - SPR for i in missing), "the starving cost commands"
     last_missing = max(missing)
+    if BLIND_READER in controller.log():
+        pytest.xfail(f"issue 17: the transport stopped feeding the controller ({BLIND_READER})")
     assert last_missing < len(samples) - 10 * SPR, "lock step resumed before the end"
     assert any(np.any(m.wavelet_force) for m in samples[last_missing + 1 :]), controller.log()
 

@@ -173,12 +173,6 @@ def spin_until(executor, predicate: Callable[[], bool], timeout: float, step: fl
     return True
 
 
-#: Environment of a node process that talks over UDP alone, without Fast DDS's shared memory:
-#: a process stopped longer than the shared-memory port's health check (1 s by default) may
-#: never be fed again over it (docs/history.md, "A reader the transport stopped feeding").
-UDP_ONLY = {"FASTDDS_BUILTIN_TRANSPORTS": "UDPv4"}
-
-
 class NodeProcess:
     """A node executable running as its own process.
 
@@ -196,8 +190,6 @@ class NodeProcess:
         Passed as ``-p name:=value``.
     extra_args : sequence of str
         More ``--ros-args`` arguments (remappings ``-r``).
-    env : dict, optional
-        More environment variables for the process (e.g. :data:`UDP_ONLY`).
     """
 
     def __init__(
@@ -207,7 +199,6 @@ class NodeProcess:
         params_file: Path | None = None,
         params: dict | None = None,
         extra_args: Sequence[str] = (),
-        env: dict[str, str] | None = None,
     ) -> None:
         if executable.startswith("-m "):
             cmd = [sys.executable, "-m", executable[3:]]
@@ -232,8 +223,9 @@ class NodeProcess:
         self.cmd = cmd
         self.log_path = Path(log_dir) / f"{name}-{os.getpid()}-{time.monotonic_ns()}.log"
         self._log = open(self.log_path, "w")
-        environ = {**os.environ, **(env or {}), "PYTHONUNBUFFERED": "1"}
-        self.proc = subprocess.Popen(cmd, stdout=self._log, stderr=subprocess.STDOUT, env=environ)
+        env = dict(os.environ)
+        env["PYTHONUNBUFFERED"] = "1"
+        self.proc = subprocess.Popen(cmd, stdout=self._log, stderr=subprocess.STDOUT, env=env)
 
     @property
     def returncode(self) -> int | None:
