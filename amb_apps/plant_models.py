@@ -236,6 +236,7 @@ def early_action_model(rig, scenario, samples_per_rev: int, horizon_periods: int
         objective=tuple(rig.feedback_channels),
         clearance=min(c.radial_clearance for c in rig.clearance_bearings),
         omega=2 * math.pi * scenario.speed_hz,
+        slew_rate=rig.amb.force_slew_rate,
         source="fe",
     )
 

@@ -91,6 +91,20 @@ The first sample a command made now can reach is ``k0 = (m + i) N`` (delay ``i``
   ``mu`` = ``transient_smoothing``), then scaled by ``c`` too. ``c = 1 - m^2`` is the robust
   scale for a force path off by up to ``m`` = ``gain_margin`` (:class:`EarlyActionConfig`).
 
+The amplifiers bound how fast a bearing's force can change (eq. 2.42: ``K_i (V - R I) / L``,
+:attr:`amb_common.rig.AmbData.force_slew_rate`, 7.15e5 N/s for Table 2.2's coils). A plan
+whose largest step per sample, steady and transient force together from zero before ``k0``,
+exceeds ``slew_budget`` of that slew over one sample is made again with the next smoothing of a
+ladder (``mu`` = ``transient_smoothing``, then 0.25, 0.5, .., 16 above it), the least smooth
+that keeps within it; if even the smoothest does not, the whole plan (steady and transient) is
+scaled down until it does::
+
+    max_n |f[n] - f[n - 1]| <= slew_budget x slew_rate x 2 pi / (omega N)               (E4)
+
+The rest of the slew is left for the PID loop and the feedback law (their forces change by a
+few 1e4 N/s at the vibration levels of the suite). The ladder costs one ``(4 M)^2`` product
+per try; each smoothing's matrix is computed once.
+
 (E1)-(E3) are matrix products with matrices computed once from the model (:meth:`EarlyAction
 .__init__`): the test costs one product of ``(planes 2N 2) x (2N n_s)`` per period. After a
 detection the reference is formed again from the periods after it (``arm_periods`` quiet
@@ -149,14 +163,16 @@ class EarlyActionConfig:
         ``lambda`` >= 0 of (E3), relative to ``||H_M||``.
     transient_smoothing : float
         ``mu`` >= 0: weight of the added force's sample-to-sample steps in (E3), relative to
-        ``||H_M||`` (the steady force's switch-on at ``k0`` included). A rough force rings the
-        finest wavelet level like a contact: with the fault monitor in the loop (its
-        AUX_BEARING_CONTACT makes the controller HOLD), the 430 g cm losses at the first and
-        second critical speeds, five fault phases each, i = 1 and 2, were called contacts in
-        11 of 20 runs with ``mu = 0``, 6 with 1, 2 with 2 (the predictive law alone: 2); the
-        default is the smallest with no more of them than the law alone
-        (docs/controller_notes.md; the peak at the first critical speed, i = 1, goes from 10
-        to 37 um, 82.5 without the early action).
+        ``||H_M||`` (the steady force's switch-on at ``k0`` included), the least smoothing
+        tried; (E4) raises it when the plan steps faster than the amplifiers can. Default 0:
+        with the fault monitor's kink rule (``MonitorConfig.control_kink``) an unsmoothed
+        force no longer rings the monitor's contact test (no contact called in the 20 runs of
+        the first- and second-critical losses at five fault phases, i = 1 and 2), and the
+        peaks at i = 1 are lower than with ``mu = 2`` (docs/controller_notes.md).
+    slew_budget : float
+        In (0, 1]: the fraction of the amplifiers' slew (the model's ``slew_rate`` over one
+        sample) the plan's own steps may use (E4); the rest is the PID loop's and the
+        feedback law's. A model without a slew rate (inf) is not bounded.
     horizon_periods : int
         ``L / N``, periods of the predicted response used by (E2)-(E3), >= 2.
     min_noise : float
@@ -197,13 +213,14 @@ class EarlyActionConfig:
     arm_periods: int = 8
     transient_samples: int = 64
     transient_weight: float = 0.03
-    transient_smoothing: float = 2.0
+    transient_smoothing: float = 0.0
     horizon_periods: int = 6
     min_noise: float = 1e-9
     force_budget: float = 0.6
     gain_margin: float = 0.3
     min_effect: float = 10.0
     speed_tolerance: float = 0.005
+    slew_budget: float = 0.6
 
     def __post_init__(self) -> None:
         checks = [
@@ -225,6 +242,7 @@ class EarlyActionConfig:
             (0.0 <= self.gain_margin < 1.0, "gain_margin must be in [0, 1)"),
             (self.min_effect >= 0.0, "min_effect must be >= 0"),
             (0.0 < self.speed_tolerance <= 0.1, "speed_tolerance must be in (0, 0.1]"),
+            (0.0 < self.slew_budget <= 1.0, "slew_budget must be in (0, 1]"),
         ]
         for ok, message in checks:
             if not ok:
@@ -233,7 +251,11 @@ class EarlyActionConfig:
 
 @dataclass(frozen=True)
 class Detection:
-    """One accepted change: period of the decision, onset sample, plane, unbalance."""
+    """
+    One accepted change: period of the decision, onset sample, plane, unbalance.
+
+    Also the plan's smoothing ``mu`` and its largest step per sample, N, after (E4).
+    """
 
     period: int
     onset_sample: int
@@ -245,6 +267,8 @@ class Detection:
     first_period: int
     acted: bool = True
     predicted_peak: float = 0.0
+    smoothing: float = 0.0
+    largest_step: float = 0.0
 
 
 @dataclass
@@ -273,6 +297,25 @@ def _toeplitz(h: np.ndarray, n_in: int, n_out: int) -> np.ndarray:
         if ln > 0:
             t[j : j + ln, :, j, :] = h[:ln]
     return t.reshape(n_out * n_s, n_in * n_a)
+
+
+def _smoothing_ladder(first: float) -> tuple[float, ...]:
+    """The smoothings (E3) tried in turn when a plan steps faster than the amplifiers can."""
+    return (first, *(mu for mu in (0.25, 0.5, 1.0, 2.0, 4.0, 8.0, 16.0) if mu > first))
+
+
+def _largest_step(steady: np.ndarray, transient: np.ndarray) -> float:
+    """Largest sample-to-sample step of the added force from ``k0`` on, N (from zero before).
+
+    ``steady`` ``(N, 4)`` repeats every period; ``transient`` ``(M, 4)`` adds to its first
+    ``M`` samples; a period more than ``M`` covers the steady force's own steps.
+    """
+    n = steady.shape[0]
+    m = transient.shape[0]
+    span = m + n
+    force = np.tile(steady, (-(-span // n), 1))[:span]
+    force[:m] += transient
+    return float(np.max(np.abs(np.diff(force, axis=0, prepend=0.0))))
 
 
 class EarlyAction:
@@ -367,23 +410,31 @@ class EarlyAction:
         self._tail = tail & obj
         self._steady_gain = -np.linalg.pinv(self._c[self._tail])
         self._steady_pattern = fw[:N]  # (N, 4, 4)
-        # (E3): transient force over M samples
+        # (E3): transient force over M samples, for each smoothing of the ladder
         M = config.transient_samples
         self.M = M
+        self.step_limit = self._step_limit(model, config)
         if M:
             hm = _toeplitz(h, M, L)
             self._h_m = hm.astype(np.float32)  # the residual check only
             ho = hm[obj]
+            self._ho_t = ho.T.astype(np.float32)
             scale = np.linalg.norm(ho, 2)
             lam = config.transient_weight * scale
-            mu = config.transient_smoothing * scale
             # first differences of the added force per axis over the M samples, from zero
             # before k0 (row 0) to the steady force after them (row M)
             d = np.kron(np.eye(M + 1, M) - np.eye(M + 1, M, -1), np.eye(4))
-            a = ho.T @ ho + lam**2 * np.eye(M * 4) + mu**2 * (d.T @ d)
-            self._k_tr = (-np.linalg.solve(a, ho.T)).astype(np.float32)
-            self._k_smooth = -(mu**2) * np.linalg.solve(a, d.T)
+            self._d_t = d.T
+            gram = ho.T @ ho + lam**2 * np.eye(M * 4)
+            dd = d.T @ d
+            mu0 = config.transient_smoothing
+            ladder = (mu0,) if math.isinf(self.step_limit) else _smoothing_ladder(mu0)
+            self._ladder = [
+                (mu, (mu * scale) ** 2, np.linalg.inv(gram + (mu * scale) ** 2 * dd))
+                for mu in ladder
+            ]
             self._obj = obj
+        self.last_smoothing = self.last_step = 0.0  # of the last plan (its Detection's too)
         self.reset()
 
     # ------------------------------------------------------------------ state
@@ -496,6 +547,8 @@ class EarlyAction:
             first_period=first,
             acted=acted,
             predicted_peak=predicted,
+            smoothing=self.last_smoothing,
+            largest_step=self.last_step,
         )
         self.detections.append(det)
         self._quiet = 0  # a new reference after the change
@@ -516,6 +569,19 @@ class EarlyAction:
             self._quiet = 0
             self._z.clear()
 
+    @staticmethod
+    def _step_limit(model: EarlyActionModel, config: EarlyActionConfig) -> float:
+        """
+        The plan's largest step per sample, N (E4).
+
+        ``slew_budget`` of the amplifiers' slew over one sample at the model's speed; inf when
+        the model has no slew rate or no speed.
+        """
+        if math.isinf(model.slew_rate) or model.omega <= 0.0:
+            return math.inf
+        sample_time = 2.0 * math.pi / (model.omega * model.samples_per_rev)
+        return config.slew_budget * model.slew_rate * sample_time
+
     def _plan(
         self, p: int, k: int, theta: np.ndarray, period: int, first: int
     ) -> tuple[_Plan, float, float]:
@@ -533,26 +599,38 @@ class EarlyAction:
         w = self._scale * w_full
         steady = np.einsum("nau,u->na", self._steady_pattern, w)
         plan = _Plan(steady=steady)
+        df = np.zeros((self.M, 4))
         if self.M:
             free = (yd + self._c @ w_full)[self._obj]
+            pulled = self._scale * (self._ho_t @ free.astype(np.float32)).astype(float)
             # the steady force's own steps: switched on at k0, then sample to sample
             reps = -(-(self.M + 1) // N)
             tiled = np.concatenate([np.zeros((1, 4)), np.tile(steady, (reps, 1))[: self.M + 1]])
             jumps = np.diff(tiled, axis=0).ravel()
-            df = (self._k_tr @ free.astype(np.float32)).astype(float).reshape(self.M, 4)
-            df *= self._scale
-            df += (self._k_smooth @ jumps).reshape(self.M, 4)
             budget = self.config.force_budget * self.force_limit
-            room = budget - float(np.max(np.abs(steady)))
-            peak = float(np.max(np.abs(df)))
-            if peak > max(room, 0.0):
-                df *= max(room, 0.0) / peak
-            residual = yd + self._c @ w + (self._h_m @ df.ravel().astype(np.float32)).astype(float)
+            room = max(budget - float(np.max(np.abs(steady))), 0.0)
+            for mu, weight, inverse in self._ladder:  # (E3), smoothest last
+                smoothing = mu
+                df = -(inverse @ (pulled + weight * (self._d_t @ jumps))).reshape(self.M, 4)
+                peak = float(np.max(np.abs(df)))
+                if peak > room:
+                    df *= room / peak
+                step = _largest_step(steady, df)
+                if step <= self.step_limit:
+                    break
+        else:
+            smoothing, step = 0.0, _largest_step(steady, df)
+        if step > self.step_limit:  # even the smoothest: the whole plan scaled down (E4)
+            shrink = self.step_limit / step
+            w, steady, df, step = shrink * w, shrink * steady, shrink * df, self.step_limit
+            plan.steady = steady
+        self.last_smoothing, self.last_step = float(smoothing), float(step)
+        residual = yd + self._c @ w
+        if self.M:
+            residual += (self._h_m @ df.ravel().astype(np.float32)).astype(float)
             for j in range(0, self.M, N):
                 block = np.zeros((N, 4))
                 part = df[j : j + N]
                 block[: len(part)] = part
                 plan.transient[first + j // N] = block
-        else:
-            residual = yd + self._c @ w
         return plan, float(np.max(np.abs(residual))), float(np.max(np.abs(yd)))

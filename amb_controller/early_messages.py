@@ -50,7 +50,10 @@ def decision_message(d: Detection, active: bool) -> str:
             "near the clearance for the linear model)"
         )
     elif active:
-        what = f"cancelling it from period {d.first_period}"
+        what = (
+            f"cancelling it from period {d.first_period} (largest step {d.largest_step:.0f} N "
+            f"per sample, smoothing {d.smoothing:g})"
+        )
     else:
         what = "the controller is not active: no force"
     return (

@@ -11,7 +11,8 @@ stage uses the one nearest the measured speed, and none farther than the early a
 
 File: arrays ``bearing_markov`` and ``plane_responses`` (defined in :class:`EarlyActionModel`)
 stacked over the bank's ``K`` speeds (a leading axis), and a JSON ``meta`` (samples per
-revolution, planes, sensors, objective, clearance, the ``K`` speeds, source) in an ``.npz``,
+revolution, planes, sensors, objective, clearance, slew rate (absent or null: not bounded), the
+``K`` speeds, source) in an ``.npz``,
 read with ``allow_pickle=False``; a file of format 1 (one model, no leading axis) reads as a
 bank of one. ``amb-early-model`` writes one from the FE route
 (:func:`amb_apps.plant_models.early_action_model`); the ``wavelet_controller`` node reads it
@@ -62,6 +63,11 @@ class EarlyActionModel:
         The rig's smallest auxiliary-bearing or retainer clearance, m (the plan's check).
     omega : float
         Running speed the responses are for, rad/s.
+    slew_rate : float
+        Fastest change of a bearing axis's force the amplifiers can make, N/s
+        (:attr:`amb_common.rig.AmbData.force_slew_rate`; inf: not bounded). With ``omega``
+        it bounds the plan's steps per sample (:class:`~amb_controller.early_action
+        .EarlyActionConfig`, ``slew_budget``).
     source : str
         Where the responses come from (e.g. ``"fe"``).
     """
@@ -74,6 +80,7 @@ class EarlyActionModel:
     objective: tuple[int, ...] = ()
     clearance: float = math.inf
     omega: float = 0.0
+    slew_rate: float = math.inf
     source: str = "fe"
 
     def __post_init__(self) -> None:
@@ -99,6 +106,8 @@ class EarlyActionModel:
                 f"need L >= 2 N and L_p >= L + 2 N (N = {n}), got L = {h.shape[0]}, "
                 f"L_p = {g.shape[1]}"
             )
+        if not self.slew_rate > 0.0:
+            raise ControllerValueError(f"slew_rate must be > 0 N/s, got {self.slew_rate}")
         if not (np.all(np.isfinite(h)) and np.all(np.isfinite(g))):
             raise ControllerValueError("early-action model contains NaN or inf")
         object.__setattr__(self, "bearing_markov", h)
@@ -146,6 +155,7 @@ class EarlyModelBank:
                 and (m.planes, m.sensors, m.objective) == (first.planes, first.sensors,
                                                            first.objective)
                 and m.clearance == first.clearance
+                and m.slew_rate == first.slew_rate
             )  # fmt: skip
             if not same:
                 raise ShapeError(
@@ -195,6 +205,7 @@ class EarlyModelBank:
             "sensors": [int(i) for i in m.sensors],
             "objective": [int(i) for i in m.objective],
             "clearance": float(m.clearance),
+            "slew_rate": float(m.slew_rate) if math.isfinite(m.slew_rate) else None,
             "omegas": [float(x.omega) for x in self.models],
             "source": m.source,
         }
@@ -221,6 +232,9 @@ class EarlyModelBank:
             raise ControllerValueError(
                 f"{path}: format {fmt!r}, expected {FORMAT!r} (amb-early-model)"
             )
+        # files written before the slew bound have none: not bounded
+        slew = meta.get("slew_rate")
+        slew = math.inf if slew is None else float(slew)
         if h.shape[0] != len(omegas) or g.shape[0] != len(omegas):
             raise ShapeError(
                 f"{path}: {len(omegas)} speeds for {h.shape[0]} / {g.shape[0]} responses"
@@ -236,6 +250,7 @@ class EarlyModelBank:
                     objective=tuple(meta["objective"]),
                     clearance=meta["clearance"],
                     omega=omegas[k],
+                    slew_rate=slew,
                     source=meta["source"],
                 )
                 for k in range(len(omegas))

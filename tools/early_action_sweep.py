@@ -51,6 +51,11 @@ def _floor(result, speed_hz: float, delay: int, n: int) -> float:
     return float(x[(kf // n) * n : k0].max())
 
 
+def _plan_note(detection) -> str:
+    """The plan's largest step per sample and the smoothing that kept it within the slew."""
+    return f" [step {detection.largest_step:.0f} N, mu {detection.smoothing:g}]"
+
+
 def phases(matrix: Matrix, rows: list[str], monitor: bool, early_config=None) -> None:
     """Print the peak and its ratio to the run's floor per scenario, fault phase and row."""
     for key in ("mass_loss_1st", "mass_loss_2nd"):
@@ -67,6 +72,7 @@ def phases(matrix: Matrix, rows: list[str], monitor: bool, early_config=None) ->
                 ratio = peak / _floor(r, sc.speed_hz, delay, 64)
                 kinds = [e["fault_type"] for e in r.fault_events]
                 mark = " CONTACT" if "AUX_BEARING_CONTACT" in kinds else ""
+                mark += "".join(_plan_note(d) for d in r.early_detections if d.acted)
                 cells.append(f"{name} {peak * 1e6:.1f} / {ratio:.2f}{mark}")
             label = "own" if phase is None else f"{phase:.2f}"
             print(f"{key} {label}: " + " | ".join(cells), flush=True)
@@ -104,9 +110,10 @@ def faults(matrix: Matrix) -> None:
         dets = holder["loop"].pipeline.early.detections
         said = "; ".join(
             f"period {d.period} {d.plane} {d.me * 1e5:.0f} g cm "
-            f"{'acted' if d.acted else f'stood down ({d.predicted_peak * 1e6:.0f} um)'}"
+            + ("acted" + _plan_note(d) if d.acted else
+               f"stood down ({d.predicted_peak * 1e6:.0f} um)")
             for d in dets
-        )
+        )  # fmt: skip
         print(
             f"{path.stem}: peak {pa:.1f} -> {pb:.1f} um, contact samples {ca} -> {cb}, "
             f"early action: {said or 'nothing'}",

@@ -170,8 +170,8 @@ def test_the_stage_flags_the_axes_whose_command_the_limit_cut():
     on which axes (the command's ``saturated``), and leaves a command it adds nothing to as is.
 
     The law's force on the period the plan starts is set, on one axis, just inside the limit and
-    in the plan's direction: the sum passes the limit there and nowhere else. (3 kN: the
-    plan's peak is 143 N, its transient far inside its share of the limit.)
+    in the plan's direction: the sum passes the limit there and nowhere else. (3 kN and the
+    smoothing 2: the plan's peak is 143 N, its transient far inside its share of the limit.)
     """
     import copy
 
@@ -179,7 +179,7 @@ def test_the_stage_flags_the_axes_whose_command_the_limit_cut():
     y = _measure(model, 26, 20 * N + 5, 0, np.array([0.3, -0.2]))
 
     def first_plan(limit):
-        stage = EarlyStage(model, EarlyActionConfig(), delay=1)
+        stage = EarlyStage(model, EarlyActionConfig(transient_smoothing=2.0), delay=1)
         zeros = np.zeros((4, N))
         for m in range(26):
             for k in range(N):
@@ -205,6 +205,42 @@ def test_the_stage_flags_the_axes_whose_command_the_limit_cut():
     np.testing.assert_array_equal(out, np.clip(law + plan, -limit[:, None], limit[:, None]))
 
 
+def _applied_steps(early, detection, periods=8):
+    """Largest sample-to-sample step of the planned force, from zero before it (np.diff)."""
+    first = detection.first_period
+    force = np.concatenate([early.force(m) for m in range(first - 1, first + periods)])
+    return float(np.abs(np.diff(force, axis=0)).max())
+
+
+@pytest.mark.parametrize("fraction", [0.5, 0.02])
+def test_the_plan_steps_no_faster_than_the_amplifiers_allow(fraction):
+    """(E4): the bound is ``slew_budget x slew_rate x 2 pi / (omega N)`` N per sample, here set
+    to a ``fraction`` of the unbounded plan's largest step: at a half the plan is made smoother
+    (a larger mu of the ladder), at 2 % even the smoothest is too fast and the plan is scaled
+    down; either way its steps (differenced here from the forces it adds) keep within it."""
+    model = _synthetic_model()
+    y = _measure(model, 26, 20 * N + 5, 0, np.array([0.3, -0.2]))
+    rough = EarlyActionConfig(transient_smoothing=0.0)
+    free = EarlyAction(replace(model, omega=2 * math.pi * 20.0), rough, delay=1)
+    (d0,) = _run(free, y)
+    assert math.isinf(free.step_limit) and d0.smoothing == 0.0
+    unbounded = _applied_steps(free, d0)
+    assert d0.largest_step == pytest.approx(unbounded, rel=1e-6)
+    omega = 2 * math.pi * 20.0
+    sample_time = 2 * math.pi / (omega * N)
+    config = replace(rough, slew_budget=0.5)
+    limit = fraction * unbounded
+    slew = limit / (config.slew_budget * sample_time)  # N/s
+    early = EarlyAction(replace(model, omega=omega, slew_rate=slew), config, delay=1)
+    assert early.step_limit == pytest.approx(limit, rel=1e-12)
+    (d,) = _run(early, y)
+    assert d.acted and d.smoothing > 0.0
+    assert _applied_steps(early, d) <= limit * (1 + 1e-6)
+    assert d.largest_step == pytest.approx(_applied_steps(early, d), rel=1e-6)
+    if fraction == 0.02:  # scaled down: exactly at the bound
+        assert d.smoothing == 16.0 and d.largest_step == pytest.approx(limit, rel=1e-9)
+
+
 def test_bad_settings_and_shapes_are_refused():
     with pytest.raises(ControllerValueError, match="threshold"):
         EarlyActionConfig(threshold=1.0)
@@ -212,11 +248,15 @@ def test_bad_settings_and_shapes_are_refused():
         EarlyActionConfig(reference_periods=6, arm_periods=4)
     with pytest.raises(ControllerValueError, match="force_budget"):
         EarlyActionConfig(force_budget=0.0)
+    with pytest.raises(ControllerValueError, match="slew_budget"):
+        EarlyActionConfig(slew_budget=1.5)
     model = _synthetic_model()
     with pytest.raises(ShapeError, match="L_p"):
         replace(model, plane_responses=model.plane_responses[:, : L + N])
     with pytest.raises(ShapeError, match="sensors"):
         replace(model, sensors=(0,))
+    with pytest.raises(ControllerValueError, match="slew_rate"):
+        replace(model, slew_rate=0.0)
     early = EarlyAction(model, EarlyActionConfig(), delay=1)
     with pytest.raises(ShapeError):
         early.end_period(0, np.zeros((N, 3)), np.zeros((N, 4)))

@@ -44,6 +44,18 @@ def test_table_2_2_geometry_gives_the_thesis_stiffness_and_gain(rig):
     assert amb_law.linear_force(a, 0.0, 1e-3) == pytest.approx(2240.0)
 
 
+def test_the_force_slew_rate_is_the_coil_equation_at_table_2_2_s_peak_voltage(rig):
+    """Eq. 2.42 (v = R i + L di/dt) at the peak current: (95.2 - 0.365 x 10) V over 0.0732 H,
+    times 572 N/A (Table 2.2, section 2.3); the coil's exact current (closed form of the same
+    equation) over one sample at 67 Hz x 32 reaches it to within R T / 2 L."""
+    rate = rig.amb.force_slew_rate
+    assert rate == pytest.approx(572.0 * (95.2 - 0.365 * 10.0) / 0.0732, rel=1e-12)
+    t = 1.0 / (67.0 * 32)
+    v, r, ell, i0 = 95.2, 0.365, 0.0732, 10.0
+    rise = (v / r - i0) * (1.0 - math.exp(-r * t / ell))  # from 10 A with the full voltage
+    assert 572.0 * rise == pytest.approx(rate * t, rel=r * t / ell)
+
+
 def test_single_coil_left_attracts_by_its_bias_force(rig):
     a = rig.amb
     modes = np.array([amb_law.COIL_POSITIVE, amb_law.COIL_NEGATIVE, amb_law.LOST, 0])

@@ -94,6 +94,10 @@ def test_rig_validation_messages():
     data["pid"]["Kp"] = -1.0
     with pytest.raises(RigError, match=r"pid\.Kp"):
         rig_from_dict(data)
+    data = yaml.safe_load(RIG_PATH.read_text())
+    data["amb"]["peak_voltage"] = 3.0  # below the coil's 0.365 ohm x 10 A
+    with pytest.raises(RigError, match="peak_voltage"):
+        rig_from_dict(data)
     with pytest.raises(RigError, match="not found"):
         load_rig("/nonexistent/rig.yaml")
 
@@ -103,6 +107,7 @@ def test_rig_validation_messages():
     [
         ("amb", "force_limit"),
         ("amb", "turns"),
+        ("amb", "peak_voltage"),
         ("amb", "law"),
         ("contact", "substeps"),
         ("contact", "rotor_radius"),
