@@ -39,7 +39,13 @@ def model_change_message(stage: EarlyStage, omega: float) -> tuple[bool, str]:
         )
     if now == 0.0:
         return True, "early action: one model, its speed not recorded: used at every speed"
-    return True, f"early action: model of {now / (2 * math.pi):.3f} Hz (measured {hz:.3f} Hz)"
+    text = f"early action: model of {now / (2 * math.pi):.3f} Hz (measured {hz:.3f} Hz)"
+    limit = stage.early.step_limit
+    if math.isfinite(limit):  # (E4) of amb_controller.early_action
+        text += f", its plans stepping at most {limit:.0f} N per sample (amplifier slew)"
+    else:
+        text += ", its plans not slew-bounded (no slew rate in the model file)"
+    return True, text
 
 
 def decision_message(d: Detection, active: bool) -> str:

@@ -284,6 +284,10 @@ def test_the_bank_keeps_its_models_through_its_file_and_reads_a_single_model(tmp
         np.testing.assert_array_equal(a.plane_responses, b.plane_responses)
         np.testing.assert_array_equal(a.bearing_markov, b.bearing_markov)
         assert (a.planes, a.sensors, a.objective) == (b.planes, b.sensors, b.objective)
+        assert math.isinf(a.slew_rate)  # none given: not bounded, and kept so
+    slewed = EarlyModelBank(tuple(replace(m, slew_rate=7.15e5) for m in bank.models))
+    back = EarlyModelBank.load(slewed.save(tmp_path / "slewed.npz"))
+    assert [m.slew_rate for m in back.models] == [7.15e5] * 3
     # a file of format 1 (one model, no leading axis: what amb-early-model wrote before banks)
     meta = {
         "format": "amb-early-action-1", "samples_per_rev": N, "planes": list(model.planes),
@@ -295,7 +299,7 @@ def test_the_bank_keeps_its_models_through_its_file_and_reads_a_single_model(tmp
         plane_responses=model.plane_responses,
     )  # fmt: skip
     (one,) = EarlyModelBank.load(old).models
-    assert one.omega == 42.0 and one.clearance == 1e-3
+    assert one.omega == 42.0 and one.clearance == 1e-3 and math.isinf(one.slew_rate)
     assert EarlyActionModel.load(old).omega == 42.0
     with pytest.raises(ControllerValueError, match="a bank of 3"):
         EarlyActionModel.load(tmp_path / "bank.npz")
@@ -382,7 +386,7 @@ def test_the_operator_is_told_which_model_is_in_use_and_when_none_is():
     bank = _banked(_synthetic_model(), (100.0, 120.0))
     stage = EarlyStage(bank, EarlyActionConfig(), delay=1)
 
-    def period(omega):
+    def period(omega, stage=stage):
         for k in range(N):
             stage.sample(k, np.zeros(2), omega)
         stage.end_period(0, 1, np.zeros((4, N)), True, True, np.full(4, 1e3))
@@ -390,5 +394,15 @@ def test_the_operator_is_told_which_model_is_in_use_and_when_none_is():
 
     ok, text = period(120.2)
     assert ok and f"model of {120.0 / (2 * math.pi):.3f} Hz" in text
+    assert "not slew-bounded" in text
+    slewed = EarlyStage(
+        EarlyModelBank(tuple(replace(m, slew_rate=1e5) for m in bank.models)),
+        EarlyActionConfig(),
+        delay=1,
+    )
+    ok, text = period(120.2, slewed)
+    # 0.6 x 1e5 N/s over one sample of 2 pi / (120 rad/s x 16)
+    limit = 0.6 * 1e5 * 2 * math.pi / (120.0 * N)
+    assert ok and f"at most {limit:.0f} N per sample" in text
     ok, text = period(110.0)
     assert not ok and "no model within 0.5%" in text and "testing nothing" in text
