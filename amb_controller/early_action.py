@@ -105,6 +105,24 @@ The rest of the slew is left for the PID loop and the feedback law (their forces
 few 1e4 N/s at the vibration levels of the suite). The ladder costs one ``(4 M)^2`` product
 per try; each smoothing's matrix is computed once.
 
+The feedback law
+----------------
+A decision at the end of period ``m`` acts from ``m + i``; the feedback law's commands made at
+the ends of periods ``m .. m + i - 1`` are computed from measurements that hold the change but
+not yet the plan's effect, so they cancel the same change a second time. With ``hold_law`` the
+controller pipeline replaces them by the law's command made before the change's onset (and
+tells the law so: it records what was applied). At ``i >= 2`` it also holds the commands made
+from the periods of the plan's transient force (``M`` samples): the law reads a step
+disturbance into them, and its answer lands ``i`` periods later, when the transient has gone;
+at ``i = 1`` it lands in the next period, where the law trims what the plan missed. Measured
+(``mass_loss_1st``, docs/controller_notes.md): at i = 2, amb-compare's gain and phase cases
+stay at the floor the fault's own period sets (82.6 um; with the force paths 30 % off, unheld,
+the law and the plan over-acted in the same period: 118.6 um, the law alone 112.1); holding
+only the first ``i`` commands at i = 2 left a 22-24 um bump two periods after the plan, which
+the fault monitor in the loop called a contact in 5 of 5 first-critical runs; holding through
+the transient at i = 1 raised the nominal peak from 10.2 to 11.3 um and the gain cases by a
+quarter.
+
 (E1)-(E3) are matrix products with matrices computed once from the model (:meth:`EarlyAction
 .__init__`): the test costs one product of ``(planes 2N 2) x (2N n_s)`` per period. After a
 detection the reference is formed again from the periods after it (``arm_periods`` quiet
@@ -173,6 +191,10 @@ class EarlyActionConfig:
         In (0, 1]: the fraction of the amplifiers' slew (the model's ``slew_rate`` over one
         sample) the plan's own steps may use (E4); the rest is the PID loop's and the
         feedback law's. A model without a slew rate (inf) is not bounded.
+    hold_law : bool
+        Hold the feedback law at its command from before the change's onset while its
+        measurements do not yet show the plan (module docstring, "The feedback law"; the
+        controller pipeline does it, for a law told the applied inputs). Default True.
     horizon_periods : int
         ``L / N``, periods of the predicted response used by (E2)-(E3), >= 2.
     min_noise : float
@@ -221,6 +243,7 @@ class EarlyActionConfig:
     min_effect: float = 10.0
     speed_tolerance: float = 0.005
     slew_budget: float = 0.6
+    hold_law: bool = True
 
     def __post_init__(self) -> None:
         checks = [

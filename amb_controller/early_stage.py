@@ -183,14 +183,31 @@ class EarlyStage:
         else:
             early.reset()
         self._seen[:] = False
+        out, clipped = self.compose(target, force, active, limit)
+        for old in [p for p in self._sent if p < period]:
+            del self._sent[old]
+        return out, detection, clipped
+
+    def compose(
+        self, target: int, force: np.ndarray, active: bool, force_limit
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """
+        The command force for ``target``: the law's ``force`` with the plan added.
+
+        Kept as the force the plant applies over ``target`` (the test's ``z``), so that a law
+        force replaced after :meth:`end_period` (the early action's hold of the law) is composed
+        again with this. Returns the force ``(4, N)``, limited per axis to ``force_limit``,
+        and the axes the limit cut (``(4,)`` bool); a command the plan adds nothing to passes
+        untouched.
+        """
+        limit = np.broadcast_to(np.asarray(force_limit, dtype=float), (4,))
         out = np.asarray(force, dtype=float)
+        early = self.early
         added = early.force(target).T if (active and early is not None) else None
         clipped = np.zeros(4, dtype=bool)
-        if added is not None and added.any():  # else the command passes untouched
+        if added is not None and added.any():
             total = out + added
             clipped = (np.abs(total) > limit[:, None]).any(axis=1)
             out = np.clip(total, -limit[:, None], limit[:, None])
         self._sent[target] = out
-        for old in [p for p in self._sent if p < period]:
-            del self._sent[old]
-        return out, detection, clipped
+        return out, clipped

@@ -220,6 +220,8 @@ class ControllerPipeline:
         self.early: EarlyStage | None = None
         #: the early action's decision at the last period's end (None: none)
         self.early_detection = None
+        #: (last period whose command the early action holds, the held coefficients)
+        self._law_hold: tuple[int, np.ndarray | None] = (-1, None)
         self._new_period(None)
         if model is None and config.model_file:
             model = WaveletModel.load(config.model_file)
@@ -541,23 +543,48 @@ class ControllerPipeline:
         else:
             command = self._skip(m)
         if self.early is not None:  # issue 18 item 4: amb_controller.early_action
-            force, self.early_detection, clipped = self.early.end_period(
-                m,
-                command.target_period,
-                command.force,
-                sup.mode == Mode.ACTIVE,
-                complete,
-                self.limiter.limit,
-            )
-            command = replace(
-                command, force=force, saturated=np.asarray(command.saturated) | clipped
-            )
+            command = self._with_early_action(m, command, complete)
         self._last_period = m
         self._last_command = command
         self._stats["commands_sent"] += 1
         self._compute_time = time.perf_counter() - t0
         self._new_period(None)
         return command
+
+    def _with_early_action(self, m: int, command: Command, complete: bool) -> Command:
+        """
+        ``command`` with the early action's plan added, and the law held while the plan acts.
+
+        With ``hold_law`` (and a law told the applied inputs) the law's commands made from
+        measurements without the plan's effect, and at ``i >= 2`` from the plan's transient
+        periods, are replaced by its command made before the change's onset (module docstring
+        of :mod:`amb_controller.early_action`, "The feedback law").
+        """
+        early, sup = self.early, self.supervisor
+        active = sup.mode == Mode.ACTIVE
+        holds = active and early.config.hold_law and sup.tracks_applied
+        until, held = self._law_hold
+        if holds and m <= until:
+            command = sup.replace_command(command, held)
+        limit = self.limiter.limit
+        force, detection, clipped = early.end_period(
+            m, command.target_period, command.force, active, complete, limit
+        )
+        if holds and detection is not None and detection.acted:
+            onset_period = detection.onset_sample // self.samples_per_period
+            held = sup.sent(onset_period + sup.delay - 1)  # made before the onset
+            if held is not None:
+                self._law_hold = (m + sup.delay - 1 + self._transient_periods(sup.delay), held)
+                command = sup.replace_command(command, held)
+                force, clipped = early.compose(command.target_period, command.force, True, limit)
+        self.early_detection = detection
+        return replace(command, force=force, saturated=np.asarray(command.saturated) | clipped)
+
+    def _transient_periods(self, delay: int) -> int:
+        """Periods of the plan's transient force during which the law is also held (i >= 2)."""
+        if delay < 2:
+            return 0
+        return -(-self.early.config.transient_samples // self.samples_per_period)
 
     def _skip(self, m: int) -> Command:
         """Zero-force command for an incomplete period; restart the controller's history."""

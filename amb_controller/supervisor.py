@@ -88,7 +88,7 @@ one) and is neither held on saturation nor replayed.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from enum import IntEnum
 
 import numpy as np
@@ -417,6 +417,39 @@ class WaveletControlSupervisor:
     def _tracks_applied(self) -> bool:
         """Whether the controller takes the applied inputs (predictive) instead of a hold."""
         return bool(getattr(self.controller, "tracks_applied", False))
+
+    @property
+    def tracks_applied(self) -> bool:
+        """Whether the controller in use is told the inputs the plant applied (predictive)."""
+        return self.controller is not None and self._tracks_applied()
+
+    def sent(self, target: int) -> np.ndarray | None:
+        """The coefficients sent for period ``target`` (None: none kept for it)."""
+        return self._sent.get(int(target))
+
+    def replace_command(self, command: Command, coefficients: np.ndarray) -> Command:
+        """
+        ``command`` with ``coefficients`` (limited) instead of the controller's own.
+
+        The replacement is what is sent for ``command.target_period`` and what a controller
+        told the applied inputs records as applied (only such a controller may have its
+        commands replaced: another would keep its own command in its state). The early
+        action holds the feedback law this way while its plan alone acts (:class:`amb_controller
+        .early_action.EarlyActionConfig`, ``hold_law``).
+        """
+        if not self.tracks_applied:
+            raise ControllerValueError("only a law told the applied inputs may be overridden")
+        result = self.limiter.apply(np.asarray(coefficients, dtype=float))
+        target = command.target_period
+        self._sent[target] = result.coefficients
+        self._last = result.coefficients
+        self.controller.record_applied(target, result.coefficients)
+        return replace(
+            command,
+            coefficients=result.coefficients,
+            force=result.force,
+            saturated=result.saturated,
+        )
 
     def reset_controller(self) -> None:
         """Reset the controller's state (integrators and history to zero)."""

@@ -190,3 +190,34 @@ def test_a_lost_command_is_not_mistaken_for_a_disturbance():
     tol = 1e-9 * g * 40.0
     np.testing.assert_allclose(q[delay:10], 0.0, atol=tol)
     np.testing.assert_allclose(q[11:], 0.0, atol=tol)
+
+
+def test_a_replaced_command_is_what_the_law_records_as_applied():
+    """The early action's hold of the law (``WaveletControlSupervisor.replace_command``): the
+    command for period 11 is replaced by zero after the law made it. The plant applies the
+    zero, so q[11] sees the whole disturbance; the law, told so, keeps its estimate the true
+    disturbance and cancels every later period exactly (as after a lost command). A supervisor
+    whose controller is not told the applied inputs refuses a replacement."""
+    g, delay = 1e-5, 1
+    sup = _supervised(delay, limit=1000.0)
+    controller = PredictiveController(np.array([[[g]]]), delay, 1, 1, 0.0, 0.0)
+    sup.set_controller(controller, own_model_radius(np.array([[[g]]]), controller))
+    assert sup.set_mode(Mode.ACTIVE)[0]
+    d = np.full(30, 40.0)
+    u = np.zeros(35)
+    q = np.zeros(30)
+    for k in range(30):
+        q[k] = g * (u[k] + d[k])
+        cmd = sup.step(k, np.array([q[k]]))
+        if cmd.target_period == 11:
+            cmd = sup.replace_command(cmd, np.zeros(1))
+            assert not cmd.force.any() and sup.sent(11)[0] == 0.0
+        u[cmd.target_period] = cmd.coefficients[0]
+    tol = 1e-9 * g * 40.0
+    np.testing.assert_allclose(q[11], g * 40.0, rtol=1e-12)
+    np.testing.assert_allclose(q[delay:11], 0.0, atol=tol)
+    np.testing.assert_allclose(q[12:], 0.0, atol=tol)
+    bare = _supervised(delay, limit=1000.0)
+    off = bare.step(0, np.zeros(1))
+    with pytest.raises(ControllerValueError, match="applied inputs"):
+        bare.replace_command(off, np.zeros(1))
