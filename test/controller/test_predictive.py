@@ -142,6 +142,15 @@ def _supervised(delay, limit):
     return sup
 
 
+def _active_law(g, delay, limit):
+    """The supervisor ACTIVE with the deadbeat law of the static plant ``q = g u``."""
+    sup = _supervised(delay, limit)
+    controller = PredictiveController(np.array([[[g]]]), delay, 1, 1, 0.0, 0.0)
+    sup.set_controller(controller, own_model_radius(np.array([[[g]]]), controller))
+    assert sup.set_mode(Mode.ACTIVE)[0]
+    return sup
+
+
 def _run(sup, g, disturbance, missing=()):
     """Static plant ``q = g (u + d[k])`` under ``sup``; ``missing`` periods apply no command."""
     n = len(disturbance)
@@ -162,10 +171,7 @@ def test_a_saturated_command_does_not_wind_it_up():
     force was applied (``record_applied``), so once the disturbance goes, the next command it
     can act on cancels the rest exactly: no overshoot the held integrator would bring."""
     g, delay = 1e-5, 1
-    sup = _supervised(delay, limit=50.0)
-    controller = PredictiveController(np.array([[[g]]]), delay, 1, 1, 0.0, 0.0)
-    sup.set_controller(controller, own_model_radius(np.array([[[g]]]), controller))
-    assert sup.set_mode(Mode.ACTIVE)[0]
+    sup = _active_law(g, delay, limit=50.0)
     need = 3 * 50.0 * np.sqrt(16)  # coefficient (N sqrt(samples)) of 3 x the limit
     d = np.r_[np.full(20, need), np.zeros(20)]
     q, u = _run(sup, g, d)
@@ -180,10 +186,7 @@ def test_a_lost_command_is_not_mistaken_for_a_disturbance():
     """Period 10's command never reached the plant: the controller is told it was zero, so its
     estimate stays the true disturbance and the next periods are cancelled again."""
     g, delay = 1e-5, 2
-    sup = _supervised(delay, limit=1000.0)
-    controller = PredictiveController(np.array([[[g]]]), delay, 1, 1, 0.0, 0.0)
-    sup.set_controller(controller, own_model_radius(np.array([[[g]]]), controller))
-    assert sup.set_mode(Mode.ACTIVE)[0]
+    sup = _active_law(g, delay, limit=1000.0)
     d = np.full(30, 40.0)
     q, _ = _run(sup, g, d, missing=(10,))
     np.testing.assert_allclose(q[10], g * 40.0, rtol=1e-12)  # the lost period sees it all
@@ -199,10 +202,7 @@ def test_a_replaced_command_is_what_the_law_records_as_applied():
     disturbance and cancels every later period exactly (as after a lost command). A supervisor
     whose controller is not told the applied inputs refuses a replacement."""
     g, delay = 1e-5, 1
-    sup = _supervised(delay, limit=1000.0)
-    controller = PredictiveController(np.array([[[g]]]), delay, 1, 1, 0.0, 0.0)
-    sup.set_controller(controller, own_model_radius(np.array([[[g]]]), controller))
-    assert sup.set_mode(Mode.ACTIVE)[0]
+    sup = _active_law(g, delay, limit=1000.0)
     d = np.full(30, 40.0)
     u = np.zeros(35)
     q = np.zeros(30)
