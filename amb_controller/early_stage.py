@@ -137,6 +137,9 @@ class EarlyStage:
         """
         Test period ``period`` and return the command force for ``target`` with the plan added.
 
+        :meth:`test`, then :meth:`compose` (the controller pipeline calls the two itself, to
+        hold the feedback law between them).
+
         Parameters
         ----------
         period, target : int
@@ -160,12 +163,24 @@ class EarlyStage:
             ``(4,)``: the axes whose command the limit cut once the plan was added (the
             command's ``saturated`` flag must say so too).
         """
+        detection = self.test(period, complete, force_limit)
+        out, clipped = self.compose(target, force, active, force_limit)
+        return out, detection, clipped
+
+    def test(self, period: int, complete: bool, force_limit) -> Detection | None:
+        """
+        Test period ``period`` (its samples given to :meth:`sample`) with the model of its speed.
+
+        ``complete`` and ``force_limit`` as in :meth:`end_period`. Returns the decision, if any.
+        """
         N = self.N
         limit = np.broadcast_to(np.asarray(force_limit, dtype=float), (4,))
         applied = self._sent.pop(period, None)
         if applied is None or period in self._missing:
             applied = np.zeros((4, N))
         self._missing.discard(period)
+        for old in [p for p in self._sent if p < period]:
+            del self._sent[old]
         if self._seen.any():
             omega = float(self._omega[self._seen].mean())
             index = self.bank.select(omega, self.config.speed_tolerance, self._index)
@@ -183,10 +198,7 @@ class EarlyStage:
         else:
             early.reset()
         self._seen[:] = False
-        out, clipped = self.compose(target, force, active, limit)
-        for old in [p for p in self._sent if p < period]:
-            del self._sent[old]
-        return out, detection, clipped
+        return detection
 
     def compose(
         self, target: int, force: np.ndarray, active: bool, force_limit
@@ -194,11 +206,10 @@ class EarlyStage:
         """
         The command force for ``target``: the law's ``force`` with the plan added.
 
-        Kept as the force the plant applies over ``target`` (the test's ``z``), so that a law
-        force replaced after :meth:`end_period` (the early action's hold of the law) is composed
-        again with this. Returns the force ``(4, N)``, limited per axis to ``force_limit``,
-        and the axes the limit cut (``(4,)`` bool); a command the plan adds nothing to passes
-        untouched.
+        Kept as the force the plant applies over ``target`` (what :meth:`test` of that period
+        removes from its measurements). Returns the force ``(4, N)``, limited per axis to
+        ``force_limit``, and the axes the limit cut (``(4,)`` bool); a command the plan adds
+        nothing to passes untouched.
         """
         limit = np.broadcast_to(np.asarray(force_limit, dtype=float), (4,))
         out = np.asarray(force, dtype=float)

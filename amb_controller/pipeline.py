@@ -562,21 +562,19 @@ class ControllerPipeline:
         """
         early, sup = self.early, self.supervisor
         active = sup.mode == Mode.ACTIVE
-        holds = active and early.config.hold_law and sup.tracks_applied
-        until, held = self._law_hold
-        if holds and m <= until:
-            command = sup.replace_command(command, held)
         limit = self.limiter.limit
-        force, detection, clipped = early.end_period(
-            m, command.target_period, command.force, active, complete, limit
-        )
-        if holds and detection is not None and detection.acted:
-            onset_period = detection.onset_sample // self.samples_per_period
-            held = sup.sent(onset_period + sup.delay - 1)  # made before the onset
-            if held is not None:
-                self._law_hold = (m + sup.delay - 1 + self._transient_periods(sup.delay), held)
+        detection = early.test(m, complete, limit)
+        if active and early.config.hold_law and sup.tracks_applied:
+            if detection is not None and detection.acted:
+                onset_period = detection.onset_sample // self.samples_per_period
+                made = sup.sent(onset_period + sup.delay - 1)  # made before the onset
+                if made is not None:
+                    until = m + sup.delay - 1 + self._transient_periods(sup.delay)
+                    self._law_hold = (until, made)
+            until, held = self._law_hold
+            if m <= until:
                 command = sup.replace_command(command, held)
-                force, clipped = early.compose(command.target_period, command.force, True, limit)
+        force, clipped = early.compose(command.target_period, command.force, active, limit)
         self.early_detection = detection
         return replace(command, force=force, saturated=np.asarray(command.saturated) | clipped)
 

@@ -414,14 +414,10 @@ class WaveletControlSupervisor:
         self._sent.clear()
         self._last = np.zeros(self.limiter.basis.n_coefficients)
 
-    def _tracks_applied(self) -> bool:
-        """Whether the controller takes the applied inputs (predictive) instead of a hold."""
-        return bool(getattr(self.controller, "tracks_applied", False))
-
     @property
     def tracks_applied(self) -> bool:
-        """Whether the controller in use is told the inputs the plant applied (predictive)."""
-        return self.controller is not None and self._tracks_applied()
+        """Whether the controller in use is told the applied inputs (predictive), not held."""
+        return bool(getattr(self.controller, "tracks_applied", False))
 
     def sent(self, target: int) -> np.ndarray | None:
         """The coefficients sent for period ``target`` (None: none kept for it)."""
@@ -490,7 +486,7 @@ class WaveletControlSupervisor:
         step = self._steps.pop(p, None)
         if step is None or self.controller is None:
             return sent
-        if self._tracks_applied():  # its estimate uses the applied inputs: tell it, no replay
+        if self.tracks_applied:  # its estimate uses the applied inputs: tell it, no replay
             self.controller.record_applied(p, self._sent[p])
             return sent
         self.controller.set_state(step.state_before)
@@ -552,7 +548,7 @@ class WaveletControlSupervisor:
                     self.reset_controller()
         result = None
         running = self.mode in (Mode.ACTIVE, Mode.HOLD) and self.controller is not None
-        tracks = running and self._tracks_applied()
+        tracks = running and self.tracks_applied
         # the state before the step, for the anti-windup hold and the replay of a lost command;
         # a controller told the applied inputs needs neither (module docstring)
         saved = self.controller.get_state() if running and not tracks else None
