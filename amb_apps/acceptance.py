@@ -35,7 +35,7 @@ from amb_common.rig import load_rig
 from amb_controller.config import ControllerConfig
 from amb_controller.inverse import pseudo_inverse_series
 from amb_controller.metrics import compute_metrics, inner_summary
-from amb_controller.pipeline import prescribed_response
+from amb_controller.selection import prescribed_response
 from amb_controller.stability import characteristic_polynomial, nominal_poles
 from amb_plant_sim.scenario import load_scenario
 

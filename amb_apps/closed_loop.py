@@ -50,11 +50,8 @@ from amb_controller.config import BASELINE_CONTROLLERS, ControllerConfig
 from amb_controller.errors import ControllerValueError, NotIdentifiedError
 from amb_controller.inverse import pseudo_inverse_series
 from amb_controller.model_file import WaveletModel
-from amb_controller.pipeline import (
-    ControllerPipeline,
-    selected_control_basis,
-    selected_measurement_basis,
-)
+from amb_controller.pipeline import ControllerPipeline
+from amb_controller.selection import selected_control_basis, selected_measurement_basis
 from amb_controller.supervisor import Command, Mode
 from amb_controller.wavelet_dynamics import wavelet_markov
 from amb_fault_monitor.config import MonitorConfig

@@ -70,8 +70,8 @@ from amb_controller.metrics import (
     steady_sync_amplitude,
 )
 from amb_controller.multilevel import LevelResponse, MultiLevelController, block_diagonal_model
-from amb_controller.pipeline import prescribed_response, selected_measurement_basis
 from amb_controller.response import PrescribedResponse
+from amb_controller.selection import prescribed_response, selected_measurement_basis
 from amb_controller.stability import own_model_radius
 from amb_controller.supervisor import Mode
 from amb_controller.synthesis import ForceLimiter

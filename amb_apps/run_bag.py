@@ -17,7 +17,8 @@ import numpy as np
 
 from amb_common import topics
 from amb_controller.config import ControllerConfig
-from amb_controller.pipeline import ControllerPipeline, control_waveform
+from amb_controller.pipeline import ControllerPipeline
+from amb_controller.selection import control_waveform
 from amb_controller.supervisor import Command
 from amb_wavelet.frontend import FRAMES, QUADRATURES
 

@@ -70,7 +70,7 @@ from amb_controller.guard import DivergenceGuard, GuardConfig
 from amb_controller.influence_coefficient import InfluenceCoefficientController
 from amb_controller.inverse import dc_gain, pseudo_inverse_series
 from amb_controller.model_file import WaveletModel
-from amb_controller.pipeline import prescribed_response
+from amb_controller.selection import prescribed_response
 from amb_controller.stability import own_model_radius
 from amb_controller.status import status_fields
 from amb_controller.supervisor import Command, Mode, WaveletControlSupervisor

@@ -123,7 +123,8 @@ from amb_controller.node_params import (
     parameter_descriptor,
     parameter_value,
 )
-from amb_controller.pipeline import ControllerPipeline, control_waveform
+from amb_controller.pipeline import ControllerPipeline
+from amb_controller.selection import control_waveform
 from amb_controller.supervisor import Mode
 from amb_controller.synthesis import ForceLimiter
 from amb_tools.backlog import backlog_counts, declare_catch_up, gap_known

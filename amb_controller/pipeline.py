@@ -48,7 +48,6 @@ from pathlib import Path
 
 import numpy as np
 
-from amb_controller.basis import BasisSet, control_basis, measurement_basis
 from amb_controller.config import (
     BASELINE_CONTROLLERS,
     N_AXES,
@@ -60,13 +59,16 @@ from amb_controller.early_action import EarlyActionConfig
 from amb_controller.early_model import EarlyActionModel, EarlyModelBank
 from amb_controller.early_stage import EarlyStage
 from amb_controller.errors import ControllerValueError
-from amb_controller.fourier_basis import sinusoid_control_basis
 from amb_controller.guard import DivergenceGuard, GuardConfig
 from amb_controller.identification import MarkovIdentifier, StepExperiment
 from amb_controller.inverse import dc_gain, pseudo_inverse_series
 from amb_controller.model_file import WaveletModel
 from amb_controller.predictive import PredictiveController
-from amb_controller.response import PrescribedResponse
+from amb_controller.selection import (
+    prescribed_response,
+    selected_control_basis,
+    selected_measurement_basis,
+)
 from amb_controller.stability import own_model_radius
 from amb_controller.status import status_fields
 from amb_controller.steady_state import (
@@ -79,55 +81,7 @@ from amb_controller.synthesis import ForceLimiter
 from amb_controller.transient import TransientController
 from amb_wavelet.frontend import ChannelFrontEnd
 
-__all__ = [
-    "ControllerPipeline",
-    "prescribed_response",
-    "selected_control_basis",
-    "selected_measurement_basis",
-]
-
-
-def selected_control_basis(config: ControllerConfig) -> BasisSet:
-    """
-    Control-coefficient basis of the configuration (its waveforms and labels).
-
-    ``output_basis = "wavelet"``: :func:`amb_controller.basis.control_basis` of the configured
-    wavelet, levels and quadratures (the thesis); ``"sinusoid"``: the 1 x cosine / sine per
-    axis in the same layout (:func:`amb_controller.fourier_basis.sinusoid_control_basis`).
-    """
-    n = config.period_samples
-    if config.output_basis == "sinusoid":
-        return sinusoid_control_basis(n, N_AXES, config.quadratures)
-    return control_basis(config.wavelet, n, config.levels, N_AXES, config.quadratures)
-
-
-def control_waveform(config: ControllerConfig) -> str:
-    """The control force's waveform (``ControlCommand.wavelet``): the wavelet, or sinusoid."""
-    return "sinusoid" if config.output_basis == "sinusoid" else config.wavelet
-
-
-def selected_measurement_basis(config: ControllerConfig) -> BasisSet:
-    """
-    Measured-coefficient basis of the configured levels, quadratures and sensors.
-
-    The rows of :func:`amb_controller.basis.measurement_basis` (8 sensor channels) whose
-    channel is in ``config.sensors``, in the same order (level, translation, quadrature,
-    channel); labels keep the physical channel (``c2`` = x2).
-    """
-    full = measurement_basis(
-        config.wavelet, config.period_samples, config.levels, len(SENSOR_NAMES), config.quadratures
-    )
-    keep = [i for i, lab in enumerate(full.labels) if int(lab.split("/c")[-1]) in config.sensors]
-    return BasisSet(full.weights[keep], full.offset, tuple(full.labels[i] for i in keep))
-
-
-def prescribed_response(config: ControllerConfig) -> PrescribedResponse:
-    """Return the alpha(z) of eq. 8.6-8.7 the configuration asks for."""
-    if config.response == "exponential":
-        return PrescribedResponse.exponential(config.w, config.v)
-    if config.response == "linear":
-        return PrescribedResponse.linear_decay(config.rate)
-    return PrescribedResponse.from_series(config.series)
+__all__ = ["ControllerPipeline"]
 
 
 class ControllerPipeline:

@@ -29,8 +29,8 @@ from amb_controller.multilevel import (
     block_diagonal_model,
     level_indices,
 )
-from amb_controller.pipeline import selected_measurement_basis
 from amb_controller.response import PrescribedResponse
+from amb_controller.selection import selected_measurement_basis
 from amb_controller.stability import closed_loop, spectral_radius
 from amb_controller.transient import TransientController
 

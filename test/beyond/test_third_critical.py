@@ -17,8 +17,8 @@ import pytest
 from amb_controller.basis import control_basis
 from amb_controller.config import ControllerConfig
 from amb_controller.lti import fir_state_space
-from amb_controller.pipeline import selected_measurement_basis
 from amb_controller.response import PrescribedResponse
+from amb_controller.selection import selected_measurement_basis
 from amb_controller.stability import closed_loop, spectral_radius
 from amb_controller.transient import TransientController
 

@@ -15,7 +15,7 @@ import pytest
 from amb_controller.basis import control_basis
 from amb_controller.config import ConfigError, ControllerConfig
 from amb_controller.fourier_basis import sinusoid_control_basis
-from amb_controller.pipeline import control_waveform, selected_control_basis
+from amb_controller.selection import control_waveform, selected_control_basis
 
 N = 32
 
