@@ -2,8 +2,9 @@
 What a controller configuration selects: bases, force waveform, prescribed response.
 
 The control and measurement bases, the control force's waveform and the alpha(z) of eq.
-8.6-8.7 a :class:`~amb_controller.config.ControllerConfig` asks for. Shared by the controller pipeline, the baselines and the applications that rebuild a
-configuration's layout (:mod:`amb_apps.closed_loop`, :mod:`amb_apps.compare_runs`).
+8.6-8.7 a :class:`~amb_controller.config.ControllerConfig` asks for. Shared by the controller
+pipeline, the baselines and the applications that rebuild a configuration's layout
+(:mod:`amb_apps.closed_loop`, :mod:`amb_apps.compare_runs`).
 """
 
 from __future__ import annotations
