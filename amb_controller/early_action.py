@@ -123,9 +123,9 @@ the fault monitor in the loop called a contact in 5 of 5 first-critical runs; ho
 the transient at i = 1 raised the nominal peak from 10.2 to 11.3 um and the gain cases by a
 quarter.
 
-(E1)-(E3) are matrix products with matrices computed once from the model (:meth:`EarlyAction
-.__init__`): the test costs one product of ``(planes 2N 2) x (2N n_s)`` per period. After a
-detection the reference is formed again from the periods after it (``arm_periods`` quiet
+(E1)-(E4) are matrix products with matrices computed once from the model (:meth:`EarlyAction
+.__init__`; the plan's in :class:`amb_controller.early_plan.PlanMaker`): the test costs one
+product of ``(planes 2N 2) x (2N n_s)`` per period. After a detection the reference is formed again from the periods after it (``arm_periods`` quiet
 periods), so a second loss is estimated on top of the first and added to the plan. The
 feedback law keeps running: it sees the rotor with the change cancelled and trims what the
 estimate missed.
@@ -140,11 +140,12 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
 from amb_controller.early_model import EarlyActionModel
+from amb_controller.early_plan import Plan, PlanMaker, block_toeplitz
 from amb_controller.errors import ControllerValueError, ShapeError
 
 __all__ = ["Detection", "EarlyAction", "EarlyActionConfig"]
@@ -294,53 +295,6 @@ class Detection:
     largest_step: float = 0.0
 
 
-@dataclass
-class _Plan:
-    steady: np.ndarray  # (N, 4) per period from first_period on
-    transient: dict[int, np.ndarray] = field(default_factory=dict)  # period -> (N, 4)
-
-
-def _forward_whirl(n: int, N: int) -> np.ndarray:
-    """Force patterns (n, 4 axes, 4 weights) of a 1 x forward whirl at both bearings."""
-    phi = 2.0 * math.pi * np.arange(n) / N
-    c, s = np.cos(phi), np.sin(phi)
-    r = np.zeros((n, 4, 4))
-    for b in (0, 1):  # x = Re(D e^{i phi}), y = Re(-i D e^{i phi}) (eq. 3.3's convention)
-        r[:, 2 * b, 2 * b], r[:, 2 * b, 2 * b + 1] = c, -s
-        r[:, 2 * b + 1, 2 * b], r[:, 2 * b + 1, 2 * b + 1] = s, c
-    return r
-
-
-def _toeplitz(h: np.ndarray, n_in: int, n_out: int) -> np.ndarray:
-    """Block Toeplitz ``(n_out n_s, n_in 4)``: outputs 0..n_out-1 of forces at 0..n_in-1."""
-    L, n_s, n_a = h.shape
-    t = np.zeros((n_out, n_s, n_in, n_a))
-    for j in range(n_in):
-        ln = min(n_out - j, L)
-        if ln > 0:
-            t[j : j + ln, :, j, :] = h[:ln]
-    return t.reshape(n_out * n_s, n_in * n_a)
-
-
-def _smoothing_ladder(first: float) -> tuple[float, ...]:
-    """The smoothings (E3) tried in turn when a plan steps faster than the amplifiers can."""
-    return (first, *(mu for mu in (0.25, 0.5, 1.0, 2.0, 4.0, 8.0, 16.0) if mu > first))
-
-
-def _largest_step(steady: np.ndarray, transient: np.ndarray) -> float:
-    """Largest sample-to-sample step of the added force from ``k0`` on, N (from zero before).
-
-    ``steady`` ``(N, 4)`` repeats every period; ``transient`` ``(M, 4)`` adds to its first
-    ``M`` samples; a period more than ``M`` covers the steady force's own steps.
-    """
-    n = steady.shape[0]
-    m = transient.shape[0]
-    span = m + n
-    force = np.tile(steady, (-(-span // n), 1))[:span]
-    force[:m] += transient
-    return float(np.max(np.abs(np.diff(force, axis=0, prepend=0.0))))
-
-
 class EarlyAction:
     """
     Streaming detector and canceller of sudden unbalance changes (module docstring).
@@ -384,7 +338,6 @@ class EarlyAction:
         self.force_limit = float(force_limit)
         # the plan's linear prediction, with the model's relative error, inside the clearance
         self.safe_displacement = float(model.clearance) / (1.0 + config.gain_margin)
-        self._scale = 1.0 - config.gain_margin**2
         N = model.samples_per_rev
         self.N = N
         h = model.bearing_markov
@@ -397,7 +350,7 @@ class EarlyAction:
         self.n_s = n_s
         # z = y - sum_j T_j f[m - j]: T_j maps period m - j's force to period m's outputs
         n_hist = math.ceil(h.shape[0] / N) + 1
-        full = _toeplitz(h, n_hist * N, n_hist * N)
+        full = block_toeplitz(h, n_hist * N, n_hist * N)
         # [T_0 T_1 .. T_J] in one float32 matrix (the products are memory-bound: 7 MB of
         # float64 at 64 samples per revolution; float32's 1e-7 is far below the noise)
         self._n_hist = n_hist
@@ -420,43 +373,10 @@ class EarlyAction:
                 grams.append(a.T @ a)
         self._q = np.concatenate(rows).astype(np.float32)  # (planes W 2, W n_s)
         self._gram = np.array(grams).reshape(g.shape[0], W, 2, 2)
-        # rows of the plan's objective: the objective sensors at every horizon sample
-        obj = np.zeros((L, n_s), dtype=bool)
-        obj[:, list(model.objective)] = True
-        obj = obj.ravel()
-        # (E2): steady forward-whirl force from k0 against the horizon's last two periods
-        fw = _forward_whirl(L, N)
-        hz = _toeplitz(h, L, L)
-        self._c = np.stack([hz @ fw[:, :, u].ravel() for u in range(4)], axis=1)  # (L n_s, 4)
-        tail = np.zeros(L * n_s, dtype=bool)
-        tail[(L - 2 * N) * n_s :] = True
-        self._tail = tail & obj
-        self._steady_gain = -np.linalg.pinv(self._c[self._tail])
-        self._steady_pattern = fw[:N]  # (N, 4, 4)
-        # (E3): transient force over M samples, for each smoothing of the ladder
-        M = config.transient_samples
-        self.M = M
-        self.step_limit = self._step_limit(model, config)
-        if M:
-            hm = _toeplitz(h, M, L)
-            self._h_m = hm.astype(np.float32)  # the residual check only
-            ho = hm[obj]
-            self._ho_t = ho.T.astype(np.float32)
-            scale = np.linalg.norm(ho, 2)
-            lam = config.transient_weight * scale
-            # first differences of the added force per axis over the M samples, from zero
-            # before k0 (row 0) to the steady force after them (row M)
-            d = np.kron(np.eye(M + 1, M) - np.eye(M + 1, M, -1), np.eye(4))
-            self._d_t = d.T
-            gram = ho.T @ ho + lam**2 * np.eye(M * 4)
-            dd = d.T @ d
-            mu0 = config.transient_smoothing
-            ladder = (mu0,) if math.isinf(self.step_limit) else _smoothing_ladder(mu0)
-            self._ladder = [
-                (mu, (mu * scale) ** 2, np.linalg.inv(gram + (mu * scale) ** 2 * dd))
-                for mu in ladder
-            ]
-            self._obj = obj
+        # (E2)-(E4): the force against an estimated change
+        self._maker = PlanMaker(model, config, L)
+        self.M = self._maker.M
+        self.step_limit = self._maker.step_limit
         self.last_smoothing = self.last_step = 0.0  # of the last plan (its Detection's too)
         self.reset()
 
@@ -470,7 +390,7 @@ class EarlyAction:
         self._history_periods = 0
         self._noise2: float | None = None
         self._quiet_values: deque[float] = deque(maxlen=16)
-        self._plans: list[tuple[int, _Plan]] = []
+        self._plans: list[tuple[int, Plan]] = []
         self.detections: list[Detection] = []
         self._deferred = False  # the last test was put off by a period (module notes)
 
@@ -592,23 +512,10 @@ class EarlyAction:
             self._quiet = 0
             self._z.clear()
 
-    @staticmethod
-    def _step_limit(model: EarlyActionModel, config: EarlyActionConfig) -> float:
-        """
-        The plan's largest step per sample, N (E4).
-
-        ``slew_budget`` of the amplifiers' slew over one sample at the model's speed; inf when
-        the model has no slew rate or no speed.
-        """
-        if math.isinf(model.slew_rate) or model.omega <= 0.0:
-            return math.inf
-        sample_time = 2.0 * math.pi / (model.omega * model.samples_per_rev)
-        return config.slew_budget * model.slew_rate * sample_time
-
     def _plan(
         self, p: int, k: int, theta: np.ndarray, period: int, first: int
-    ) -> tuple[_Plan, float, float]:
-        """(E2)-(E3) for the change at window sample ``k`` in plane ``p``.
+    ) -> tuple[Plan, float, float]:
+        """(E2)-(E4) for the change at window sample ``k`` in plane ``p``.
 
         Returns the plan, the planned residual's peak and the change's own predicted peak
         from ``k0`` on, m.
@@ -618,42 +525,6 @@ class EarlyAction:
         # window starts at period - 1; k0 = first * N; offset of k0 from the onset:
         off = (first - period + 1) * N - int(k)
         yd = (g[off : off + L] @ theta).ravel()  # (L n_s,)
-        w_full = self._steady_gain @ yd[self._tail]  # (E2) before the robust scale
-        w = self._scale * w_full
-        steady = np.einsum("nau,u->na", self._steady_pattern, w)
-        plan = _Plan(steady=steady)
-        df = np.zeros((self.M, 4))
-        if self.M:
-            free = (yd + self._c @ w_full)[self._obj]
-            pulled = self._scale * (self._ho_t @ free.astype(np.float32)).astype(float)
-            # the steady force's own steps: switched on at k0, then sample to sample
-            reps = -(-(self.M + 1) // N)
-            tiled = np.concatenate([np.zeros((1, 4)), np.tile(steady, (reps, 1))[: self.M + 1]])
-            jumps = np.diff(tiled, axis=0).ravel()
-            budget = self.config.force_budget * self.force_limit
-            room = max(budget - float(np.max(np.abs(steady))), 0.0)
-            for mu, weight, inverse in self._ladder:  # (E3), smoothest last
-                smoothing = mu
-                df = -(inverse @ (pulled + weight * (self._d_t @ jumps))).reshape(self.M, 4)
-                peak = float(np.max(np.abs(df)))
-                if peak > room:
-                    df *= room / peak
-                step = _largest_step(steady, df)
-                if step <= self.step_limit:
-                    break
-        else:
-            smoothing, step = 0.0, _largest_step(steady, df)
-        if step > self.step_limit:  # even the smoothest: the whole plan scaled down (E4)
-            shrink = self.step_limit / step
-            w, steady, df, step = shrink * w, shrink * steady, shrink * df, self.step_limit
-            plan.steady = steady
-        self.last_smoothing, self.last_step = float(smoothing), float(step)
-        residual = yd + self._c @ w
-        if self.M:
-            residual += (self._h_m @ df.ravel().astype(np.float32)).astype(float)
-            for j in range(0, self.M, N):
-                block = np.zeros((N, 4))
-                part = df[j : j + N]
-                block[: len(part)] = part
-                plan.transient[first + j // N] = block
-        return plan, float(np.max(np.abs(residual))), float(np.max(np.abs(yd)))
+        plan, residual = self._maker.make(yd, first, self.force_limit)
+        self.last_smoothing, self.last_step = plan.smoothing, plan.largest_step
+        return plan, residual, float(np.max(np.abs(yd)))
