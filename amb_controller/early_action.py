@@ -125,10 +125,10 @@ quarter.
 
 (E1)-(E4) are matrix products with matrices computed once from the model (:meth:`EarlyAction
 .__init__`; the plan's in :class:`amb_controller.early_plan.PlanMaker`): the test costs one
-product of ``(planes 2N 2) x (2N n_s)`` per period. After a detection the reference is formed again from the periods after it (``arm_periods`` quiet
-periods), so a second loss is estimated on top of the first and added to the plan. The
-feedback law keeps running: it sees the rotor with the change cancelled and trims what the
-estimate missed.
+product of ``(planes 2N 2) x (2N n_s)`` per period. After a detection the reference is formed
+again from the periods after it (``arm_periods`` quiet periods), so a second loss is estimated
+on top of the first and added to the plan. The feedback law keeps running: it sees the rotor
+with the change cancelled and trims what the estimate missed.
 
 What it does not do: it acts on a sudden unbalance only (a mass loss, eq. 3.3), and it needs
 the sample-domain model above (the FE route: :func:`amb_apps.plant_models.early_action_model`;
