@@ -12,14 +12,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
 
 import numpy as np
 
+from amb_controller.early_config import EarlyActionConfig
 from amb_controller.early_model import EarlyActionModel
-
-if TYPE_CHECKING:
-    from amb_controller.early_action import EarlyActionConfig
 
 __all__ = ["Plan", "PlanMaker", "block_toeplitz", "step_limit"]
 
