@@ -376,12 +376,16 @@ def test_the_last_coefficients_after_the_filterbanks_catch_up_are_processed(
     assert ros.spin_until(lambda: last() == str(n - 1), 20.0), (diag.values, fm.log(), fb.log())
     # On resume the stopped filterbank may find its queue filled in more than one burst (a
     # loaded machine), each burst a catch-up and a reset: the monitor's gaps are the
-    # filterbank's resets, one or more, and none of its own reader's making.
+    # filterbank's resets, one or more, and none of its own reader's making. A reset at an even
+    # sample index followed by the next before the odd one (level 1 completes on odd indices)
+    # publishes nothing in between, so the monitor sees the two as one jump (one core busy,
+    # 2026-12-03: 2 resets, 1 gap).
     assert ros.spin_until(
         lambda: diag.get("wavelet_filterbank", "last_sample") == str(n - 1), 10.0
     ), (diag.values, fb.log())
     resets = int(diag.get("wavelet_filterbank", "gaps_reset"))
     assert resets >= 1, (diag.values, fb.log())
-    assert diag.get("fault_monitor", "coefficients_gap") == str(resets), (diag.values, fm.log())
+    gaps = int(diag.get("fault_monitor", "coefficients_gap"))
+    assert 1 <= gaps <= resets, (diag.values, fm.log())
     assert diag.get("fault_monitor", "backlog_dropped") == "0", diag.values
     assert diag.get("fault_monitor", "last_sample") == str(n - 1), diag.values
