@@ -281,10 +281,16 @@ class _Loop:
         self.levels = spr.bit_length()  # log2(spr) + 1, the filterbank node's default
         self.bank = AnalysisFilterbank(config.wavelet, self.levels, self.front.n_channels)
         if config.controller in BASELINE_CONTROLLERS:
-            self.pipeline = HarmonicPipeline(config, rig.amb.force_limit, model, baseline)
+            self.pipeline = HarmonicPipeline(
+                config, rig.amb.force_limit, model, baseline, rig.probe_clearance
+            )
         else:
             self.pipeline = ControllerPipeline(
-                config, rig.amb.force_limit, model, channel_labels=self.front.labels
+                config,
+                rig.amb.force_limit,
+                model,
+                channel_labels=self.front.labels,
+                probe_clearance=rig.probe_clearance,
             )
         self.recorder = recorder
         self.monitor = monitor

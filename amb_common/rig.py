@@ -237,6 +237,26 @@ class Rig:
         return [2 * (b.sensor_plane - 1) + a for b in self.bearings[:2] for a in (0, 1)]
 
     @property
+    def probe_clearance(self) -> tuple[float, ...]:
+        """
+        Per probe channel, the clearance (m) of the auxiliary bearing next to it (inf if none).
+
+        Channels in ``[x1, y1, ..., x4, y4]`` order. A channel whose sensor plane's axially
+        nearest clearance bearing is an auxiliary bearing takes its radial clearance: what the
+        probe reads, give or take the shaft's slope over the distance between them, when the
+        journal touches that bearing (on the Bath rig the inner probes, 40 mm from the
+        auxiliary bearings inside the magnets, 0.75 mm). Probes nearest a retainer (the outer
+        ones, at the shaft's ends) or with no clearance bearing take inf.
+        """
+        out: list[float] = []
+        for plane in self.sensor_planes:
+            nearest = min(self.clearance_bearings, key=lambda c: abs(c.z - plane.z), default=None)
+            auxiliary = nearest is not None and nearest.kind == "auxiliary"
+            clearance = nearest.radial_clearance if auxiliary else math.inf
+            out += [clearance, clearance]
+        return tuple(out)
+
+    @property
     def rigid_bodies(self) -> tuple[RigidDisk, ...]:
         """All rigid bodies on the shaft: disks, AMB cores, collars."""
         return self.disks + self.amb_cores + self.collars

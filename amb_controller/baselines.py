@@ -66,7 +66,7 @@ from amb_controller.fourier_basis import (
     fourier_control_basis,
     fourier_measurement_basis,
 )
-from amb_controller.guard import DivergenceGuard, GuardConfig
+from amb_controller.guard import controller_guard
 from amb_controller.influence_coefficient import InfluenceCoefficientController
 from amb_controller.inverse import dc_gain, pseudo_inverse_series
 from amb_controller.model_file import WaveletModel
@@ -263,10 +263,21 @@ class HarmonicPipeline:
         ``influence_by_trials`` / ``harmonic_model`` (synchronous: its steady-state gain is
         used).
     settings : BaselineSettings, optional
+    probe_clearance : tuple of float, optional
+        Per probe channel, the clearance of the auxiliary bearing next to it, m
+        (``rig.probe_clearance``), for the guard (:func:`~amb_controller.guard.controller_guard`;
+        None: not known).
 
     """
 
-    def __init__(self, config, capacity: float, model: WaveletModel, settings=None) -> None:
+    def __init__(
+        self,
+        config,
+        capacity: float,
+        model: WaveletModel,
+        settings=None,
+        probe_clearance: tuple[float, ...] | None = None,
+    ) -> None:
         if config.controller not in BASELINES:
             raise ControllerValueError(
                 f"HarmonicPipeline runs {BASELINES}, got controller {config.controller!r}"
@@ -292,14 +303,7 @@ class HarmonicPipeline:
         self.model = model
         self._weights = np.ascontiguousarray(self.measured.weights.transpose(0, 2, 1))
         self.limiter = ForceLimiter(self.control, np.array(config.force_limit), capacity)
-        guard = DivergenceGuard(
-            GuardConfig(
-                coefficient_bound=config.coefficient_bound,
-                displacement_bound=config.displacement_bound,
-                growth_factor=config.growth_factor,
-                growth_periods=config.growth_periods,
-            )
-        )
+        guard = controller_guard(config, probe_clearance)
         self.supervisor = WaveletControlSupervisor(
             self.limiter,
             config.delay_periods,
@@ -378,7 +382,7 @@ class HarmonicPipeline:
             self._ok = False
         else:
             self._buffer[pos] = x
-            self._peak = max(self._peak, float(np.max(np.abs(x))))
+            self._peak = np.maximum(self._peak, np.abs(x))  # per probe (the contact guard)
         if pos != N - 1:
             return None
         return self._end_period(m)

@@ -237,6 +237,13 @@ class ControllerConfig:
         description="divergence guard on the peak displacement of a period, m (inf = off)",
         allowed="> 0 (inf = off)",
     )
+    contact_guard: bool = param(
+        True,
+        description="divergence guard also on a period's peak displacement at a probe next to "
+        "an auxiliary bearing as large as that bearing's clearance (rig.probe_clearance: the "
+        "rotor is at the bearing, thesis 3.3.2): the added force goes to zero until a reset",
+        allowed="true or false",
+    )
     growth_factor: float = param(
         1.5, description="guard: per-period growth ratio counted as divergence", allowed="> 1"
     )
@@ -438,6 +445,8 @@ class ControllerConfig:
             value = getattr(self, name)
             if not (isinstance(value, int | float) and value > 0):
                 raise _fail(name, value)
+        if not isinstance(self.contact_guard, bool):
+            raise _fail("contact_guard", self.contact_guard)
         if not (_finite(self.growth_factor) and self.growth_factor > 1.0):
             raise _fail("growth_factor", self.growth_factor)
         if not _is_int(self.growth_periods) or self.growth_periods < 1:

@@ -7,15 +7,27 @@ away: any measured coefficient beyond ``coefficient_bound``, a peak displacement
 or the coefficient norm growing by more than ``growth_factor`` per period for
 ``growth_periods`` consecutive periods while above ``noise_floor``. After a trip the
 supervisor drops the wavelet force to zero and reports; only :meth:`reset` re-arms it.
+
+The contact guard (``ControllerConfig.contact_guard``, on by default) trips it when a probe
+reads the clearance of the auxiliary bearing next to it (:func:`controller_guard`): the
+rotor is at that bearing, its support is no longer the one the controller's model describes,
+and a controller that goes on integrating there bounces the rotor from contact to contact
+(thesis 3.3.2 stops the transient controller on contact; measured on ``amb-compare``'s
+``contact_case2``: docs/results.md#compare). It needs no fault monitor: the controller reads
+every probe's samples itself.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from amb_controller.errors import ControllerValueError
+
+if TYPE_CHECKING:  # the configuration imports the supervisor, which imports this module
+    from amb_controller.config import ControllerConfig
 
 
 @dataclass(frozen=True)
@@ -35,6 +47,10 @@ class GuardConfig:
         Consecutive growing periods that trip the guard.
     noise_floor : float
         Norm below which growth is ignored (m * sqrt(samples)).
+    probe_clearance : tuple of float, optional
+        Per probe channel, the clearance (m) of the auxiliary bearing next to it (inf: none)
+        (:attr:`amb_common.rig.Rig.probe_clearance`): a period whose peak at a probe reaches
+        it trips the guard (the rotor is at that bearing). None: no such check.
 
     """
 
@@ -43,8 +59,13 @@ class GuardConfig:
     growth_factor: float = 1.2
     growth_periods: int = 5
     noise_floor: float = 0.0
+    probe_clearance: tuple[float, ...] | None = None
 
     def __post_init__(self) -> None:
+        if self.probe_clearance is not None and not all(c > 0 for c in self.probe_clearance):
+            raise ControllerValueError(
+                f"probe clearances must be > 0 m (inf: none), got {self.probe_clearance}"
+            )
         if not (self.coefficient_bound > 0 and self.displacement_bound > 0):
             raise ControllerValueError("guard bounds must be > 0 (use inf to disable)")
         if not self.growth_factor > 1.0 or self.growth_periods < 1:
@@ -76,7 +97,7 @@ class DivergenceGuard:
         self._previous_norm: float | None = None
         self._growing = 0
 
-    def update(self, measured: np.ndarray, displacement_peak: float | None = None) -> bool:
+    def update(self, measured: np.ndarray, displacement_peak=None) -> bool:
         """
         Check one period; return True if the guard is (now or already) tripped.
 
@@ -84,8 +105,9 @@ class DivergenceGuard:
         ----------
         measured : numpy.ndarray
             Measured coefficients of the period.
-        displacement_peak : float, optional
-            Largest absolute displacement of the period in m.
+        displacement_peak : float or numpy.ndarray, optional
+            Largest absolute displacement of the period in m, overall or per probe channel
+            (needed per channel for ``probe_clearance``).
 
         Returns
         -------
@@ -102,11 +124,22 @@ class DivergenceGuard:
             return self._trip("non-finite measured coefficients")
         if peak > cfg.coefficient_bound:
             return self._trip(f"coefficient {peak:.3g} beyond bound {cfg.coefficient_bound:.3g}")
-        if displacement_peak is not None and displacement_peak > cfg.displacement_bound:
-            return self._trip(
-                f"displacement {displacement_peak:.3g} m beyond bound "
-                f"{cfg.displacement_bound:.3g} m"
-            )
+        if displacement_peak is not None:
+            peaks = np.atleast_1d(np.asarray(displacement_peak, dtype=float))
+            largest = float(np.max(peaks)) if peaks.size else 0.0
+            if largest > cfg.displacement_bound:
+                return self._trip(
+                    f"displacement {largest:.3g} m beyond bound {cfg.displacement_bound:.3g} m"
+                )
+            if cfg.probe_clearance is not None and peaks.size == len(cfg.probe_clearance):
+                reached = np.flatnonzero(peaks >= np.asarray(cfg.probe_clearance))
+                if reached.size:
+                    c = int(reached[0])
+                    return self._trip(
+                        f"probe channel {c} at {peaks[c]:.3g} m, the clearance "
+                        f"{cfg.probe_clearance[c]:.3g} m of the auxiliary bearing next to it: "
+                        "the rotor is at that bearing"
+                    )
         if (
             self._previous_norm is not None
             and norm > cfg.noise_floor
@@ -126,3 +159,41 @@ class DivergenceGuard:
         self.tripped = True
         self.reason = reason
         return True
+
+
+def controller_guard(
+    config: ControllerConfig, probe_clearance: tuple[float, ...] | None = None
+) -> DivergenceGuard:
+    """
+    The divergence guard of a controller pipeline, from its configuration and the rig.
+
+    Parameters
+    ----------
+    config : ControllerConfig
+        ``coefficient_bound``, ``displacement_bound``, ``growth_factor``, ``growth_periods``
+        and ``contact_guard``.
+    probe_clearance : tuple of float, optional
+        Per probe channel, the clearance of the auxiliary bearing next to it, m (inf: none;
+        :attr:`amb_common.rig.Rig.probe_clearance`; None: not known). With ``contact_guard`` a
+        probe that reads it trips the guard: the rotor is at or next to that bearing, where the
+        model the controller was designed on no longer holds (the contact stiffens the rotor's
+        support) and a controller that goes on integrating drives it from contact to contact
+        (thesis 3.3.2 stops the transient controller on contact).
+
+    Returns
+    -------
+    DivergenceGuard
+    """
+    return DivergenceGuard(
+        GuardConfig(
+            coefficient_bound=config.coefficient_bound,
+            displacement_bound=config.displacement_bound,
+            growth_factor=config.growth_factor,
+            growth_periods=config.growth_periods,
+            probe_clearance=(
+                tuple(float(c) for c in probe_clearance)
+                if config.contact_guard and probe_clearance is not None
+                else None
+            ),
+        )
+    )

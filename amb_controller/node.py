@@ -221,14 +221,17 @@ class WaveletControllerNode(Node):
         values = {name: self.get_parameter(name).value for name in PARAMETERS}
         rig_file = self.get_parameter("rig_file").value or str(config_file("rig.yaml"))
         try:
-            capacity = load_rig(rig_file).amb.force_limit
+            rig = load_rig(rig_file)
         except RigError as exc:
             raise ConfigurationError(f"parameter 'rig_file' = {rig_file!r}: {exc}") from exc
+        capacity = rig.amb.force_limit
         self._capacity = capacity
         try:
             config = ControllerConfig.from_dict(config_from_parameters(values), capacity)
             front = ChannelFrontEnd(config.samples_per_rev)
-            self._pipe = ControllerPipeline(config, capacity, channel_labels=front.labels)
+            self._pipe = ControllerPipeline(
+                config, capacity, channel_labels=front.labels, probe_clearance=rig.probe_clearance
+            )
         except (ControllerValueError, ValueError, OSError) as exc:
             raise ConfigurationError(str(exc)) from exc
         self._slots = [(FRAME_CODES[f], QUAD_CODES[q]) for f in FRAMES for q in QUADRATURES]

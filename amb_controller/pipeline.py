@@ -59,7 +59,7 @@ from amb_controller.early_action import EarlyActionConfig
 from amb_controller.early_model import EarlyActionModel, EarlyModelBank
 from amb_controller.early_stage import EarlyStage
 from amb_controller.errors import ControllerValueError
-from amb_controller.guard import DivergenceGuard, GuardConfig
+from amb_controller.guard import controller_guard
 from amb_controller.identification import MarkovIdentifier, StepExperiment
 from amb_controller.inverse import dc_gain, pseudo_inverse_series
 from amb_controller.model_file import WaveletModel
@@ -101,6 +101,10 @@ class ControllerPipeline:
     channel_labels : sequence of str, optional
         Labels of the filterbank's channels (``ChannelFrontEnd.labels``); default: the
         front end with both frames and both quadratures (32 channels).
+    probe_clearance : tuple of float, optional
+        Per probe channel, the clearance of the auxiliary bearing next to it, m
+        (``rig.probe_clearance``), for the guard (:func:`~amb_controller.guard.controller_guard`;
+        None: not known).
 
     """
 
@@ -110,6 +114,7 @@ class ControllerPipeline:
         capacity: float,
         model: WaveletModel | None = None,
         channel_labels=None,
+        probe_clearance: tuple[float, ...] | None = None,
     ) -> None:
         config.check_capacity(capacity)
         self.config = config
@@ -146,14 +151,7 @@ class ControllerPipeline:
         self._group_index = {key: g for g, key in enumerate(self._groups)}
         self._levels_j = {j for j, _ in self._groups}
         self.limiter = ForceLimiter(self.control, np.array(config.force_limit), capacity)
-        guard = DivergenceGuard(
-            GuardConfig(
-                coefficient_bound=config.coefficient_bound,
-                displacement_bound=config.displacement_bound,
-                growth_factor=config.growth_factor,
-                growth_periods=config.growth_periods,
-            )
-        )
+        guard = controller_guard(config, probe_clearance)
         self.supervisor = WaveletControlSupervisor(
             self.limiter,
             config.delay_periods,
@@ -456,7 +454,7 @@ class ControllerPipeline:
             d = np.asarray(displacement, dtype=float)
             if self.early is not None:
                 self.early.sample(pos, d, self._omega)
-            self._peak = max(self._peak, float(np.max(np.abs(d))) if d.size else 0.0)
+            self._peak = np.maximum(self._peak, np.abs(d))  # per probe (the contact guard)
         for rec in records:
             if rec.kind != "detail" or rec.level not in self._levels_j:
                 continue

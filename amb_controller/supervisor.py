@@ -513,9 +513,7 @@ class WaveletControlSupervisor:
         return self._sent.get(period_index, np.zeros(self.limiter.basis.n_coefficients))
 
     # ------------------------------------------------------------------ period step
-    def step(
-        self, period_index: int, measured: np.ndarray, displacement_peak: float | None = None
-    ) -> Command:
+    def step(self, period_index: int, measured: np.ndarray, displacement_peak=None) -> Command:
         """
         Consume period k; return the command for period ``k + delay``.
 
@@ -525,8 +523,9 @@ class WaveletControlSupervisor:
             Measured period k.
         measured : numpy.ndarray
             Measured coefficients of period k (controller input layout).
-        displacement_peak : float, optional
-            Largest absolute displacement over period k in m (for the guard).
+        displacement_peak : float or numpy.ndarray, optional
+            Largest absolute displacement over period k in m, overall or per probe channel
+            (for the guard: :meth:`DivergenceGuard.update`).
 
         Returns
         -------
