@@ -66,11 +66,10 @@ from amb_controller.fourier_basis import (
     fourier_control_basis,
     fourier_measurement_basis,
 )
-from amb_controller.guard import controller_guard
 from amb_controller.influence_coefficient import InfluenceCoefficientController
 from amb_controller.inverse import dc_gain, pseudo_inverse_series
 from amb_controller.model_file import WaveletModel
-from amb_controller.selection import prescribed_response
+from amb_controller.selection import controller_guard, prescribed_response
 from amb_controller.stability import own_model_radius
 from amb_controller.status import status_fields
 from amb_controller.supervisor import Command, Mode, WaveletControlSupervisor
@@ -265,8 +264,8 @@ class HarmonicPipeline:
     settings : BaselineSettings, optional
     probe_clearance : tuple of float, optional
         Per probe channel, the clearance of the auxiliary bearing next to it, m
-        (``rig.probe_clearance``), for the guard (:func:`~amb_controller.guard.controller_guard`;
-        None: not known).
+        (``rig.probe_clearance``; None: not known), for the guard
+        (:func:`~amb_controller.selection.controller_guard`).
 
     """
 

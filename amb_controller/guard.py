@@ -9,7 +9,8 @@ or the coefficient norm growing by more than ``growth_factor`` per period for
 supervisor drops the wavelet force to zero and reports; only :meth:`reset` re-arms it.
 
 The contact guard (``ControllerConfig.contact_guard``, on by default) trips it when a probe
-reads the clearance of the auxiliary bearing next to it (:func:`controller_guard`): the
+reads the clearance of the auxiliary bearing next to it
+(:func:`amb_controller.selection.controller_guard`): the
 rotor is at that bearing, its support is no longer the one the controller's model describes,
 and a controller that goes on integrating there bounces the rotor from contact to contact
 (thesis 3.3.2 stops the transient controller on contact; measured on ``amb-compare``'s
@@ -20,14 +21,10 @@ every probe's samples itself.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from amb_controller.errors import ControllerValueError
-
-if TYPE_CHECKING:  # the configuration imports the supervisor, which imports this module
-    from amb_controller.config import ControllerConfig
 
 
 @dataclass(frozen=True)
@@ -159,41 +156,3 @@ class DivergenceGuard:
         self.tripped = True
         self.reason = reason
         return True
-
-
-def controller_guard(
-    config: ControllerConfig, probe_clearance: tuple[float, ...] | None = None
-) -> DivergenceGuard:
-    """
-    The divergence guard of a controller pipeline, from its configuration and the rig.
-
-    Parameters
-    ----------
-    config : ControllerConfig
-        ``coefficient_bound``, ``displacement_bound``, ``growth_factor``, ``growth_periods``
-        and ``contact_guard``.
-    probe_clearance : tuple of float, optional
-        Per probe channel, the clearance of the auxiliary bearing next to it, m (inf: none;
-        :attr:`amb_common.rig.Rig.probe_clearance`; None: not known). With ``contact_guard`` a
-        probe that reads it trips the guard: the rotor is at or next to that bearing, where the
-        model the controller was designed on no longer holds (the contact stiffens the rotor's
-        support) and a controller that goes on integrating drives it from contact to contact
-        (thesis 3.3.2 stops the transient controller on contact).
-
-    Returns
-    -------
-    DivergenceGuard
-    """
-    return DivergenceGuard(
-        GuardConfig(
-            coefficient_bound=config.coefficient_bound,
-            displacement_bound=config.displacement_bound,
-            growth_factor=config.growth_factor,
-            growth_periods=config.growth_periods,
-            probe_clearance=(
-                tuple(float(c) for c in probe_clearance)
-                if config.contact_guard and probe_clearance is not None
-                else None
-            ),
-        )
-    )

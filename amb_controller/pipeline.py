@@ -59,12 +59,12 @@ from amb_controller.early_action import EarlyActionConfig
 from amb_controller.early_model import EarlyActionModel, EarlyModelBank
 from amb_controller.early_stage import EarlyStage
 from amb_controller.errors import ControllerValueError
-from amb_controller.guard import controller_guard
 from amb_controller.identification import MarkovIdentifier, StepExperiment
 from amb_controller.inverse import dc_gain, pseudo_inverse_series
 from amb_controller.model_file import WaveletModel
 from amb_controller.predictive import PredictiveController
 from amb_controller.selection import (
+    controller_guard,
     prescribed_response,
     selected_control_basis,
     selected_measurement_basis,
@@ -103,8 +103,8 @@ class ControllerPipeline:
         front end with both frames and both quadratures (32 channels).
     probe_clearance : tuple of float, optional
         Per probe channel, the clearance of the auxiliary bearing next to it, m
-        (``rig.probe_clearance``), for the guard (:func:`~amb_controller.guard.controller_guard`;
-        None: not known).
+        (``rig.probe_clearance``; None: not known), for the guard
+        (:func:`~amb_controller.selection.controller_guard`).
 
     """
 

@@ -1,10 +1,10 @@
 """
-What a controller configuration selects: bases, force waveform, prescribed response.
+What a controller configuration selects: bases, force waveform, prescribed response, guard.
 
-The control and measurement bases, the control force's waveform and the alpha(z) of eq.
-8.6-8.7 a :class:`~amb_controller.config.ControllerConfig` asks for. Shared by the controller
-pipeline, the baselines and the applications that rebuild a configuration's layout
-(:mod:`amb_apps.closed_loop`, :mod:`amb_apps.compare_runs`).
+The control and measurement bases, the control force's waveform, the alpha(z) of eq. 8.6-8.7
+and the divergence guard a :class:`~amb_controller.config.ControllerConfig` asks for. Shared
+by the controller pipeline, the baselines and the applications that rebuild a configuration's
+layout (:mod:`amb_apps.closed_loop`, :mod:`amb_apps.compare_runs`).
 """
 
 from __future__ import annotations
@@ -12,10 +12,12 @@ from __future__ import annotations
 from amb_controller.basis import BasisSet, control_basis, measurement_basis
 from amb_controller.config import N_AXES, SENSOR_NAMES, ControllerConfig
 from amb_controller.fourier_basis import sinusoid_control_basis
+from amb_controller.guard import DivergenceGuard, GuardConfig
 from amb_controller.response import PrescribedResponse
 
 __all__ = [
     "control_waveform",
+    "controller_guard",
     "prescribed_response",
     "selected_control_basis",
     "selected_measurement_basis",
@@ -63,3 +65,41 @@ def prescribed_response(config: ControllerConfig) -> PrescribedResponse:
     if config.response == "linear":
         return PrescribedResponse.linear_decay(config.rate)
     return PrescribedResponse.from_series(config.series)
+
+
+def controller_guard(
+    config: ControllerConfig, probe_clearance: tuple[float, ...] | None = None
+) -> DivergenceGuard:
+    """
+    The divergence guard of a controller pipeline, from its configuration and the rig.
+
+    Parameters
+    ----------
+    config : ControllerConfig
+        ``coefficient_bound``, ``displacement_bound``, ``growth_factor``, ``growth_periods``
+        and ``contact_guard``.
+    probe_clearance : tuple of float, optional
+        Per probe channel, the clearance of the auxiliary bearing next to it, m (inf: none;
+        :attr:`amb_common.rig.Rig.probe_clearance`; None: not known). With ``contact_guard`` a
+        probe that reads it trips the guard: the rotor is at or next to that bearing, where the
+        model the controller was designed on no longer holds (the contact stiffens the rotor's
+        support) and a controller that goes on integrating drives it from contact to contact
+        (thesis 3.3.2 stops the transient controller on contact).
+
+    Returns
+    -------
+    DivergenceGuard
+    """
+    return DivergenceGuard(
+        GuardConfig(
+            coefficient_bound=config.coefficient_bound,
+            displacement_bound=config.displacement_bound,
+            growth_factor=config.growth_factor,
+            growth_periods=config.growth_periods,
+            probe_clearance=(
+                tuple(float(c) for c in probe_clearance)
+                if config.contact_guard and probe_clearance is not None
+                else None
+            ),
+        )
+    )

@@ -19,7 +19,8 @@ from amb_apps.closed_loop import fe_model, run_closed_loop
 from amb_common.paths import config_file
 from amb_common.rig import load_rig
 from amb_controller.config import ControllerConfig
-from amb_controller.guard import DivergenceGuard, GuardConfig, controller_guard
+from amb_controller.guard import DivergenceGuard, GuardConfig
+from amb_controller.selection import controller_guard
 from amb_plant_sim.scenario import load_scenario
 
 AUX = 750.0e-6  # m, auxiliary bearings AB1, AB2 (rig.yaml clearance_bearings)
