@@ -263,9 +263,7 @@ class HarmonicPipeline:
         used).
     settings : BaselineSettings, optional
     probe_clearance : tuple of float, optional
-        Per probe channel, the clearance of the auxiliary bearing next to it, m
-        (``rig.probe_clearance``; None: not known), for the guard
-        (:func:`~amb_controller.selection.controller_guard`).
+        As for :class:`~amb_controller.pipeline.ControllerPipeline` (the contact guard).
 
     """
 
