@@ -103,8 +103,9 @@ class DivergenceGuard:
         measured : numpy.ndarray
             Measured coefficients of the period.
         displacement_peak : float or numpy.ndarray, optional
-            Largest absolute displacement of the period in m, overall or per probe channel
-            (needed per channel for ``probe_clearance``).
+            Largest absolute displacement of the period in m, overall (a float: no probe
+            check) or per probe channel (one per ``probe_clearance``; another count is
+            refused).
 
         Returns
         -------
@@ -128,7 +129,12 @@ class DivergenceGuard:
                 return self._trip(
                     f"displacement {largest:.3g} m beyond bound {cfg.displacement_bound:.3g} m"
                 )
-            if cfg.probe_clearance is not None and peaks.size == len(cfg.probe_clearance):
+            per_probe = np.ndim(displacement_peak) > 0
+            if per_probe and cfg.probe_clearance is not None:
+                if peaks.size != len(cfg.probe_clearance):
+                    raise ControllerValueError(
+                        f"{peaks.size} probe peaks for {len(cfg.probe_clearance)} probe clearances"
+                    )
                 reached = np.flatnonzero(peaks >= np.asarray(cfg.probe_clearance))
                 if reached.size:
                     c = int(reached[0])

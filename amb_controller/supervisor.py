@@ -510,7 +510,8 @@ class WaveletControlSupervisor:
 
     def applied(self, period_index: int) -> np.ndarray:
         """Return the control coefficients commanded for ``period_index`` (zeros if none)."""
-        return self._sent.get(period_index, np.zeros(self.limiter.basis.n_coefficients))
+        sent = self.sent(period_index)
+        return np.zeros(self.limiter.basis.n_coefficients) if sent is None else sent
 
     # ------------------------------------------------------------------ period step
     def step(self, period_index: int, measured: np.ndarray, displacement_peak=None) -> Command:

@@ -19,6 +19,7 @@ from amb_apps.closed_loop import fe_model, run_closed_loop
 from amb_common.paths import config_file
 from amb_common.rig import load_rig
 from amb_controller.config import ControllerConfig
+from amb_controller.errors import ControllerValueError
 from amb_controller.guard import DivergenceGuard, GuardConfig
 from amb_controller.selection import controller_guard
 from amb_plant_sim.scenario import load_scenario
@@ -43,6 +44,10 @@ def test_the_guard_trips_at_a_probe_s_own_clearance_only():
     peaks[3] = 0.76e-3  # an inner probe past the auxiliary bearing's clearance
     assert guard.update(np.zeros(2), displacement_peak=peaks)
     assert "probe channel 3" in guard.reason and "clearance" in guard.reason
+    guard.reset()
+    assert not guard.update(np.zeros(2), displacement_peak=0.8e-3)  # overall: no probe check
+    with pytest.raises(ControllerValueError, match="4 probe peaks for 8"):
+        guard.update(np.zeros(2), displacement_peak=np.full(4, 0.1e-3))
 
 
 def test_controller_guard_checks_the_probes_only_with_contact_guard():
