@@ -135,6 +135,14 @@ class MonitorConfig:
         class of a change in both frames is a mass loss rather than a contact
         (:func:`~amb_fault_monitor.classifier.classify_provisional`; measured ratios:
         ``docs/fault_monitor_notes.md``, "Provisional classes").
+    jump_factor, jump_isolation, jump_lasting
+        The jump test of one probe's reading (:mod:`amb_fault_monitor.probe_jumps`): the
+        smallest jump over the largest healthy one of its channel; how large another channel's
+        (over its own) may be, as a share of it; how large the lasting change of slope may be,
+        as a share of the jump. A provisional class is ``SENSOR_FAULT`` of the channel whose
+        jumps alone lie within a quarter revolution of the episode's estimated onset. The
+        factor lies between what offsets of 20 um and brief contacts gave on the suites
+        (``docs/fault_monitor_notes.md``, "Jumps of one probe").
     """
 
     samples_per_rev: int = param(
@@ -216,6 +224,9 @@ class MonitorConfig:
         floats=(0.0, 1e3),
     )
     provisional_ratio: float = 1.3
+    jump_factor: float = 4.0
+    jump_isolation: float = 0.3
+    jump_lasting: float = 0.75
 
     def __post_init__(self) -> None:
         spr = self.samples_per_rev
@@ -234,7 +245,7 @@ class MonitorConfig:
             "tail_rise", "tail_rise_median", "dead_revs", "base_coherence", "base_dominance",
             "rearm_revs", "control_step", "control_kink", "control_window_revs", "coil_floor",
             "coil_factor", "coil_confirm_revs", "bias_floor", "bias_factor", "bias_steady",
-            "provisional_ratio",
+            "provisional_ratio", "jump_factor", "jump_isolation", "jump_lasting",
         )  # fmt: skip
         for name in positive:
             if not getattr(self, name) > 0:

@@ -16,7 +16,8 @@ Fault detection from wavelet coefficients in the fixed and rotating frames (thes
 * coil and amplifier failures, from the measured against the demanded currents:
   :mod:`amb_fault_monitor.coil_check`;
 * a biased probe inside the PID loop, from a lasting step of a bearing axis's mean force:
-  :mod:`amb_fault_monitor.loop_bias`.
+  :mod:`amb_fault_monitor.loop_bias`;
+* a probe whose reading jumps, for the provisional class: :mod:`amb_fault_monitor.probe_jumps`.
 
 Episodes
 --------
@@ -31,7 +32,9 @@ Episodes
    (:mod:`amb_fault_monitor.phasor`). With ``provisional_revs`` > 0, a provisional class
    (:func:`~amb_fault_monitor.classifier.classify_provisional`) is emitted that many
    revolutions after the episode's estimated onset, at the alarm if that is later, if the
-   episode is undecided then (``evidence["status"]`` ``provisional``); the decision's event
+   episode is undecided then (``evidence["status"]`` ``provisional``; the ``SENSOR_FAULT`` of
+   a channel whose reading alone jumped since a quarter revolution before the onset,
+   :mod:`amb_fault_monitor.probe_jumps`, given the displacements); the decision's event
    then says ``final``, with the provisional class (``provisional_class``) and whether it was
    revised (``revised``), or, where the episode turns out to be another fault's consequence
    and no class is reported (steps 5-6, a stuck channel), a copy of the provisional event
@@ -88,6 +91,7 @@ from amb_fault_monitor.features import ChangeFeatures, normalise
 from amb_fault_monitor.loop_bias import LoopBias
 from amb_fault_monitor.onset import AtomCentres, estimate_onset, onset_sample
 from amb_fault_monitor.phasor import SynchronousLevel
+from amb_fault_monitor.probe_jumps import ProbeJumps, jump_decision
 from amb_fault_monitor.records import SampleCoefficients
 from amb_wavelet.analysis import DETAIL
 from amb_wavelet.levels import revolution_level
@@ -152,6 +156,7 @@ class FaultMonitor:
         self._R = revolution_level(config.samples_per_rev)
         self._finest = min(config.levels) if config.levels else 1
         self._centres = AtomCentres()
+        self._jumps = ProbeJumps(config)
         self.trace: list[tuple[int, int, str, int, int, np.ndarray]] | None = None
         self.reset()
 
@@ -164,7 +169,10 @@ class FaultMonitor:
     @config.setter
     def config(self, config: MonitorConfig) -> None:
         self._config = config
-        parts = (self._calibration, self._sync, self._dead, self._control, self._coils, self._bias)
+        parts = (
+            self._calibration, self._sync, self._dead, self._control, self._coils, self._bias,
+            self._jumps,
+        )  # fmt: skip
         for part in parts:
             if part is not None:
                 part.config = config
@@ -190,6 +198,7 @@ class FaultMonitor:
             self._coils.reset()
         if self._bias is not None:
             self._bias.reset()
+        self._jumps.reset()
         self._coil_onsets: list[int] = []
         self.coil_explained = 0
 
@@ -321,6 +330,15 @@ class FaultMonitor:
         self._coil_onsets += [e.onset_sample_index for e in events]
         return events
 
+    def displacements(self, sample_index: int, displacement: np.ndarray) -> None:
+        """
+        Record one sample's probe readings (8,), m, for the jump test of the provisional class.
+
+        From the measurement (:mod:`amb_fault_monitor.probe_jumps`); without them the
+        provisional class comes from the coefficients alone.
+        """
+        self._jumps.add(sample_index, displacement)
+
     def step(self, record: SampleCoefficients) -> list[FaultEvent]:
         """
         Process the coefficients completed by one sample.
@@ -407,6 +425,7 @@ class FaultMonitor:
         self.calibration_end = calibration.end
         if self._bias is not None:
             self._bias.calibrate(calibration.end)
+        self._jumps.calibrate(calibration.end)
 
     def _phasor(self, even, odd) -> None:
         calibrating = not self._thr
@@ -554,8 +573,14 @@ class FaultMonitor:
         ep.provisional_due = False
         if self._control_run(ep):
             return
-        zero = np.zeros(4)
-        decision = classify_provisional(ep.evidence(self._R, zero, zero, self._mask), self._config)
+        quarter = self._config.samples_per_rev // 4
+        jump = self._jumps.single_channel(onset - quarter, onset + quarter, self._mask)
+        if jump is not None:
+            decision = jump_decision(jump, self._config.jump_factor)
+        else:
+            zero = np.zeros(4)
+            evidence = ep.evidence(self._R, zero, zero, self._mask)
+            decision = classify_provisional(evidence, self._config)
         ev = self._event(n, ep, onset, decision)
         if self._coil_explains(ev):
             return
