@@ -329,7 +329,7 @@ class _Loop:
             if self.monitor is not None:
                 found = self.monitor.step(
                     n, float(block.omega[s]), records, force[s], block.bearing_force[s],
-                    block.current[s],
+                    block.current[s], x,
                 )  # fmt: skip
                 for event in found:
                     self.fault_events.append(event)
@@ -387,17 +387,19 @@ class _Monitor:
         force: np.ndarray,
         bearing_force: np.ndarray,
         current: np.ndarray,
+        displacement: np.ndarray,
     ) -> list[dict]:
         """
         Feed sample ``n``; return the events it decided.
 
         Its wavelet force and commanded bearing force (N per axis), measured control
-        current (A per axis) and the coefficients it completed.
+        current (A per axis), probe readings (m) and the coefficients it completed.
         """
         # the measurement first, as the node gets it before the coefficients it completes
-        # (FaultMonitor.control_force, FaultMonitor.currents)
+        # (FaultMonitor.control_force, FaultMonitor.currents, FaultMonitor.displacements)
         self.core.control_force(n, force)
         found = self.core.currents(n, bearing_force, current, omega)
+        self.core.displacements(n, displacement)
 
         sets = tuple(
             CoefficientSet(

@@ -314,6 +314,7 @@ def run_case(
     for i in range(block.sample_index.size):
         n = int(block.sample_index[i])
         events += monitor.currents(n, block.bearing_force[i], block.current[i], block.omega[i])
+        monitor.displacements(n, block.displacement[i])
         rec = adapter.step(n, block.displacement[i], block.angle[i], block.omega[i])
         events += monitor.step(rec)
     wall = time.perf_counter() - t0

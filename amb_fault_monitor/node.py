@@ -399,6 +399,7 @@ class FaultMonitorNode(Node):
         ):
             self._emit(ev, msg.header.stamp, n)
         d = from_float_array(msg.displacement)
+        self._monitor.displacements(n, d)
         amp = self._sync_amp.step(d, float(msg.rotor_angle))
         found = [("displacement", pl, self._trip) for pl in self._trip.step(d)]
         if self._sync_amp.ready:
