@@ -160,19 +160,24 @@ def rig():
 
 @pytest.mark.slow
 @pytest.mark.parametrize(
-    ("name", "wavelet"),
+    ("name", "wavelet", "channel"),
     [
-        ("mass_loss_29hz_430gcm_000.yaml", "haar"),
-        ("mass_loss_29hz_430gcm_000.yaml", "db2"),
-        ("contact_ab1_29hz_unbalance.yaml", "db2"),
+        ("mass_loss_29hz_430gcm_000.yaml", "haar", None),
+        ("mass_loss_29hz_430gcm_000.yaml", "db2", None),
+        ("contact_ab1_29hz_unbalance.yaml", "db2", None),
+        # offsets inside the PID loop: plane 3 y and plane 2 x ([x1, y1, x2, y2, x3, y3, ...])
+        ("sensor_offset_plane3y_11hz.yaml", "haar", 5),
+        ("sensor_offset_plane2x_29hz.yaml", "db4", 2),
     ],
 )
 def test_a_provisional_class_comes_within_two_revolutions_and_the_final_is_unchanged(
-    rig, name, wavelet
+    rig, name, wavelet, channel
 ):
     """The scenario's class provisionally within FIRST_ANSWER_REVS of the true onset, then
     confirmed by the final event, which is the one a monitor without provisional classes
-    emits (same class, onset, detection and decision samples)."""
+    emits (same class, onset, detection and decision samples). An offset of a probe inside
+    the loop is named, with its channel, from the jump of its reading (probe_jumps), where the
+    final class waits for the held force step (loop_bias, four revolutions)."""
     case = simulate_case(SUITE / name, rig)
     off = run_case(case, wavelet)
     on = run_case(case, wavelet, provisional_revs=1.5)
@@ -182,6 +187,9 @@ def test_a_provisional_class_comes_within_two_revolutions_and_the_final_is_uncha
     assert provisional, on.events
     first = provisional[0]
     assert first["fault_type"] == expected
+    if channel is not None:
+        assert first["channel"] == channel
+        assert "jump_m" in first["evidence"]
     assert 0 < first["decision_sample_index"] - true <= FIRST_ANSWER_REVS * 32
     assert on.matches[0]["first_predicted"] == expected
     final = [e for e in on.events if e["evidence"].get("status") != "provisional"]
