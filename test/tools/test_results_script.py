@@ -138,7 +138,11 @@ def _summary(onset: float) -> dict:
         "total": 41,
         "before_calibration": 0,
         "cases": [],
-    }
+        "first_answers": {
+            "total": 54, "correct": 50, "correct_in_time": 46, "cases": 48, "cases_in_time": 45,
+            "provisional": 41, "revised": 3, "false_alarms": 0,
+        },
+    }  # fmt: skip
 
 
 FAULT_EVAL = json.dumps(
@@ -304,8 +308,10 @@ def test_sections_render_tables_from_the_samples(tmp_path: Path) -> None:
 
     lines = S.BY_NAME["modal"].report([out(MODAL)], tmp_path)
     assert "| 9.719 | 16.735 | 32.065 | 77.680 |" in lines
-    lines = S.BY_NAME["fault-eval"].report([out(FAULT_EVAL)], tmp_path)
+    lines = S.BY_NAME["fault-eval"].report([out(FAULT_EVAL)] * 3, tmp_path)
     assert "| haar | 41/41 | 0 | 410.0 | 0.00 |" in lines
+    assert "| haar | 45/48 | 94% | 41 | 3 | 0 | 41/41 |" in lines  # provisional classes
+    assert "| db4 | 410.0 | 0 | 41 |" in lines  # long healthy running
     run = tmp_path / "run"
     (run / "logs").mkdir(parents=True)
     (run / "logs" / "plant_sim.log").write_text(PLANT_LOG)
