@@ -13,6 +13,7 @@ import pytest
 from amb_apps.closed_loop import fe_model, run_closed_loop
 from amb_common.rig import load_rig
 from amb_controller.config import ControllerConfig
+from amb_fault_monitor.config import MonitorConfig
 from amb_plant_sim.scenario import scenario_from_dict
 
 SPR = 32
@@ -58,3 +59,28 @@ def test_inner_probe_fault_is_a_sensor_fault_with_the_controller_active(
     onset = result.fault_events[0]["onset_sample_index"]
     fault = FAULT_TIME * scenario.speed_hz * SPR
     assert fault - SPR <= onset <= fault + SPR
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("plane", "axis", "channel"), [(2, "x", 2), (3, "y", 5)])
+def test_an_inner_probe_offset_is_provisionally_that_probe_with_the_controller_active(
+    plane, axis, channel
+):
+    """With provisional classes (issue 19), the offset's jump names the probe within two
+    revolutions of the fault (amb_fault_monitor.probe_jumps), and the decision confirms it."""
+    rig = load_rig()
+    scenario = _scenario(rig, plane, axis, "offset", 2.0e-5)
+    config = ControllerConfig(controller="transient", samples_per_rev=SPR)
+    omega = 2 * np.pi * scenario.speed_hz
+    result = run_closed_loop(
+        rig, scenario, config, fe_model(rig, omega, config), fault_monitor=True,
+        monitor_config=MonitorConfig(SPR, provisional_revs=1.5),
+    )  # fmt: skip
+    assert not result.refused
+    events = [
+        (e["fault_type"], e["channel"], e["evidence"].get("status")) for e in result.fault_events
+    ]
+    assert events == [("SENSOR_FAULT", channel, "provisional"), ("SENSOR_FAULT", channel, "final")]
+    fault = FAULT_TIME * scenario.speed_hz * SPR
+    assert result.fault_events[0]["decision_sample_index"] - fault <= 2 * SPR
+    assert result.fault_events[1]["evidence"]["revised"] is False
