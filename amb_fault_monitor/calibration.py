@@ -38,7 +38,10 @@ from numpy.typing import ArrayLike
 
 from amb_fault_monitor.errors import FaultMonitorError
 
-__all__ = ["MAD_TO_SIGMA", "Calibration", "CalibrationWindow", "median", "robust_threshold"]
+__all__ = [
+    "MAD_TO_SIGMA", "Calibration", "CalibrationWindow", "median", "robust_threshold",
+    "window_revolutions",
+]  # fmt: skip
 
 MAD_TO_SIGMA = 1.4826
 
@@ -72,6 +75,25 @@ def median(a: ArrayLike, axis: int | None = None) -> np.ndarray | float:
     if n == 0:
         raise ValueError("median of an empty array")
     return (s[(n - 1) // 2] + s[n // 2]) / 2
+
+
+def window_revolutions(kept, end: int, config) -> list:
+    """
+    The per-revolution values whose revolution lies in the calibration window ending at ``end``.
+
+    Parameters
+    ----------
+    kept : iterable of (int, object)
+        ``(first sample of the revolution, its value)``.
+    end : int
+        The sample at which the monitor's thresholds were set: the window is the
+        ``calibration_revs`` revolutions before it.
+    config : MonitorConfig
+        Or anything with ``samples_per_rev`` and ``calibration_revs``.
+    """
+    spr = config.samples_per_rev
+    first = end - config.calibration_revs * spr
+    return [value for start, value in kept if start >= first and start + spr <= end + 1]
 
 
 def robust_threshold(samples: ArrayLike, k: float, floor: float, axis: int = 0) -> np.ndarray:

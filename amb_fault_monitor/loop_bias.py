@@ -35,6 +35,7 @@ import numpy as np
 
 from amb_common.faults import FaultEvent, FaultType
 from amb_common.names import AXIS_NAMES
+from amb_fault_monitor.calibration import window_revolutions
 
 __all__ = ["LoopBias"]
 
@@ -109,12 +110,7 @@ class LoopBias:
             it (no currents fed) leave the check off.
         """
         cfg = self.config
-        first = end - cfg.calibration_revs * cfg.samples_per_rev
-        means = [
-            m
-            for start, m in self._means
-            if start >= first and start + cfg.samples_per_rev <= end + 1
-        ]
+        means = window_revolutions(self._means, end, cfg)
         if len(means) < 2:
             return
         steps = np.abs(np.diff(np.array(means), axis=0)).max(axis=0)

@@ -51,6 +51,7 @@ import numpy as np
 
 from amb_common.faults import FaultType
 from amb_common.names import N_SENSORS
+from amb_fault_monitor.calibration import window_revolutions
 from amb_fault_monitor.classifier import Decision
 
 __all__ = ["Jump", "ProbeJumps", "jump_decision"]
@@ -146,19 +147,14 @@ class ProbeJumps:
 
     def calibrate(self, end: int) -> None:
         """
-        Set the thresholds from the revolutions of the monitor's healthy window.
+        Set each channel's threshold: its largest ``|s|`` in the calibration window.
 
-        Parameters
-        ----------
-        end : int
-            The sample at which the monitor's thresholds were set: the window is the
-            ``calibration_revs`` revolutions before it. Fewer than two revolutions in it (no
-            displacements fed) leave the test off.
+        The window is that of :func:`~amb_fault_monitor.calibration.window_revolutions`,
+        ending at sample ``end``; with fewer than two revolutions of displacements in it the
+        test stays off.
         """
         cfg = self.config
-        first = end - cfg.calibration_revs * cfg.samples_per_rev
-        spr = cfg.samples_per_rev
-        peaks = [p for start, p in self._peaks if start >= first and start + spr <= end + 1]
+        peaks = window_revolutions(self._peaks, end, cfg)
         if len(peaks) < 2:
             return
         self.threshold = np.maximum(np.max(peaks, axis=0), cfg.threshold_floor)
