@@ -335,9 +335,11 @@ class FaultMonitor:
         Record one sample's probe readings (8,), m, for the jump test of the provisional class.
 
         From the measurement (:mod:`amb_fault_monitor.probe_jumps`); without them the
-        provisional class comes from the coefficients alone.
+        provisional class comes from the coefficients alone. Nothing is done (nor costs) while
+        ``provisional_revs`` is 0.
         """
-        self._jumps.add(sample_index, displacement)
+        if self._config.provisional_revs > 0:
+            self._jumps.add(sample_index, displacement)
 
     def step(self, record: SampleCoefficients) -> list[FaultEvent]:
         """

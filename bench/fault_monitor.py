@@ -15,7 +15,11 @@ front end and causal filterbank as the ``wavelet_filterbank`` node) and fed to
   (simulated seconds per wall-clock second of filterbank + monitor; > 1 keeps up with the rig).
   The median over chunks is printed with the min and max.
 
-Run: ``python bench/fault_monitor.py [--minutes 10] [--scenario healthy_67hz.yaml]``.
+With ``--provisional REVS`` the monitor publishes provisional classes and is fed the
+displacements for its jump test (:mod:`amb_fault_monitor.probe_jumps`), as the node feeds it.
+
+Run: ``python bench/fault_monitor.py [--minutes 10] [--scenario healthy_67hz.yaml]
+[--provisional 1.5]``.
 """
 
 from __future__ import annotations
@@ -40,7 +44,9 @@ from amb_plant_sim.scenario import scenario_from_dict  # noqa: E402
 from amb_plant_sim.simulator import PlantSimulator  # noqa: E402
 
 
-def run(path: Path, minutes: float, chunk_s: float, wavelet: str, seed: int) -> dict:
+def run(
+    path: Path, minutes: float, chunk_s: float, wavelet: str, seed: int, provisional: float = 0.0
+) -> dict:
     """Run the healthy scenario ``path`` for ``minutes``; return counts and timings."""
     rig = load_rig()
     scen_d, expect, _mon = load_case(path)
@@ -52,7 +58,7 @@ def run(path: Path, minutes: float, chunk_s: float, wavelet: str, seed: int) -> 
     fs = spr * scenario.speed_hz
     sim = PlantSimulator(rig, scenario, spr, seed)
     adapter = FilterbankAdapter(spr, wavelet)
-    monitor = FaultMonitor(MonitorConfig(spr))
+    monitor = FaultMonitor(MonitorConfig(spr, provisional_revs=provisional))
     total = round(60.0 * minutes * fs)
     per_chunk = max(spr, round(chunk_s * fs))
     events = []
@@ -71,7 +77,8 @@ def run(path: Path, minutes: float, chunk_s: float, wavelet: str, seed: int) -> 
             for i in range(n)
         ]
         t2 = time.perf_counter()
-        for r in recs:
+        for i, r in enumerate(recs):
+            monitor.displacements(r.sample_index, block.displacement[i])
             events += monitor.step(r)
         t3 = time.perf_counter()
         sim_t += t1 - t0
@@ -107,15 +114,19 @@ def main() -> int:
     ap.add_argument("--chunk", type=float, default=10.0, help="simulated seconds per chunk")
     ap.add_argument("--wavelet", default="haar")
     ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument(
+        "--provisional", type=float, default=0.0, help="provisional_revs (0: none, the default)"
+    )
     a = ap.parse_args()
     path = Path(a.scenario)
     if not path.exists():
         path = ROOT / "config" / "scenarios" / "faults" / a.scenario
-    r = run(path, a.minutes, a.chunk, a.wavelet, a.seed)
+    r = run(path, a.minutes, a.chunk, a.wavelet, a.seed, a.provisional)
     med = statistics.median
     print(
         f"scenario {r['scenario']}: {r['speed_hz']:.2f} Hz, {r['samples_per_rev']} samples/rev, "
-        f"fs {r['fs']:.1f} Hz, wavelet {a.wavelet}, seed {a.seed}"
+        f"fs {r['fs']:.1f} Hz, wavelet {a.wavelet}, seed {a.seed}, provisional_revs "
+        f"{a.provisional:g}"
     )
     print(f"simulated {r['simulated_s']:.1f} s = {r['samples']} samples")
     print(
