@@ -41,7 +41,7 @@ from collections import deque
 import numpy as np
 
 from amb_common.faults import FaultEvent, FaultType
-from amb_fault_monitor.classifier import bearing_of_plane
+from amb_fault_monitor.classifier import bearing_of_plane, ratio_confidence
 
 __all__ = ["ContactBursts"]
 
@@ -170,7 +170,7 @@ class ContactBursts:
             omega=omega,
             plane=plane,
             bearing=bearing_of_plane(plane),
-            confidence=float(min(max(1.0 - math.exp(-(r - 1.0)), 0.0), 1.0)),
+            confidence=ratio_confidence(r),
             count=self.count,
             evidence={
                 "after": after,

@@ -87,6 +87,7 @@ __all__ = [
     "bearing_of_plane",
     "classify",
     "classify_provisional",
+    "ratio_confidence",
 ]
 
 
@@ -195,7 +196,13 @@ def bearing_of_plane(plane: int) -> int:
     return PLANE_BEARING.get(plane, 0)
 
 
-def _confidence(ratio: float) -> float:
+def ratio_confidence(ratio: float) -> float:
+    """
+    Confidence of a decision from a test's ratio to its limit: ``1 - exp(-(ratio - 1))``.
+
+    0 at the limit (``ratio`` 1), 0.63 at twice it, towards 1 beyond; clipped to [0, 1]. The
+    confidence of every event the monitor emits.
+    """
     return float(min(max(1.0 - math.exp(-(ratio - 1.0)), 0.0), 1.0))
 
 
@@ -291,7 +298,7 @@ def classify(ev: EpisodeEvidence, config: ClassifierThresholds) -> Decision:
             FaultType.BASE_MOTION,
             plane=0,
             severity=float(ev.low_peak),
-            confidence=_confidence(r) * coherence,
+            confidence=ratio_confidence(r) * coherence,
             evidence={
                 **base,
                 "planes_below_1x": n_low_planes,
@@ -312,7 +319,7 @@ def classify(ev: EpisodeEvidence, config: ClassifierThresholds) -> Decision:
             FaultType.MASS_LOSS,
             plane=plane,
             severity=float(ev.sync_change.max()),
-            confidence=_confidence(sync / config.sync_change),
+            confidence=ratio_confidence(sync / config.sync_change),
             count=1,
             evidence={
                 **base,
@@ -334,7 +341,7 @@ def classify(ev: EpisodeEvidence, config: ClassifierThresholds) -> Decision:
             plane=plane,
             bearing=bearing_of_plane(plane),
             severity=0.0,
-            confidence=_confidence(r),
+            confidence=ratio_confidence(r),
             count=count,
             evidence={**base, "bursts": count, "rule": "transient above 1 x in both frames"},
             description=(
@@ -397,7 +404,7 @@ def classify_provisional(ev: EpisodeEvidence, config: ClassifierThresholds) -> D
     return Decision(
         FaultType.MASS_LOSS,
         plane=plane,
-        confidence=_confidence(ratio / config.provisional_ratio),
+        confidence=ratio_confidence(ratio / config.provisional_ratio),
         evidence={**d.evidence, "rule": "change above 1 x mostly in the fixed frame"},
         description=(
             f"the change above 1 x is {ratio:.2f} x larger in the fixed frame than in the "

@@ -27,6 +27,7 @@ import numpy as np
 
 from amb_common.faults import FaultEvent, FaultType
 from amb_common.names import AXIS_NAMES
+from amb_fault_monitor.classifier import ratio_confidence
 
 __all__ = ["CoilCheck"]
 
@@ -148,7 +149,7 @@ class CoilCheck:
                     plane=0,
                     bearing=bearing,
                     severity=0.0,
-                    confidence=float(min(max(1.0 - math.exp(-(ratio - 1.0)), 0.0), 1.0)),
+                    confidence=ratio_confidence(ratio),
                     evidence={
                         "axis": name,
                         "demanded_a": demanded,

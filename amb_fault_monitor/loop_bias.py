@@ -36,6 +36,7 @@ import numpy as np
 from amb_common.faults import FaultEvent, FaultType
 from amb_common.names import AXIS_NAMES
 from amb_fault_monitor.calibration import window_revolutions
+from amb_fault_monitor.classifier import ratio_confidence
 
 __all__ = ["LoopBias"]
 
@@ -190,7 +191,7 @@ class LoopBias:
             channel=channel,
             bearing=0,
             severity=abs(float(step[axis])),
-            confidence=float(1.0 - np.exp(-(abs(step[axis]) / threshold - 1.0))),
+            confidence=ratio_confidence(abs(step[axis]) / threshold),
             count=1,
             evidence={
                 **ev.evidence,

@@ -33,7 +33,7 @@ Episodes
    (:func:`~amb_fault_monitor.classifier.classify_provisional`) is emitted that many
    revolutions after the episode's estimated onset, at the alarm if that is later, if the
    episode is undecided then (``evidence["status"]`` ``provisional``; the ``SENSOR_FAULT`` of
-   a channel whose reading alone jumped since a quarter revolution before the onset,
+   a channel whose reading alone jumped within a quarter revolution of the onset,
    :mod:`amb_fault_monitor.probe_jumps`, given the displacements); the decision's event
    then says ``final``, with the provisional class (``provisional_class``) and whether it was
    revised (``revised``), or, where the episode turns out to be another fault's consequence

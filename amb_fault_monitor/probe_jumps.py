@@ -52,7 +52,7 @@ import numpy as np
 from amb_common.faults import FaultType
 from amb_common.names import N_SENSORS
 from amb_fault_monitor.calibration import window_revolutions
-from amb_fault_monitor.classifier import Decision
+from amb_fault_monitor.classifier import Decision, ratio_confidence
 
 __all__ = ["Jump", "ProbeJumps", "jump_decision"]
 
@@ -199,7 +199,7 @@ def jump_decision(jump: Jump, factor: float) -> Decision:
         plane=plane,
         channel=channel,
         severity=abs(size),
-        confidence=float(1.0 - np.exp(-(ratio / factor - 1.0))),
+        confidence=ratio_confidence(ratio / factor),
         evidence={
             "rule": "one probe's reading jumped with its slope unchanged; no other moved",
             "jump_m": size,

@@ -11,6 +11,7 @@ import pytest
 
 from amb_common.faults import FaultType
 from amb_fault_monitor.config import MonitorConfig
+from amb_fault_monitor.errors import FaultMonitorError
 from amb_fault_monitor.probe_jumps import ProbeJumps, jump_decision
 
 SPR = 32
@@ -130,7 +131,5 @@ def test_a_gap_in_the_samples_restarts_the_differences():
 
 @pytest.mark.parametrize("field", ["jump_factor", "jump_isolation", "jump_lasting"])
 def test_bad_jump_settings_are_refused(field):
-    from amb_fault_monitor.errors import FaultMonitorError
-
     with pytest.raises(FaultMonitorError, match=field):
         MonitorConfig(SPR, **{field: 0.0})
