@@ -17,7 +17,9 @@ Fault detection from wavelet coefficients in the fixed and rotating frames (thes
   :mod:`amb_fault_monitor.coil_check`;
 * a biased probe inside the PID loop, from a lasting step of a bearing axis's mean force:
   :mod:`amb_fault_monitor.loop_bias`;
-* a probe whose reading jumps, for the provisional class: :mod:`amb_fault_monitor.probe_jumps`.
+* a probe whose reading jumps, for the provisional class: :mod:`amb_fault_monitor.probe_jumps`;
+* how sinusoidal the readings' change is, for the provisional class:
+  :mod:`amb_fault_monitor.revolution_change`.
 
 Episodes
 --------
@@ -34,8 +36,9 @@ Episodes
    revolutions after the episode's estimated onset, at the alarm if that is later, if the
    episode is undecided then (``evidence["status"]`` ``provisional``; the ``SENSOR_FAULT`` of
    a channel whose reading alone jumped within a quarter revolution of the onset,
-   :mod:`amb_fault_monitor.probe_jumps`, given the displacements); the decision's event
-   then says ``final``, with the provisional class (``provisional_class``) and whether it was
+   :mod:`amb_fault_monitor.probe_jumps`, given the displacements, which also give the
+   harmonic ratio of the change, :mod:`amb_fault_monitor.revolution_change`); the decision's
+   event then says ``final``, with the provisional class (``provisional_class``) and whether it was
    revised (``revised``), or, where the episode turns out to be another fault's consequence
    and no class is reported (steps 5-6, a stuck channel), a copy of the provisional event
    says ``withdrawn``.
@@ -93,6 +96,7 @@ from amb_fault_monitor.onset import AtomCentres, estimate_onset, onset_sample
 from amb_fault_monitor.phasor import SynchronousLevel
 from amb_fault_monitor.probe_jumps import ProbeJumps, jump_decision
 from amb_fault_monitor.records import SampleCoefficients
+from amb_fault_monitor.revolution_change import RevolutionChange
 from amb_wavelet.analysis import DETAIL
 from amb_wavelet.levels import revolution_level
 
@@ -157,6 +161,7 @@ class FaultMonitor:
         self._finest = min(config.levels) if config.levels else 1
         self._centres = AtomCentres()
         self._jumps = ProbeJumps(config)
+        self._change = RevolutionChange(config)
         self.trace: list[tuple[int, int, str, int, int, np.ndarray]] | None = None
         self.reset()
 
@@ -171,7 +176,7 @@ class FaultMonitor:
         self._config = config
         parts = (
             self._calibration, self._sync, self._dead, self._control, self._coils, self._bias,
-            self._jumps,
+            self._jumps, self._change,
         )  # fmt: skip
         for part in parts:
             if part is not None:
@@ -199,6 +204,7 @@ class FaultMonitor:
         if self._bias is not None:
             self._bias.reset()
         self._jumps.reset()
+        self._change.reset()
         self._coil_onsets: list[int] = []
         self.coil_explained = 0
 
@@ -332,14 +338,16 @@ class FaultMonitor:
 
     def displacements(self, sample_index: int, displacement: np.ndarray) -> None:
         """
-        Record one sample's probe readings (8,), m, for the jump test of the provisional class.
+        Record one sample's probe readings (8,), m, for the provisional class.
 
-        From the measurement (:mod:`amb_fault_monitor.probe_jumps`); without them the
+        From the measurement, for the jump test (:mod:`amb_fault_monitor.probe_jumps`) and the
+        change's harmonics (:mod:`amb_fault_monitor.revolution_change`); without them the
         provisional class comes from the coefficients alone. Nothing is done (nor costs) while
         ``provisional_revs`` is 0.
         """
         if self._config.provisional_revs > 0:
             self._jumps.add(sample_index, displacement)
+            self._change.add(sample_index, displacement)
 
     def step(self, record: SampleCoefficients) -> list[FaultEvent]:
         """
@@ -582,6 +590,7 @@ class FaultMonitor:
         else:
             zero = np.zeros(4)
             evidence = ep.evidence(self._R, zero, zero, self._mask)
+            evidence.harmonic_ratio = self._change.harmonic_ratio(onset, n, self._mask)
             decision = classify_provisional(evidence, self._config)
         ev = self._event(n, ep, onset, decision)
         if self._coil_explains(ev):

@@ -65,6 +65,35 @@ def test_the_frame_of_the_change_above_1x_separates_mass_loss_from_contact(
         assert d.evidence["rule"] == "change above 1 x mostly in the fixed frame"
 
 
+@pytest.mark.parametrize(
+    ("h", "expected"),
+    [
+        (None, FaultType.AUX_BEARING_CONTACT),  # no readings: the frame rule alone
+        (0.1, FaultType.MASS_LOSS),
+        (0.27, FaultType.MASS_LOSS),  # provisional_harmonics, its default: the boundary
+        (0.28, FaultType.AUX_BEARING_CONTACT),
+        (0.9, FaultType.AUX_BEARING_CONTACT),
+    ],
+)
+def test_a_change_without_harmonics_is_a_mass_loss_where_the_frames_say_contact(h, expected):
+    """The frame ratio 1.25 says contact; a 1 x sinusoidal change of the readings
+    (harmonic_ratio <= provisional_harmonics) overrides it, placed at the fixed peak's plane."""
+    ev = replace(_evidence([2.0, 5.0, 3.0, 1.0], [4.0, 3.0, 2.0, 1.0]), harmonic_ratio=h)
+    d = classify_provisional(ev, CONFIG)
+    assert d.fault_type == expected
+    assert d.evidence.get("harmonic_ratio") == h
+    if expected == FaultType.MASS_LOSS:
+        assert d.plane == 2
+        assert d.evidence["rule"] == "the change of the last revolution is a 1 x sinusoid"
+
+
+def test_the_frame_rule_is_not_overruled_by_harmonics():
+    """A change mostly in the fixed frame stays a mass loss whatever its harmonics (a loss
+    that brings a contact within the revolution examined)."""
+    ev = replace(_evidence([2.0, 12.0, 3.0, 1.0], [4.0, 3.0, 2.0, 1.0]), harmonic_ratio=0.9)
+    assert classify_provisional(ev, CONFIG).fault_type == FaultType.MASS_LOSS
+
+
 def test_a_moved_1x_level_does_not_make_a_provisional_mass_loss():
     """The 1 x level has not settled when the provisional class is given: its ratio is not
     used (the final rule 3 would call this evidence a mass loss)."""
@@ -109,7 +138,8 @@ def test_an_isolated_channel_is_still_a_sensor_fault():
 
 
 @pytest.mark.parametrize(
-    ("field", "value"), [("provisional_revs", -0.5), ("provisional_ratio", 0.0)]
+    ("field", "value"),
+    [("provisional_revs", -0.5), ("provisional_ratio", 0.0), ("provisional_harmonics", 0.0)],
 )
 def test_bad_provisional_settings_are_refused(field, value):
     with pytest.raises(FaultMonitorError, match=field):
@@ -164,7 +194,11 @@ def rig():
     [
         ("mass_loss_29hz_430gcm_000.yaml", "haar", None),
         ("mass_loss_29hz_430gcm_000.yaml", "db2", None),
+        # db4's frame ratio reads it as a contact; the readings' change is a 1 x sinusoid
+        ("mass_loss_29hz_430gcm_000.yaml", "db4", None),
         ("contact_ab1_29hz_unbalance.yaml", "db2", None),
+        # the suite's contact with the fewest harmonics under db4
+        ("contact_ab2_29hz_sync_force.yaml", "db4", None),
         # offsets inside the PID loop: plane 3 y and plane 2 x ([x1, y1, x2, y2, x3, y3, ...])
         ("sensor_offset_plane3y_11hz.yaml", "haar", 5),
         ("sensor_offset_plane2x_29hz.yaml", "db4", 2),
