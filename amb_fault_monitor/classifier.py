@@ -64,14 +64,15 @@ fixed-frame levels just above 1 x take in (the filters' pass bands overlap), fal
 rotating frame's levels below 1 x. A contact's impulses are broadband in both frames. The
 largest change-to-threshold ratio above 1 x in the fixed frame over that in the rotating frame,
 ``fixed_over_rotating``, is therefore large for a mass loss and near 1 for a contact; at
-``provisional_ratio`` or more the provisional class is ``MASS_LOSS``. With long filters
-(db4) the fixed-frame levels have not yet taken in the growth at 1.5 revolutions and losses
-read near 1 too; the raw probe readings tell them apart: a loss's change over the last
-revolution is a sinusoid at 1 x, a contact's carries the harmonics of its impacts
-(:mod:`amb_fault_monitor.revolution_change`). A ``harmonic_ratio`` of at most
-``provisional_harmonics`` is then ``MASS_LOSS`` too, else ``AUX_BEARING_CONTACT``. The
-measured ratios on the suite are in ``docs/fault_monitor_notes.md`` ("Provisional classes",
-"The change's harmonics").
+``provisional_ratio`` or more the provisional class is ``MASS_LOSS``, else
+``AUX_BEARING_CONTACT``. That is the rule without the probe readings. With long filters (db4)
+and near a mode (67 Hz) the levels above 1 x have not told the two apart at 1.5
+revolutions; the raw readings have: a loss's change over the last revolution is a sinusoid at
+1 x on a slow drift, a contact's is not (:mod:`amb_fault_monitor.revolution_change`). Given the
+readings, the provisional class of a change in both frames is ``MASS_LOSS`` when what a
+sinusoid and a line leave of it, ``residual_ratio``, is at most ``provisional_residual``, else
+``AUX_BEARING_CONTACT``; ``fixed_over_rotating`` is then reported, not used. The measured
+ratios are in ``docs/fault_monitor_notes.md`` ("Provisional classes", "The change's shape").
 """
 
 from __future__ import annotations
@@ -110,7 +111,7 @@ class ClassifierThresholds(Protocol):
     confirm_ratio: float
     sync_change: float
     provisional_ratio: float
-    provisional_harmonics: float
+    provisional_residual: float
 
 
 @dataclass
@@ -146,10 +147,10 @@ class EpisodeEvidence:
         Largest fixed-frame change above 1 x of any channel, m.
     coherence : float
         Plane coherence (as ``low_coherence``) of the fixed-frame changes at every level.
-    harmonic_ratio : float or None
-        Harmonics ``2 x, 3 x, ...`` over 1 x of the probe readings' change in the last
-        revolution (:mod:`amb_fault_monitor.revolution_change`; provisional classes only, None
-        without the readings).
+    residual_ratio : float or None
+        What a 1 x sinusoid and a straight line leave of the probe readings' change in the
+        last revolution, over the sinusoid (:mod:`amb_fault_monitor.revolution_change`;
+        provisional classes only, None without the readings).
     """
 
     revolution_level: int
@@ -164,7 +165,7 @@ class EpisodeEvidence:
     high_peak: float = 0.0
     fine_energy: np.ndarray = field(default_factory=lambda: np.zeros(8))
     coherence: float = 0.0
-    harmonic_ratio: float | None = None
+    residual_ratio: float | None = None
 
     def peak(self, frame: str, which: str) -> np.ndarray:
         """Largest ratio per plane over levels ``above`` / ``below`` / ``at`` 1 x in ``frame``."""
@@ -377,7 +378,7 @@ def classify_provisional(ev: EpisodeEvidence, config: ClassifierThresholds) -> D
     ev : EpisodeEvidence
         The evidence so far; its ``sync_ratio`` is not used (the level has not settled).
     config : ClassifierThresholds
-        Uses ``provisional_ratio``, ``provisional_harmonics``, ``base_coherence`` and what
+        Uses ``provisional_residual``, ``provisional_ratio``, ``base_coherence`` and what
         :func:`classify` uses.
 
     Returns
@@ -386,9 +387,9 @@ def classify_provisional(ev: EpisodeEvidence, config: ClassifierThresholds) -> D
         ``SENSOR_FAULT``, ``BASE_MOTION`` and ``UNKNOWN`` as :func:`classify` decides them
         without a lasting 1 x change; ``BASE_MOTION`` also for ``coherence >=
         base_coherence``; else a change above 1 x in both frames is ``MASS_LOSS`` when
-        ``fixed_over_rotating >= provisional_ratio`` (in ``evidence``) or, failing that, when
-        the readings' change is a 1 x sinusoid (``harmonic_ratio <= provisional_harmonics``),
-        else ``AUX_BEARING_CONTACT``.
+        ``residual_ratio <= provisional_residual`` or, without the readings
+        (``residual_ratio`` None), when ``fixed_over_rotating >= provisional_ratio`` (both in
+        ``evidence``), else ``AUX_BEARING_CONTACT``.
     """
     d = classify(replace(ev, sync_ratio=np.zeros(4), sync_change=np.zeros(4)), config)
     if d.fault_type in (FaultType.SENSOR_FAULT, FaultType.BASE_MOTION):
@@ -410,12 +411,14 @@ def classify_provisional(ev: EpisodeEvidence, config: ClassifierThresholds) -> D
     above_fixed = ev.peak("fixed", "above")
     ratio = float(above_fixed.max() / max(float(ev.peak("rotating", "above").max()), 1e-300))
     d.evidence["fixed_over_rotating"] = ratio
-    h = ev.harmonic_ratio
-    if h is not None:
-        d.evidence["harmonic_ratio"] = h
+    rho = ev.residual_ratio
+    if rho is not None:
+        d.evidence["residual_ratio"] = rho
+        if rho > config.provisional_residual:
+            d.description += f" (not a 1 x sinusoid on a drift: residual {rho:.2f} of it)"
+            return d
+        return _synchronous_change(d, rho, int(np.argmax(above_fixed)) + 1, config)
     if ratio < config.provisional_ratio:
-        if h is not None and h <= config.provisional_harmonics:
-            return _sinusoidal_change(d, h, int(np.argmax(above_fixed)) + 1, config)
         d.description += f" (fixed over rotating frame above 1 x {ratio:.2f})"
         return d
     plane = int(np.argmax(above_fixed)) + 1
@@ -431,15 +434,17 @@ def classify_provisional(ev: EpisodeEvidence, config: ClassifierThresholds) -> D
     )
 
 
-def _sinusoidal_change(d: Decision, h: float, plane: int, config: ClassifierThresholds) -> Decision:
-    """The provisional ``MASS_LOSS`` of a change that is a sinusoid at 1 x (harmonic ratio)."""
+def _synchronous_change(
+    d: Decision, rho: float, plane: int, config: ClassifierThresholds
+) -> Decision:
+    """The provisional ``MASS_LOSS`` of a change that is a 1 x sinusoid on a slow drift."""
     return Decision(
         FaultType.MASS_LOSS,
         plane=plane,
-        confidence=ratio_confidence(config.provisional_harmonics / max(h, 1e-300)),
+        confidence=ratio_confidence(config.provisional_residual / max(rho, 1e-300)),
         evidence={**d.evidence, "rule": "the change of the last revolution is a 1 x sinusoid"},
         description=(
-            f"the probes' change over the last revolution is a sinusoid at 1 x (harmonics "
-            f"{h:.2f} of it, no impacts): a synchronous (unbalance) change"
+            f"the probes' change over the last revolution is a sinusoid at 1 x on a slow drift "
+            f"(what is left, {rho:.2f} of it, shows no impact): a synchronous (unbalance) change"
         ),
     )

@@ -135,13 +135,13 @@ class MonitorConfig:
         class of a change in both frames is a mass loss rather than a contact
         (:func:`~amb_fault_monitor.classifier.classify_provisional`; measured ratios:
         ``docs/fault_monitor_notes.md``, "Provisional classes").
-    provisional_harmonics : float
-        Harmonic ratio (``2 x, 3 x, ...`` over 1 x) of the probe readings' change over the
-        last revolution at or below which the provisional class of a change the frame ratio
-        calls a contact is a mass loss
-        (:mod:`amb_fault_monitor.revolution_change`). Between the largest loss the frame ratio
-        missed (0.22, db4 at 29 Hz) and the smallest contact (0.32) on the suites
-        (``docs/fault_monitor_notes.md``, "The change's harmonics").
+    provisional_residual : float
+        What a 1 x sinusoid and a straight line leave of the probe readings' change over the
+        last revolution, over the sinusoid, at or below which the provisional class of a
+        change in both frames is a mass loss rather than a contact
+        (:mod:`amb_fault_monitor.revolution_change`; with the readings it replaces
+        ``provisional_ratio``). Between the largest loss (0.10) and the smallest contact
+        (0.12) of the suites (``docs/fault_monitor_notes.md``, "The change's shape").
     jump_factor, jump_isolation, jump_lasting
         The jump test of one probe's reading (:mod:`amb_fault_monitor.probe_jumps`): the
         smallest jump over the largest healthy one of its channel; how large another channel's
@@ -231,7 +231,7 @@ class MonitorConfig:
         floats=(0.0, 1e3),
     )
     provisional_ratio: float = 1.3
-    provisional_harmonics: float = 0.27
+    provisional_residual: float = 0.115
     jump_factor: float = 4.0
     jump_isolation: float = 0.3
     jump_lasting: float = 0.75
@@ -253,7 +253,7 @@ class MonitorConfig:
             "tail_rise", "tail_rise_median", "dead_revs", "base_coherence", "base_dominance",
             "rearm_revs", "control_step", "control_kink", "control_window_revs", "coil_floor",
             "coil_factor", "coil_confirm_revs", "bias_floor", "bias_factor", "bias_steady",
-            "provisional_ratio", "provisional_harmonics", "jump_factor", "jump_isolation",
+            "provisional_ratio", "provisional_residual", "jump_factor", "jump_isolation",
             "jump_lasting",
         )  # fmt: skip
         for name in positive:

@@ -18,7 +18,7 @@ Fault detection from wavelet coefficients in the fixed and rotating frames (thes
 * a biased probe inside the PID loop, from a lasting step of a bearing axis's mean force:
   :mod:`amb_fault_monitor.loop_bias`;
 * a probe whose reading jumps, for the provisional class: :mod:`amb_fault_monitor.probe_jumps`;
-* how sinusoidal the readings' change is, for the provisional class:
+* whether the readings' change is a 1 x sinusoid, for the provisional class:
   :mod:`amb_fault_monitor.revolution_change`.
 
 Episodes
@@ -37,7 +37,7 @@ Episodes
    episode is undecided then (``evidence["status"]`` ``provisional``; the ``SENSOR_FAULT`` of
    a channel whose reading alone jumped within a quarter revolution of the onset,
    :mod:`amb_fault_monitor.probe_jumps`, given the displacements, which also give the
-   harmonic ratio of the change, :mod:`amb_fault_monitor.revolution_change`); the decision's
+   shape of the change, :mod:`amb_fault_monitor.revolution_change`); the decision's
    event then says ``final``, with the provisional class (``provisional_class``) and whether it was
    revised (``revised``), or, where the episode turns out to be another fault's consequence
    and no class is reported (steps 5-6, a stuck channel), a copy of the provisional event
@@ -341,7 +341,7 @@ class FaultMonitor:
         Record one sample's probe readings (8,), m, for the provisional class.
 
         From the measurement, for the jump test (:mod:`amb_fault_monitor.probe_jumps`) and the
-        change's harmonics (:mod:`amb_fault_monitor.revolution_change`); without them the
+        change's shape (:mod:`amb_fault_monitor.revolution_change`); without them the
         provisional class comes from the coefficients alone. Nothing is done (nor costs) while
         ``provisional_revs`` is 0.
         """
@@ -590,7 +590,7 @@ class FaultMonitor:
         else:
             zero = np.zeros(4)
             evidence = ep.evidence(self._R, zero, zero, self._mask)
-            evidence.harmonic_ratio = self._change.harmonic_ratio(onset, n, self._mask)
+            evidence.residual_ratio = self._change.residual_ratio(onset, n, self._mask)
             decision = classify_provisional(evidence, self._config)
         ev = self._event(n, ep, onset, decision)
         if self._coil_explains(ev):

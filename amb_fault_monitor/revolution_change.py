@@ -1,29 +1,33 @@
 """
-How sinusoidal the change of the probe readings is over the last revolution.
+What a sinusoid at 1 x and a straight line leave of the probe readings' last revolution of change.
 
 A sudden mass loss adds a synchronous force ``B m e Omega**2 exp(j Omega t) H(t)`` (thesis
-3.2.2, eq. 3.3 with a step; a contact is an impulse force, table 3.2): once the free response
-of the first half revolution has died down, the change it makes at each probe is close to a
-sinusoid at 1 x. A contact's impacts last a fraction of a revolution and recur at most once
-per revolution, so the change they make carries the harmonics ``2 x, 3 x, ...`` of running
-speed. With synchronous sampling (``spr`` samples per revolution) the DFT of one revolution of
-samples has the harmonics as its bins, and the *harmonic ratio* of the change is
+3.2.2, eq. 3.3 with a step); a contact is an impulse force (table 3.2). Half a revolution
+after a loss, the change it has made at a probe is the forced response, a sinusoid at 1 x,
+plus the free response of the rotor's modes, which within one revolution is a slow drift for
+the modes below running speed. A contact's impacts last a fraction of a revolution: they
+leave a change that neither a sinusoid at 1 x nor a straight line describes. Per channel
+``c`` in use, the change of the last revolution before the provisional decision, ``d_c`` (one
+sample per ``2 pi / spr`` of rotor angle, synchronous sampling), is fitted by least squares
+with
 
-    h = sqrt( sum_c sum_{k >= 2} |E_c[k]|**2 / sum_c |E_c[1]|**2 ),
+    d_c[j] ~ a_c cos(theta_j) + b_c sin(theta_j) + p_c + q_c (j - (spr - 1) / 2) / spr,
+    theta_j = 2 pi j / spr,  j = 0 .. spr - 1,
 
-``E_c`` the DFT of channel ``c``'s change over the last revolution before the provisional
-decision, summed over the channels in use. The change of sample ``n`` is its reading minus
-the healthy reading at the same angle, ``x[n] - x[n - q spr]``, with ``q`` the smallest whole
-number of revolutions that takes ``n - q spr`` before the episode's estimated onset (a
-reference inside the episode would cancel part of the change it is compared with).
+and the *residual ratio* is
 
-It is a property of the change's shape, not of a wavelet's filters. The monitor uses it for
-one decision only: a provisional ``AUX_BEARING_CONTACT`` of the frame rule becomes
-``MASS_LOSS`` when ``h <= provisional_harmonics``
-(:func:`~amb_fault_monitor.classifier.classify_provisional`), which names the losses the frame
-rule misses with long filters (db4) without calling any contact of the suites a loss; alone it
-does not separate them (a loss's ratio grows with speed; the measured ratios are in
-``docs/fault_monitor_notes.md``, "The change's harmonics").
+    rho = sqrt( sum_c |d_c - fit_c|**2 / sum_c |a_c cos + b_c sin|**2 ),
+
+what the fit leaves over its 1 x part, summed over the channels. The change of sample ``n`` is
+its reading minus the healthy reading at the same angle, ``x[n] - x[n - k spr]``, ``k`` the
+smallest whole number of revolutions that takes ``n - k spr`` before the episode's estimated
+onset (a reference inside the episode would cancel part of the change it is compared with).
+
+It is a property of the change's shape, the same for every wavelet but for the onset estimate
+the window hangs on; the monitor's provisional class of a change in both frames is
+``MASS_LOSS`` for ``rho <= provisional_residual``, else ``AUX_BEARING_CONTACT``
+(:func:`~amb_fault_monitor.classifier.classify_provisional`; the measured ratios and what was
+tried before are in ``docs/fault_monitor_notes.md``, "The change's shape").
 """
 
 from __future__ import annotations
@@ -39,7 +43,7 @@ __all__ = ["RevolutionChange"]
 
 class RevolutionChange:
     """
-    The probe readings of the last few revolutions and the harmonic ratio of their change.
+    The probe readings of the last few revolutions and the residual ratio of their change.
 
     Parameters
     ----------
@@ -64,6 +68,11 @@ class RevolutionChange:
         self._config = config
         self.samples_per_rev = int(config.samples_per_rev)
         size = self.samples_per_rev * (math.ceil(config.provisional_revs) + 3)
+        j = np.arange(self.samples_per_rev)
+        theta = 2 * np.pi * j / self.samples_per_rev
+        ramp = (j - (self.samples_per_rev - 1) / 2) / self.samples_per_rev
+        self._basis = np.column_stack([np.cos(theta), np.sin(theta), np.ones_like(theta), ramp])
+        self._solve = np.linalg.pinv(self._basis)  # least squares, computed once
         if size != self._size:
             self._size = size
             self._x = np.zeros((size, N_SENSORS))
@@ -79,9 +88,9 @@ class RevolutionChange:
         self._x[slot] = displacement
         self._n[slot] = n
 
-    def harmonic_ratio(self, onset: int, now: int, mask: np.ndarray) -> float | None:
+    def residual_ratio(self, onset: int, now: int, mask: np.ndarray) -> float | None:
         """
-        ``h`` of the change over samples ``now - spr + 1 .. now`` (module docstring).
+        ``rho`` of the change over samples ``now - spr + 1 .. now`` (module docstring).
 
         Parameters
         ----------
@@ -96,8 +105,8 @@ class RevolutionChange:
         -------
         float or None
             None when a reading the ratio needs is not kept (a gap in the stream, too long
-            after the onset), when the revolution examined starts before ``onset`` or when no
-            channel is in use.
+            after the onset), when the revolution examined starts before ``onset``, when no
+            channel is in use or when the change has no 1 x part.
         """
         spr = self.samples_per_rev
         n = np.arange(now - spr + 1, now + 1)
@@ -109,8 +118,10 @@ class RevolutionChange:
         if not np.array_equal(self._n[slots], wanted):
             return None
         change = self._x[slots[:spr]][:, mask] - self._x[slots[spr:]][:, mask]
-        power = np.abs(np.fft.rfft(change, axis=0)) ** 2
-        fundamental = float(power[1].sum())
+        coef = self._solve @ change  # (4, channels): a, b, p, q
+        synchronous = self._basis[:, :2] @ coef[:2]
+        residual = change - self._basis @ coef
+        fundamental = float(np.sum(synchronous**2))
         if not fundamental > 0:
             return None
-        return math.sqrt(float(power[2:].sum()) / fundamental)
+        return math.sqrt(float(np.sum(residual**2)) / fundamental)

@@ -1,9 +1,10 @@
-"""The harmonic ratio of the probe readings' change (amb_fault_monitor.revolution_change).
+"""The residual ratio of the probe readings' change (amb_fault_monitor.revolution_change).
 
-References are closed forms: a change made of sinusoids at whole multiples of running speed
-has, over one revolution of synchronous samples, exactly those sinusoids' amplitudes as its
-DFT bins, so ``h`` is the root of the summed squared harmonic amplitudes over the summed
-squared 1 x amplitudes.
+References are closed forms over one revolution of ``N`` synchronous samples: a sinusoid at
+1 x on an offset and a straight line is fitted exactly (nothing left); ``cos 3 theta - cos 5
+theta`` is orthogonal to ``cos theta``, ``sin theta``, ``1`` and the centred ramp (``sum_j j
+cos(2 pi k j / N) = -N/2`` for every ``k`` not a multiple of ``N``), so all of it is left and
+the ratio is its norm over the 1 x part's.
 """
 
 from types import SimpleNamespace
@@ -37,49 +38,54 @@ def _ratio(x, onset=ONSET, now=NOW, mask=None, skip=()):
         if n not in skip:
             change.add(n, row)
     mask = np.ones(8, dtype=bool) if mask is None else mask
-    return change.harmonic_ratio(onset, now, mask)
+    return change.residual_ratio(onset, now, mask)
 
 
-def test_a_synchronous_change_has_no_harmonics():
-    """A mass loss's steady change, a new sinusoid at 1 x switched on inside a revolution: the
-    reference readings lie before the onset, so nothing of the switch is left."""
-    h = _ratio(_readings(lambda th: 30e-6 * np.cos(th + 1.1)))
-    assert h == pytest.approx(0.0, abs=1e-9)
+WINDOW = NOW - SPR + 1  # the first sample of the revolution examined
 
 
-@pytest.mark.parametrize(
-    ("b1", "harmonics", "expected"),
-    [
-        (20e-6, {2: 5e-6}, 0.25),
-        (20e-6, {3: 8e-6, 5: 6e-6}, 0.5),
-        (10e-6, {2: 6e-6, 4: 8e-6}, 1.0),
-    ],
-)
-def test_the_ratio_is_the_harmonics_amplitude_over_the_fundamental(b1, harmonics, expected):
-    """Every probe changes by ``b1`` at 1 x and the given amplitudes at k x: ``h`` is
-    sqrt(sum of the harmonics' squares) / b1 (the same on every channel)."""
+def _window_angle(th):
+    """The angle counted from the first sample of the revolution examined (from ``theta``)."""
+    return th - PHASE - 2 * np.pi * WINDOW / SPR
+
+
+def test_a_synchronous_change_on_a_drift_leaves_nothing():
+    """A mass loss's change: a new sinusoid at 1 x switched on inside a revolution, on an
+    offset and a slope (the slow free response); the reference readings lie before the
+    onset, so nothing of the switch is left either."""
 
     def change(th):
-        out = b1 * np.sin(th)
-        for k, b in harmonics.items():
-            out = out + b * np.sin(k * th + 0.3 * k)
-        return out
+        return 30e-6 * np.cos(th + 1.1) + 4e-6 + 2e-6 * _window_angle(th)
 
-    assert _ratio(_readings(change)) == pytest.approx(expected, rel=1e-9)
+    assert _ratio(_readings(change)) == pytest.approx(0.0, abs=1e-9)
+
+
+@pytest.mark.parametrize(("b1", "c"), [(20e-6, 2e-6), (20e-6, 10e-6), (5e-6, 10e-6)])
+def test_what_is_left_is_the_part_no_sinusoid_or_line_describes(b1, c):
+    """``b1 sin(theta) + c (cos 3 theta - cos 5 theta)`` on every probe, theta from the
+    revolution's first sample: rho = sqrt(2) c / b1."""
+
+    def change(th):
+        a = _window_angle(th)
+        return b1 * np.sin(a) + c * (np.cos(3 * a) - np.cos(5 * a))
+
+    assert _ratio(_readings(change)) == pytest.approx(np.sqrt(2) * c / b1, rel=1e-9)
 
 
 def test_channels_are_pooled_and_masked_ones_left_out():
-    """Channel 0 changes at 1 x only (20 um), channel 3 at 1 x (10 um) and 3 x (10 um), the
-    others not at all: h = sqrt(10**2 / (20**2 + 10**2)); without channel 3, 0."""
+    """Channel 0 changes at 1 x only (20 um), channel 3 at 1 x (10 um) and by 10 um of
+    ``cos 3 theta - cos 5 theta``, the others not at all: rho = sqrt(2 * 10**2 / (20**2 +
+    10**2)); without channel 3, 0."""
 
     def change(th):
+        a = _window_angle(th)
         out = np.zeros_like(th)
-        out[:, 0] = 20e-6 * np.sin(th[:, 0])
-        out[:, 3] = 10e-6 * (np.sin(th[:, 3]) + np.sin(3 * th[:, 3]))
+        out[:, 0] = 20e-6 * np.sin(a[:, 0])
+        out[:, 3] = 10e-6 * (np.sin(a[:, 3]) + np.cos(3 * a[:, 3]) - np.cos(5 * a[:, 3]))
         return out
 
     x = _readings(change)
-    assert _ratio(x) == pytest.approx(np.sqrt(100 / 500), rel=1e-9)
+    assert _ratio(x) == pytest.approx(np.sqrt(200 / 500), rel=1e-9)
     mask = np.ones(8, dtype=bool)
     mask[3] = False
     assert _ratio(x, mask=mask) == pytest.approx(0.0, abs=1e-9)
@@ -102,10 +108,10 @@ def test_reset_forgets_the_readings_and_a_new_config_resizes():
     for n, row in enumerate(x):
         change.add(n, row)
     mask = np.ones(8, dtype=bool)
-    assert change.harmonic_ratio(ONSET, NOW, mask) is not None
+    assert change.residual_ratio(ONSET, NOW, mask) is not None
     change.reset()
-    assert change.harmonic_ratio(ONSET, NOW, mask) is None
+    assert change.residual_ratio(ONSET, NOW, mask) is None
     for n, row in enumerate(x):
         change.add(n, row)
     change.config = SimpleNamespace(samples_per_rev=SPR, provisional_revs=6.0)
-    assert change.harmonic_ratio(ONSET, NOW, mask) is None  # resized: readings forgotten
+    assert change.residual_ratio(ONSET, NOW, mask) is None  # resized: readings forgotten
