@@ -369,9 +369,10 @@ class _Monitor:
         ki: float,
         feedback_channels: Sequence[int],
         config: MonitorConfig | None = None,
+        plane_bearings: Sequence[int] | None = None,
     ) -> None:
         config = config or MonitorConfig(samples_per_rev=samples_per_rev)
-        self.core = FaultMonitor(config, ki, feedback_channels)
+        self.core = FaultMonitor(config, ki, feedback_channels, plane_bearings)
         self.spr = samples_per_rev
         self.wavelet = wavelet
         self.slots = []
@@ -508,7 +509,7 @@ def run_closed_loop(
     if fault_monitor:
         monitor = _Monitor(
             config.samples_per_rev, config.wavelet, rig.amb.Ki, rig.feedback_channels,
-            monitor_config,
+            monitor_config, rig.plane_clearance_bearings,
         )  # fmt: skip
     loop = _Loop(rig, scenario, config, model, seed, recorder, monitor, baseline)
     loop.engage_on = tuple(int(c) for c in engage_on)

@@ -211,6 +211,7 @@ class SimulatedCase:
     wall_time: float = 0.0
     ki: float = 1.0  # N/A, the rig's current gain (the commanded force over it: the demand)
     feedback_channels: tuple[int, ...] | None = None  # the rig's, for the loop-bias check
+    plane_bearings: tuple[int, ...] | None = None  # the rig's, named in contact events
 
 
 def simulate_case(
@@ -255,6 +256,7 @@ def simulate_case(
         wall_time=time.perf_counter() - t0,
         ki=rig.amb.Ki,
         feedback_channels=tuple(rig.feedback_channels),
+        plane_bearings=rig.plane_clearance_bearings,
     )
 
 
@@ -308,7 +310,7 @@ def run_case(
     times = block.time  # s, the sample instants (on a speed profile not n / fs)
     t0 = time.perf_counter()
     adapter = FilterbankAdapter(spr, wav)
-    monitor = FaultMonitor(cfg, case.ki, case.feedback_channels)
+    monitor = FaultMonitor(cfg, case.ki, case.feedback_channels, case.plane_bearings)
     monitor.trace = trace
     events: list[FaultEvent] = []
     for i in range(block.sample_index.size):

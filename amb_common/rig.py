@@ -237,6 +237,24 @@ class Rig:
         return [2 * (b.sensor_plane - 1) + a for b in self.bearings[:2] for a in (0, 1)]
 
     @property
+    def plane_clearance_bearings(self) -> tuple[int, ...]:
+        """
+        Per sensor plane, the clearance bearing axially nearest it (0 if the rig has none).
+
+        1-based indices into ``clearance_bearings`` (on the Bath rig AB1, AB2, R1, R2), in the
+        order of ``sensor_planes``: the bearing a contact seen most at that plane is taken to
+        be at (the fault monitor's contact events), and whose clearance its probe reads
+        against (:attr:`probe_clearance`, the trip levels).
+        """
+        clear = self.clearance_bearings
+        if not clear:
+            return tuple(0 for _ in self.sensor_planes)
+        return tuple(
+            1 + min(range(len(clear)), key=lambda i: abs(clear[i].z - plane.z))
+            for plane in self.sensor_planes
+        )
+
+    @property
     def probe_clearance(self) -> tuple[float, ...]:
         """
         Per probe channel, the clearance (m) of the auxiliary bearing next to it (inf if none).
@@ -249,8 +267,8 @@ class Rig:
         ones, at the shaft's ends) or with no clearance bearing take inf.
         """
         out: list[float] = []
-        for plane in self.sensor_planes:
-            nearest = min(self.clearance_bearings, key=lambda c: abs(c.z - plane.z), default=None)
+        for k in self.plane_clearance_bearings:
+            nearest = self.clearance_bearings[k - 1] if k else None
             auxiliary = nearest is not None and nearest.kind == "auxiliary"
             clearance = nearest.radial_clearance if auxiliary else math.inf
             out += [clearance, clearance]

@@ -41,7 +41,7 @@ from collections import deque
 import numpy as np
 
 from amb_common.faults import FaultEvent, FaultType
-from amb_fault_monitor.classifier import bearing_of_plane, ratio_confidence
+from amb_fault_monitor.classifier import ratio_confidence
 
 __all__ = ["ContactBursts"]
 
@@ -169,7 +169,6 @@ class ContactBursts:
             samples_per_rev=config.samples_per_rev,
             omega=omega,
             plane=plane,
-            bearing=bearing_of_plane(plane),
             confidence=ratio_confidence(r),
             count=self.count,
             evidence={

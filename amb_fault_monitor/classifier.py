@@ -86,11 +86,9 @@ import numpy as np
 from amb_common.faults import FaultType
 
 __all__ = [
-    "PLANE_BEARING",
     "ClassifierThresholds",
     "Decision",
     "EpisodeEvidence",
-    "bearing_of_plane",
     "classify",
     "classify_provisional",
     "ratio_confidence",
@@ -196,16 +194,6 @@ class Decision:
     count: int = 1
     evidence: dict[str, Any] = field(default_factory=dict)
     description: str = ""
-
-
-#: Clearance bearing (1-based, ``rig.yaml`` order: AB1, AB2, R1, R2) nearest each sensor plane
-#: (S1..S4) along the shaft; test/fault_monitor checks it against ``config/rig.yaml``.
-PLANE_BEARING = {1: 3, 2: 1, 3: 2, 4: 4}
-
-
-def bearing_of_plane(plane: int) -> int:
-    """Clearance bearing nearest a sensor plane (``PLANE_BEARING``; 0 for no plane)."""
-    return PLANE_BEARING.get(plane, 0)
 
 
 def ratio_confidence(ratio: float) -> float:
@@ -351,7 +339,6 @@ def classify(ev: EpisodeEvidence, config: ClassifierThresholds) -> Decision:
         return Decision(
             FaultType.AUX_BEARING_CONTACT,
             plane=plane,
-            bearing=bearing_of_plane(plane),
             severity=0.0,
             confidence=ratio_confidence(r),
             count=count,

@@ -116,6 +116,10 @@ class FaultMonitor:
         The sensor channel each bearing axis ``[b1x, b1y, b2x, b2y]`` is fed back from
         (:attr:`amb_common.rig.Rig.feedback_channels`): with it and ``ki`` the commanded forces
         given to :meth:`currents` also check for a biased probe inside the loop (step 7).
+    plane_bearings : sequence of int, optional
+        Per sensor plane, the clearance bearing nearest it
+        (:attr:`amb_common.rig.Rig.plane_clearance_bearings`): a contact event names the one of
+        the plane its change was largest at (without it, ``bearing`` 0: not known).
 
     Attributes
     ----------
@@ -151,8 +155,10 @@ class FaultMonitor:
         config: MonitorConfig,
         ki: float | None = None,
         feedback_channels: Sequence[int] | None = None,
+        plane_bearings: Sequence[int] | None = None,
     ) -> None:
         self._config = config
+        self._plane_bearings = tuple(int(b) for b in plane_bearings or ())
         self._coils = CoilCheck(config, ki) if ki is not None else None
         self._bias = None
         if ki is not None and feedback_channels is not None:
@@ -620,7 +626,9 @@ class FaultMonitor:
     def _report_contacts(self, ep: Episode, n: int, events: list[FaultEvent]) -> None:
         """One ``AUX_BEARING_CONTACT`` event for the contact bursts found so far (step 4)."""
         after = "CONTROL_TRANSIENT" if ep.control else ep.explained or ep.decided.fault_type.name
-        events.append(ep.contacts.event(n, self._omega, after, self._config))
+        ev = ep.contacts.event(n, self._omega, after, self._config)
+        ev.bearing = self._bearing(ev.plane)
+        events.append(ev)
 
     def _decide(self, n: int, ep: Episode, onset: int) -> FaultEvent:
         cfg = self._config
@@ -641,10 +649,18 @@ class FaultMonitor:
             omega=self._omega,
             plane=decision.plane,
             channel=decision.channel,
-            bearing=decision.bearing,
+            bearing=(
+                self._bearing(decision.plane)
+                if decision.fault_type == FaultType.AUX_BEARING_CONTACT
+                else decision.bearing
+            ),
             severity=decision.severity,
             confidence=decision.confidence,
             count=decision.count,
             evidence=decision.evidence,
             description=decision.description,
         )
+
+    def _bearing(self, plane: int) -> int:
+        """The clearance bearing nearest sensor ``plane`` (1-4), 0 if not known."""
+        return self._plane_bearings[plane - 1] if 0 < plane <= len(self._plane_bearings) else 0

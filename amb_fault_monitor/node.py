@@ -182,7 +182,9 @@ class FaultMonitorNode(Node):
         self._trip_1x = TripMonitor(self._level(p("trip_1x").value, "1x"), hyst)
         self._sync_amp = SynchronousAmplitude(self._spr)
         self._box = self._blackbox()
-        self._monitor = FaultMonitor(config, self._ki, self._feedback_channels)
+        self._monitor = FaultMonitor(
+            config, self._ki, self._feedback_channels, self._plane_bearings
+        )
         self._meas_seq = SampleSequencer(self._spr)
         # coefficient messages every second sample: index // 2 is consecutive (module notes)
         self._coef_seq = SampleSequencer(self._spr // 2)
@@ -269,6 +271,7 @@ class FaultMonitorNode(Node):
             raise ConfigurationError(f"parameter 'rig' = {path!r}: {exc}") from exc
         self._ki = rig.amb.Ki  # N/A: the coil check's demanded current (FaultMonitor.currents)
         self._feedback_channels = rig.feedback_channels  # the loop-bias check's probes
+        self._plane_bearings = rig.plane_clearance_bearings  # named in contact events
 
     def _blackbox(self) -> BlackBox | None:
         p = self.get_parameter

@@ -37,7 +37,7 @@ def clearance_levels(rig: Any, fraction: float) -> np.ndarray:
     Parameters
     ----------
     rig : amb_common.rig.Rig
-        Uses ``sensor_planes[].z`` and ``clearance_bearings[].z, radial_clearance`` (m).
+        Uses ``plane_clearance_bearings`` and ``clearance_bearings[].radial_clearance`` (m).
     fraction : float
         Share of the radial clearance, in (0, 1].
 
@@ -58,11 +58,8 @@ def clearance_levels(rig: Any, fraction: float) -> np.ndarray:
         raise FaultMonitorError(
             "the rig file has no clearance_bearings; set the trip levels explicitly"
         )
-    zc = np.array([c.z for c in clear])
     rc = np.array([c.radial_clearance for c in clear])
-    zs = np.array([p.z for p in rig.sensor_planes])
-    nearest = np.argmin(np.abs(zs[:, None] - zc[None, :]), axis=1)
-    return fraction * rc[nearest]
+    return fraction * rc[np.array(rig.plane_clearance_bearings) - 1]
 
 
 #: No plane (what :meth:`TripMonitor.update` returns when nothing trips or clears).

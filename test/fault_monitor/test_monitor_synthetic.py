@@ -12,7 +12,6 @@ from synthetic import OMEGA, SPR, make_run, run_monitor
 
 from amb_common.faults import FaultType
 from amb_common.rig import load_rig
-from amb_fault_monitor.classifier import bearing_of_plane
 from amb_fault_monitor.config import MonitorConfig
 from amb_fault_monitor.errors import FaultMonitorError, RecordError
 from amb_fault_monitor.monitor import FaultMonitor
@@ -121,12 +120,25 @@ def test_config_errors(kwargs, match):
         MonitorConfig(**args)
 
 
-def test_plane_bearing_map_is_the_rigs_nearest_clearance_bearing():
-    """PLANE_BEARING names, per sensor plane, the clearance bearing nearest it in rig.yaml."""
+def test_plane_clearance_bearings_are_the_rigs_nearest_by_axial_position():
+    """Rig.plane_clearance_bearings names, per sensor plane, the clearance bearing nearest it
+    along the shaft in rig.yaml (1-based; on the Bath rig the outer planes' retainers R1 and
+    R2, the inner planes' auxiliary bearings AB1 and AB2)."""
     rig = load_rig()
-    for plane, s in enumerate(rig.sensor_planes, start=1):
-        nearest = min(
-            range(len(rig.clearance_bearings)), key=lambda b: abs(rig.clearance_bearings[b].z - s.z)
-        )
-        assert bearing_of_plane(plane) == nearest + 1, (plane, s.z)
-    assert bearing_of_plane(0) == 0
+    zc = [c.z for c in rig.clearance_bearings]
+    expected = tuple(1 + int(np.argmin([abs(z - s.z) for z in zc])) for s in rig.sensor_planes)
+    assert rig.plane_clearance_bearings == expected
+    kinds = [rig.clearance_bearings[b - 1].kind for b in expected]
+    assert kinds == ["retainer", "auxiliary", "auxiliary", "retainer"]
+
+
+def test_a_contact_event_names_the_clearance_bearing_of_its_plane():
+    """The monitor takes the plane -> bearing map from the rig (here a made-up one, so that
+    the number can only come from it); without it a contact's bearing is 0, not known."""
+    xy, angle, idx = make_run(60, contact_rev=ONSET_REV)
+    made_up = (7, 5, 6, 8)
+    (ev,) = run_monitor(FaultMonitor(MonitorConfig(SPR), plane_bearings=made_up), xy, angle, idx)
+    assert ev.fault_type == FaultType.AUX_BEARING_CONTACT
+    assert ev.bearing == made_up[ev.plane - 1]
+    (bare,) = run_monitor(FaultMonitor(MonitorConfig(SPR)), xy, angle, idx)
+    assert bare.bearing == 0
