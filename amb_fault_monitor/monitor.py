@@ -17,9 +17,8 @@ Fault detection from wavelet coefficients in the fixed and rotating frames (thes
   :mod:`amb_fault_monitor.coil_check`;
 * a biased probe inside the PID loop, from a lasting step of a bearing axis's mean force:
   :mod:`amb_fault_monitor.loop_bias`;
-* a probe whose reading jumps, for the provisional class: :mod:`amb_fault_monitor.probe_jumps`;
-* whether the readings' change is a 1 x sinusoid, for the provisional class:
-  :mod:`amb_fault_monitor.revolution_change`.
+* the provisional class, from a probe's jump or the readings' change:
+  :mod:`amb_fault_monitor.provisional`.
 
 Episodes
 --------
@@ -32,16 +31,13 @@ Episodes
    (:mod:`amb_fault_monitor.classifier`) and one event emitted. The wait is extended up to
    ``decision_max_revs`` while the 1 x level stays far from its reference and still moves
    (:mod:`amb_fault_monitor.phasor`). With ``provisional_revs`` > 0, a provisional class
-   (:func:`~amb_fault_monitor.classifier.classify_provisional`) is emitted that many
-   revolutions after the episode's estimated onset, at the alarm if that is later, if the
-   episode is undecided then (``evidence["status"]`` ``provisional``; the ``SENSOR_FAULT`` of
-   a channel whose reading alone jumped within a quarter revolution of the onset,
-   :mod:`amb_fault_monitor.probe_jumps`, given the displacements, which also give the
-   shape of the change, :mod:`amb_fault_monitor.revolution_change`); the decision's
-   event then says ``final``, with the provisional class (``provisional_class``) and whether it was
-   revised (``revised``), or, where the episode turns out to be another fault's consequence
-   and no class is reported (steps 5-6, a stuck channel), a copy of the provisional event
-   says ``withdrawn``.
+   (:mod:`amb_fault_monitor.provisional`) is emitted that many revolutions after the
+   episode's estimated onset, at the alarm if that is later, if the episode is undecided then
+   (``evidence["status"]`` ``provisional``); the decision's event then says ``final``, with
+   the provisional class (``provisional_class``) and whether it was revised (``revised``),
+   or, where the episode turns out to be another fault's consequence and no class is
+   reported (steps 5-6, a stuck channel), a copy of the provisional event says
+   ``withdrawn``.
 4. *Contacts inside an episode and tail*: the disturbance may ring on; no new episode starts
    until ``quiet_revs`` pass without a crossing (at most ``max_tail_revs``), and for
    ``rearm_revs`` after that a new episode needs a strong crossing (``confirm_ratio``) to be
@@ -83,7 +79,7 @@ import numpy as np
 from amb_common.faults import FINAL, PROVISIONAL, FaultEvent, FaultType
 from amb_common.names import N_SENSORS
 from amb_fault_monitor.calibration import Calibration, CalibrationWindow
-from amb_fault_monitor.classifier import Decision, classify, classify_provisional
+from amb_fault_monitor.classifier import Decision, classify
 from amb_fault_monitor.coil_check import CoilCheck
 from amb_fault_monitor.config import MonitorConfig
 from amb_fault_monitor.control_transients import ControlSteps
@@ -94,9 +90,8 @@ from amb_fault_monitor.features import ChangeFeatures, normalise
 from amb_fault_monitor.loop_bias import LoopBias
 from amb_fault_monitor.onset import AtomCentres, estimate_onset, onset_sample
 from amb_fault_monitor.phasor import SynchronousLevel
-from amb_fault_monitor.probe_jumps import ProbeJumps, jump_decision
+from amb_fault_monitor.provisional import ProvisionalClass
 from amb_fault_monitor.records import SampleCoefficients
-from amb_fault_monitor.revolution_change import RevolutionChange
 from amb_wavelet.analysis import DETAIL
 from amb_wavelet.levels import revolution_level
 
@@ -166,8 +161,7 @@ class FaultMonitor:
         self._R = revolution_level(config.samples_per_rev)
         self._finest = min(config.levels) if config.levels else 1
         self._centres = AtomCentres()
-        self._jumps = ProbeJumps(config)
-        self._change = RevolutionChange(config)
+        self._early = ProvisionalClass(config)
         self.trace: list[tuple[int, int, str, int, int, np.ndarray]] | None = None
         self.reset()
 
@@ -182,7 +176,7 @@ class FaultMonitor:
         self._config = config
         parts = (
             self._calibration, self._sync, self._dead, self._control, self._coils, self._bias,
-            self._jumps, self._change,
+            self._early,
         )  # fmt: skip
         for part in parts:
             if part is not None:
@@ -209,8 +203,7 @@ class FaultMonitor:
             self._coils.reset()
         if self._bias is not None:
             self._bias.reset()
-        self._jumps.reset()
-        self._change.reset()
+        self._early.reset()
         self._coil_onsets: list[int] = []
         self.coil_explained = 0
 
@@ -346,14 +339,13 @@ class FaultMonitor:
         """
         Record one sample's probe readings (8,), m, for the provisional class.
 
-        From the measurement, for the jump test (:mod:`amb_fault_monitor.probe_jumps`) and the
-        change's shape (:mod:`amb_fault_monitor.revolution_change`); without them the
+        From the measurement, for the jump test and the change's shape
+        (:mod:`amb_fault_monitor.provisional`); without them the
         provisional class comes from the coefficients alone. Nothing is done (nor costs) while
         ``provisional_revs`` is 0.
         """
         if self._config.provisional_revs > 0:
-            self._jumps.add(sample_index, displacement)
-            self._change.add(sample_index, displacement)
+            self._early.add(sample_index, displacement)
 
     def step(self, record: SampleCoefficients) -> list[FaultEvent]:
         """
@@ -441,7 +433,7 @@ class FaultMonitor:
         self.calibration_end = calibration.end
         if self._bias is not None:
             self._bias.calibrate(calibration.end)
-        self._jumps.calibrate(calibration.end)
+        self._early.calibrate(calibration.end)
 
     def _phasor(self, even, odd) -> None:
         calibrating = not self._thr
@@ -589,15 +581,9 @@ class FaultMonitor:
         ep.provisional_due = False
         if self._control_run(ep):
             return
-        quarter = self._config.samples_per_rev // 4
-        jump = self._jumps.single_channel(onset - quarter, onset + quarter, self._mask)
-        if jump is not None:
-            decision = jump_decision(jump, self._config.jump_factor)
-        else:
-            zero = np.zeros(4)
-            evidence = ep.evidence(self._R, zero, zero, self._mask)
-            evidence.residual_ratio = self._change.residual_ratio(onset, n, self._mask)
-            decision = classify_provisional(evidence, self._config)
+        zero = np.zeros(4)
+        evidence = ep.evidence(self._R, zero, zero, self._mask)
+        decision = self._early.decide(n, onset, evidence, self._mask)
         ev = self._event(n, ep, onset, decision)
         if self._coil_explains(ev):
             return
