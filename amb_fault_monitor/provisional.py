@@ -41,18 +41,15 @@ class ProvisionalClass:
     def __init__(self, config) -> None:
         self.jumps = ProbeJumps(config)
         self.change = RevolutionChange(config)
-        self.config = config
 
     @property
     def config(self):
-        """The parameters (shared with the jump test and the change's shape)."""
-        return self._config
+        """The parameters, those of the jump test and of the change's shape."""
+        return self.jumps.config
 
     @config.setter
     def config(self, config) -> None:
-        self._config = config
-        self.jumps.config = config
-        self.change.config = config
+        self.jumps.config = self.change.config = config
 
     def reset(self) -> None:
         """Forget the readings, the jumps and the calibration (a restart of the stream)."""
@@ -81,9 +78,10 @@ class ProvisionalClass:
         mask : numpy.ndarray
             Channels in use (8,), bool.
         """
-        quarter = self._config.samples_per_rev // 4
+        config = self.config
+        quarter = config.samples_per_rev // 4
         jump = self.jumps.single_channel(onset - quarter, onset + quarter, mask)
         if jump is not None:
-            return jump_decision(jump, self._config.jump_factor)
+            return jump_decision(jump, config.jump_factor)
         evidence.residual_ratio = self.change.residual_ratio(onset, n, mask)
-        return classify_provisional(evidence, self._config)
+        return classify_provisional(evidence, config)
