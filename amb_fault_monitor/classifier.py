@@ -183,12 +183,16 @@ class EpisodeEvidence:
 
 @dataclass
 class Decision:
-    """Result of :func:`classify` (fields as in :class:`~amb_common.faults.FaultEvent`)."""
+    """
+    Result of :func:`classify` (fields as in :class:`~amb_common.faults.FaultEvent`).
+
+    No ``bearing``: the clearance bearing of a contact comes from the rig, which the monitor
+    has (:class:`~amb_fault_monitor.monitor.FaultMonitor`, ``plane_bearings``).
+    """
 
     fault_type: FaultType
     plane: int = 0
     channel: int = -1
-    bearing: int = 0
     severity: float = 0.0
     confidence: float = 0.0
     count: int = 1

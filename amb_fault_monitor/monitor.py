@@ -638,7 +638,7 @@ class FaultMonitor:
             bearing=(
                 self._bearing(decision.plane)
                 if decision.fault_type == FaultType.AUX_BEARING_CONTACT
-                else decision.bearing
+                else 0
             ),
             severity=decision.severity,
             confidence=decision.confidence,

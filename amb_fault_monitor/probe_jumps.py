@@ -39,8 +39,9 @@ loop's answer to the false reading moves the rotor within the next sample (most 
 where a sample is longest), so the lasting change of an offset is not zero there.
 
 The monitor names the probe in an episode's provisional class when its channel alone jumped
-within a quarter revolution of the episode's estimated onset (:mod:`amb_fault_monitor.monitor`,
-step 3); what the suites gave is in ``docs/fault_monitor_notes.md``, "Jumps of one probe".
+within a quarter revolution of the episode's estimated onset
+(:mod:`amb_fault_monitor.provisional`); what the suites gave is in
+``docs/fault_monitor_notes.md``, "Jumps of one probe".
 """
 
 from __future__ import annotations

@@ -16,7 +16,8 @@ front end and causal filterbank as the ``wavelet_filterbank`` node) and fed to
   The median over chunks is printed with the min and max.
 
 With ``--provisional REVS`` the monitor publishes provisional classes and is fed the
-displacements for its jump test (:mod:`amb_fault_monitor.probe_jumps`), as the node feeds it.
+displacements for its jump test and the change's shape (:mod:`amb_fault_monitor.provisional`),
+as the node feeds it.
 
 Run: ``python bench/fault_monitor.py [--minutes 10] [--scenario healthy_67hz.yaml]
 [--provisional 1.5]``.
