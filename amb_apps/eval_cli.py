@@ -239,6 +239,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                     "wavelet": r.wavelet,
                     "samples_per_rev": r.samples_per_rev,
                     "calibration_end_sample": r.calibration_end_sample,
+                    "recalibration_samples": r.recalibration_samples,
                     "matches": r.matches,
                     "false_alarms": r.false_alarms,
                     "provisional_false_alarms": r.provisional_false_alarms,

@@ -283,6 +283,9 @@ def case_figure(case: SimulatedCase, result: CaseResult, trace: list, path: str 
         whole.axvline(
             at(result.calibration_end_sample), color="0.5", ls="-.", lw=0.9, label="calibrated"
         )
+    for k, n in enumerate(result.recalibration_samples):
+        label = "calibrated again" if k == 0 else None
+        whole.axvline(at(n), color="0.5", ls=":", lw=0.9, label=label)
     whole.set_title("whole run: peak radial displacement per revolution", fontsize=9)
     whole.set_ylabel("peak |r| (µm)", fontsize=8)
     whole.set_xlabel("time (s)")

@@ -119,6 +119,8 @@ class CaseResult:
     finest_support: int = 2
     wall_time: float = 0.0
     calibration_end_sample: int | None = None
+    #: where the monitor calibrated again (after a sensor fault on a feedback probe)
+    recalibration_samples: list[int] = field(default_factory=list)
 
 
 def load_case(path: str | Path) -> tuple[dict[str, Any], list[Expectation], dict[str, Any]]:
@@ -286,8 +288,9 @@ def run_case(
     Returns
     -------
     CaseResult
-        ``calibration_end_sample`` is when the thresholds were set; a match whose true onset
-        comes earlier carries ``before_calibration: True`` (the fault fell inside the healthy
+        ``calibration_end_sample`` is when the thresholds were first set (and
+        ``recalibration_samples`` when they were set again); a match whose true onset comes
+        earlier carries ``before_calibration: True`` (the fault fell inside the healthy
         window the monitor needs, which says nothing about the method). A contact match
         carries ``first_contact_peak_n``, the largest force of the first simulated contact
         burst (a graze of a few tens of N may lie below the noise floor). The matches and
@@ -330,7 +333,8 @@ def run_case(
         duration=case.duration,
         finest_support=support_length(1, L),
         wall_time=wall,
-        calibration_end_sample=monitor.calibration_end,
+        calibration_end_sample=monitor.calibrations[0] if monitor.calibrations else None,
+        recalibration_samples=monitor.calibrations[1:],
     )
     res.events = [e.to_dict() for e in events]
     every = events
@@ -352,7 +356,7 @@ def run_case(
             continue
         row["true_onset_time"] = float(times[true])
         row["speed_hz_at_onset"] = float(block.omega[true] / (2 * math.pi))
-        cal = monitor.calibration_end
+        cal = res.calibration_end_sample
         row["before_calibration"] = cal is None or true < cal
         if exp.source == "contact":
             row["first_contact_peak_n"] = _first_burst_peak(block.truth, true - 1)

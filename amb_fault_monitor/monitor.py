@@ -66,6 +66,16 @@ Episodes
    Not ``UNKNOWN`` either: the one such episode seen (a 15 Hz run in contact from its start,
    calibrated in it) stepped by 1.7 kN.
 
+8. *A feedback probe's fault*: a decided ``SENSOR_FAULT`` of a probe the PID closes its loop
+   on (``feedback_channels``) ends the episode and starts a new calibration window, the
+   channel masked; the thresholds become the larger of the old and the new
+   (:attr:`FaultMonitor.calibrations`). The bearing now turns the probe's noise or offset into
+   force, so the rotor really moves more than in the first window: with the old thresholds
+   alone, 3 um of noise on the plane-3 y probe at 67 Hz drove the masked rotor's other
+   channels across them, and db2 reported a contact 1.2 s later (issue 19). No class is
+   reported until the window is accepted (``calibration_revs``; the node's status says
+   ``calibrating``).
+
 Sensor channels found faulty (decided sensor faults and stuck channels) are masked (their
 plane feature uses the partner channel only) until :meth:`FaultMonitor.reset`.
 """
@@ -132,7 +142,12 @@ class FaultMonitor:
     samples : int
         Records processed since the reset.
     calibration_end : int or None
-        Sample index at which the thresholds were set.
+        Sample index at which the thresholds were last set.
+    calibrations : list of int
+        Sample indices at which thresholds were set: the first calibration, then each
+        recalibration (step 8).
+    recalibrations : int
+        Recalibrations begun after a sensor fault on a feedback probe (step 8).
 
     Notes
     -----
@@ -188,6 +203,8 @@ class FaultMonitor:
         self._features = ChangeFeatures(self._R)
         self._calibration = CalibrationWindow(cfg)
         self._thr: dict[tuple[int, str], np.ndarray] = {}
+        self._old_thr: dict[tuple[int, str], np.ndarray] = {}
+        self._old_sync: np.ndarray | None = None
         self._sync = SynchronousLevel(cfg, self._R)
         self._dead = DeadChannels(cfg)
         self._control = ControlSteps(cfg)
@@ -199,6 +216,7 @@ class FaultMonitor:
         self.unconfirmed = 0
         self.samples = 0
         self.calibration_end: int | None = None
+        self.calibrations: list[int] = []
         if self._coils is not None:
             self._coils.reset()
         if self._bias is not None:
@@ -206,6 +224,7 @@ class FaultMonitor:
         self._early.reset()
         self._coil_onsets: list[int] = []
         self.coil_explained = 0
+        self.recalibrations = 0
 
     @property
     def calibrated(self) -> bool:
@@ -428,9 +447,14 @@ class FaultMonitor:
     def _calibrated(self, calibration: Calibration) -> None:
         self._thr = calibration.thresholds
         self._sync.threshold = calibration.sync_threshold
+        old = self._old_thr
+        if old:  # step 8: the loop adds motion, never removes it
+            self._thr = {k: np.maximum(v, old[k]) if k in old else v for k, v in self._thr.items()}
+            self._sync.threshold = np.maximum(self._sync.threshold, self._old_sync)
         if calibration.dead_reference is not None:
             self._dead.reference = calibration.dead_reference
         self.calibration_end = calibration.end
+        self.calibrations.append(calibration.end)
         if self._bias is not None:
             self._bias.calibrate(calibration.end)
         self._early.calibrate(calibration.end)
@@ -554,6 +578,9 @@ class FaultMonitor:
                 events.append(ev)
                 if ev.fault_type == FaultType.SENSOR_FAULT and ev.channel >= 0:
                     self._mask[ev.channel] = False
+                    if self._bias is not None and ev.channel in self._bias.channels:
+                        self._recalibrate(ev)  # step 8
+                        return
                 if ev.fault_type == FaultType.SENSOR_FAULT:
                     # bursts so far came from the failing channel (a noisy or offset probe
                     # spikes its finest level), not from the rotor: step 4
@@ -590,6 +617,26 @@ class FaultMonitor:
         ev.evidence["status"] = PROVISIONAL
         ep.provisional = ev
         events.append(ev)
+
+    def _recalibrate(self, ev: FaultEvent) -> None:
+        """
+        Learn the thresholds again after a sensor fault on a feedback probe (step 8).
+
+        The episode ends with its decision (its tail is the loop's new motion) and the features
+        calibrate a new window, the faulty channel masked; ``ev`` says so. The old thresholds
+        are kept as a floor (:meth:`_calibrated`): the loop adds motion, it removes none, and
+        the coarse levels' thresholds rest on few coefficients per window.
+        """
+        revs = self._config.calibration_revs
+        ev.evidence["recalibrating_revs"] = revs
+        ev.description += f"; in the loop: thresholds learnt again over {revs:g} revolutions"
+        self._episode = None
+        retries = self._calibration.retries
+        self._calibration = CalibrationWindow(self._config)
+        self._calibration.retries = retries
+        self._old_thr, self._old_sync = self._thr, self._sync.threshold
+        self._thr = {}
+        self.recalibrations += 1
 
     def _coil_explains(self, ev: FaultEvent) -> bool:
         """Whether a coil failure's onset lies within a revolution of the episode's (step 6)."""

@@ -542,6 +542,7 @@ class FaultMonitorNode(Node):
             )
         values = {
             "calibrated": self._monitor.calibrated,
+            "recalibrations": self._monitor.recalibrations,
             "messages": self.received,
             "last_sample": self.last_sample,
             "last_coefficient_sample": self.last_coefficient_sample,
