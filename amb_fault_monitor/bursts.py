@@ -26,6 +26,13 @@ level follows its slope. Together they separate a contact in the first revolutio
 wavelet. Sensor-fault episodes rise too (a noisy or offset probe spikes its finest level):
 their bursts are dropped at the decision (:meth:`ContactBursts.clear`).
 
+Each test needs ``r >= confirm_ratio``. A lighter touch of a rotor already ringing (the end of a
+shaft whose bearing axis lost its coils, drifting onto its auxiliary bearing: 240 N, db4's
+finest level 1.8 x its threshold) counts from ``r >= weak_burst_ratio`` when, in the fixed frame,
+all three rises agree: over the ring-down's envelope, over the median and in the coefficient's
+change. An impulse passes all three; the slope of a slow motion (haar) passes the median alone,
+a rotating-frame ring only the envelope.
+
 Bursts closer than ``burst_gap_revs`` are one. If the episode is decided a contact, they add
 to its count; otherwise one ``AUX_BEARING_CONTACT`` event (:meth:`ContactBursts.event`) is
 emitted right after the decision (or at the first contact found in the tail), onset at the
@@ -118,10 +125,17 @@ class ContactBursts:
                 step = float(np.hypot(d[0::2], d[1::2]).max())
                 step_median = _window_median(self._step_history, n, spr, step)
             self._prev_fine = fine
-        if r < config.confirm_ratio or n < self.start + spr // 4:
+        if r < config.weak_burst_ratio or n < self.start + spr // 4:
             return False
         envelope = n >= self.start + spr and r >= config.tail_rise * recent
-        if not envelope and step < config.tail_rise_median * step_median:
+        if r < config.confirm_ratio:  # a weak burst: every envelope agrees
+            if not (
+                envelope
+                and r >= config.tail_rise_median * median
+                and step >= config.tail_rise_median * step_median
+            ):
+                return False
+        elif not envelope and step < config.tail_rise_median * step_median:
             if r < config.tail_rise_median * median:
                 return False
             if any(abs(m + spr - n) <= 2 for m in self._rise_at):

@@ -96,6 +96,10 @@ class MonitorConfig:
         this many times the *median* of the same quantity since the episode began (at most one
         revolution back, its last eighth excluded): the robust envelope that an earlier contact
         spike does not inflate (:mod:`amb_fault_monitor.bursts`).
+    weak_burst_ratio : float
+        A burst needs a finest-level ratio of at least ``confirm_ratio``, or of at least this
+        in the fixed frame with all three rises above (ring-down envelope, median, change):
+        a light touch of a rotor already ringing (:mod:`amb_fault_monitor.bursts`).
     dead_fraction, dead_revs
         Stuck/zero channel test (:mod:`amb_fault_monitor.dead_channels`).
     control_step : float
@@ -203,6 +207,7 @@ class MonitorConfig:
         "the episode began",
         floats=(1.0, 100.0),
     )
+    weak_burst_ratio: float = 1.5
     dead_fraction: float = 0.02
     dead_revs: float = 1.0
     control_step: float = param(
@@ -250,11 +255,11 @@ class MonitorConfig:
         positive = (
             "calibration_revs", "settle_ratio", "k", "confirm_ratio", "confirm_revs", "quiet_revs",
             "decision_revs", "max_tail_revs", "isolation", "sync_change", "burst_gap_revs",
-            "tail_rise", "tail_rise_median", "dead_revs", "base_coherence", "base_dominance",
-            "rearm_revs", "control_step", "control_kink", "control_window_revs", "coil_floor",
-            "coil_factor", "coil_confirm_revs", "bias_floor", "bias_factor", "bias_steady",
-            "provisional_ratio", "provisional_residual", "jump_factor", "jump_isolation",
-            "jump_lasting",
+            "tail_rise", "tail_rise_median", "weak_burst_ratio", "dead_revs", "base_coherence",
+            "base_dominance", "rearm_revs", "control_step", "control_kink", "control_window_revs",
+            "coil_floor", "coil_factor", "coil_confirm_revs", "bias_floor", "bias_factor",
+            "bias_steady", "provisional_ratio", "provisional_residual", "jump_factor",
+            "jump_isolation", "jump_lasting",
         )  # fmt: skip
         for name in positive:
             if not getattr(self, name) > 0:
