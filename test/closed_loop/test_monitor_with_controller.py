@@ -3,7 +3,9 @@
 The wavelet controller (eq. 8.10, FE-route model) and the bearings' PID both close their loops
 on the inner probes (planes 2 and 3), so a biased or noisy inner probe moves the rotor through
 both. Issue 19 asks for sensor faults on those probes to be classified with and without the
-transient controller active; the monitor is fed as the node feeds it (``amb_apps.closed_loop``).
+transient controller active, and the outer probes too (planes 1 and 4: outside both loops by
+default, the monitor's partner and plane checks alone); the monitor is fed as the node feeds it
+(``amb_apps.closed_loop``).
 The reference is the scenario: the faulty probe and its time.
 """
 
@@ -42,8 +44,11 @@ def _scenario(rig, plane, axis, mode, value):
 @pytest.mark.slow
 @pytest.mark.parametrize(
     ("plane", "axis", "mode", "value", "channel"),
-    [(2, "x", "offset", 2.0e-5, 2), (3, "y", "offset", 2.0e-5, 5), (2, "y", "noise", 3.0e-6, 3)],
-)
+    [
+        (2, "x", "offset", 2.0e-5, 2), (3, "y", "offset", 2.0e-5, 5), (2, "y", "noise", 3.0e-6, 3),
+        (1, "x", "offset", 2.0e-5, 0), (4, "y", "noise", 3.0e-6, 7),  # outer probes
+    ],
+)  # fmt: skip
 def test_inner_probe_fault_is_a_sensor_fault_with_the_controller_active(
     plane, axis, mode, value, channel
 ):
