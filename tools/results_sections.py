@@ -312,10 +312,16 @@ def _fault_report(outs: list[Output], work: Path) -> list[str]:
         ],
     )  # fmt: skip
     quiet = parse_fault_eval(outs[2].stdout)
+    cases = next(iter(quiet.values())).get("cases") or []
+    runs = ""  # what was run, from the command's own output
+    if cases:
+        each = next(iter(quiet.values()))["simulated_s"] / len(cases)
+        speeds = ", ".join(f"{c['speed_hz']:g}" for c in cases)
+        runs = f": {each:g} s each at {speeds} Hz"
     lines += [
         "",
-        "Long healthy running (`config/scenarios/healthy_long`: 200 s each at 11, 28.65 and "
-        f"67.64 Hz, 0.2 um probe noise; provisional classes at {PROVISIONAL_REVS}):",
+        f"Long healthy running (`config/scenarios/healthy_long`{runs}; provisional classes at "
+        f"{PROVISIONAL_REVS}):",
         "",
     ]
     lines += table(

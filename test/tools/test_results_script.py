@@ -312,6 +312,14 @@ def test_sections_render_tables_from_the_samples(tmp_path: Path) -> None:
     assert "| haar | 41/41 | 0 | 410.0 | 0.00 |" in lines
     assert "| haar | 45/48 | 94% | 41 | 3 | 0 | 41/41 |" in lines  # provisional classes
     assert "| db4 | 410.0 | 0 | 41 |" in lines  # long healthy running
+    assert any("(`config/scenarios/healthy_long`; provisional" in ln for ln in lines)
+    long = json.loads(FAULT_EVAL)
+    for part in long["wavelets"].values():
+        part["cases"] = [{"speed_hz": 11.0}, {"speed_hz": 67.64}]
+    lines = S.BY_NAME["fault-eval"].report(
+        [out(FAULT_EVAL)] * 2 + [out(json.dumps(long))], tmp_path
+    )
+    assert any(": 205 s each at 11, 67.64 Hz;" in ln for ln in lines)  # 410 s over two runs
     run = tmp_path / "run"
     (run / "logs").mkdir(parents=True)
     (run / "logs" / "plant_sim.log").write_text(PLANT_LOG)
