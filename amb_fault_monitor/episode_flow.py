@@ -16,7 +16,6 @@ from __future__ import annotations
 import numpy as np
 
 from amb_common.faults import FINAL, PROVISIONAL, FaultEvent, FaultType
-from amb_fault_monitor.calibration import CalibrationWindow
 from amb_fault_monitor.classifier import Decision, classify
 from amb_fault_monitor.episodes import Episode
 from amb_fault_monitor.features import normalise
@@ -30,9 +29,9 @@ class EpisodeFlow:
     Steps 1-8 of an episode (:mod:`amb_fault_monitor.monitor`), on the monitor's state.
 
     Needs, set by the monitor: ``_config``, ``_R``, ``_finest``, ``_centres``, ``_sync``,
-    ``_control``, ``_bias``, ``_early``, ``_mask``, ``_thr``, ``_calibration``, ``_episode``,
-    ``_rearm_until``, ``_omega``, ``_coil_onsets``, ``_plane_bearings`` and the counters
-    ``unconfirmed``, ``coil_explained``, ``recalibrations``.
+    ``_control``, ``_bias``, ``_early``, ``_mask``, ``_episode``, ``_rearm_until``,
+    ``_omega``, ``_coil_onsets``, ``_plane_bearings``, the counters ``unconfirmed`` and
+    ``coil_explained``, and ``_recalibrate`` (step 8: the monitor's calibration state).
     """
 
     def _evidence(self, n, level, frame, s, ratio, delta, thr) -> None:
@@ -172,26 +171,6 @@ class EpisodeFlow:
         ev.evidence["status"] = PROVISIONAL
         ep.provisional = ev
         events.append(ev)
-
-    def _recalibrate(self, ev: FaultEvent) -> None:
-        """
-        Learn the thresholds again after a sensor fault on a feedback probe (step 8).
-
-        The episode ends with its decision (its tail is the loop's new motion) and the features
-        calibrate a new window, the faulty channel masked; ``ev`` says so. The old thresholds
-        are kept as a floor (:meth:`_calibrated`): the loop adds motion, it removes none, and
-        the coarse levels' thresholds rest on few coefficients per window.
-        """
-        revs = self._config.calibration_revs
-        ev.evidence["recalibrating_revs"] = revs
-        ev.description += f"; in the loop: thresholds learnt again over {revs:g} revolutions"
-        self._episode = None
-        retries = self._calibration.retries
-        self._calibration = CalibrationWindow(self._config)
-        self._calibration.retries = retries
-        self._old_thr, self._old_sync = self._thr, self._sync.threshold
-        self._thr = {}
-        self.recalibrations += 1
 
     def _coil_explains(self, ev: FaultEvent) -> bool:
         """Whether a coil failure's onset lies within a revolution of the episode's (step 6)."""

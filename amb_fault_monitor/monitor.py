@@ -121,7 +121,8 @@ class FaultMonitor(EpisodeFlow):
     feedback_channels : sequence of int, optional
         The sensor channel each bearing axis ``[b1x, b1y, b2x, b2y]`` is fed back from
         (:attr:`amb_common.rig.Rig.feedback_channels`): with it and ``ki`` the commanded forces
-        given to :meth:`currents` also check for a biased probe inside the loop (step 7).
+        given to :meth:`currents` also check for a biased probe inside the loop (step 7), and a
+        sensor fault on one of them starts a new calibration (step 8).
     plane_bearings : sequence of int, optional
         Per sensor plane, the clearance bearing nearest it
         (:attr:`amb_common.rig.Rig.plane_clearance_bearings`): a contact event names the one of
@@ -142,8 +143,6 @@ class FaultMonitor(EpisodeFlow):
         Episodes dropped unconfirmed (isolated noise crossings).
     samples : int
         Records processed since the reset.
-    calibration_end : int or None
-        Sample index at which the thresholds were last set.
     calibrations : list of int
         Sample indices at which thresholds were set: the first calibration, then each
         recalibration (step 8).
@@ -216,7 +215,6 @@ class FaultMonitor(EpisodeFlow):
         self._omega = 0.0
         self.unconfirmed = 0
         self.samples = 0
-        self.calibration_end: int | None = None
         self.calibrations: list[int] = []
         if self._coils is not None:
             self._coils.reset()
@@ -226,6 +224,11 @@ class FaultMonitor(EpisodeFlow):
         self._coil_onsets: list[int] = []
         self.coil_explained = 0
         self.recalibrations = 0
+
+    @property
+    def calibration_end(self) -> int | None:
+        """Sample index at which the thresholds were last set (None while calibrating first)."""
+        return self.calibrations[-1] if self.calibrations else None
 
     @property
     def calibrated(self) -> bool:
@@ -454,11 +457,30 @@ class FaultMonitor(EpisodeFlow):
             self._sync.threshold = np.maximum(self._sync.threshold, self._old_sync)
         if calibration.dead_reference is not None:
             self._dead.reference = calibration.dead_reference
-        self.calibration_end = calibration.end
         self.calibrations.append(calibration.end)
         if self._bias is not None:
             self._bias.calibrate(calibration.end)
         self._early.calibrate(calibration.end)
+
+    def _recalibrate(self, ev: FaultEvent) -> None:
+        """
+        Learn the thresholds again after a sensor fault on a feedback probe (step 8).
+
+        The episode ends with its decision (its tail is the loop's new motion) and the features
+        calibrate a new window, the faulty channel masked; ``ev`` says so. The old thresholds
+        are kept as a floor (:meth:`_calibrated`): the loop adds motion, it removes none, and
+        the coarse levels' thresholds rest on few coefficients per window.
+        """
+        revs = self._config.calibration_revs
+        ev.evidence["recalibrating_revs"] = revs
+        ev.description += f"; in the loop: thresholds learnt again over {revs:g} revolutions"
+        self._episode = None
+        retries = self._calibration.retries
+        self._calibration = CalibrationWindow(self._config)
+        self._calibration.retries = retries
+        self._old_thr, self._old_sync = self._thr, self._sync.threshold
+        self._thr = {}
+        self.recalibrations += 1
 
     def _phasor(self, even, odd) -> None:
         calibrating = not self._thr

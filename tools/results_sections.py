@@ -312,10 +312,11 @@ def _fault_report(outs: list[Output], work: Path) -> list[str]:
         ],
     )  # fmt: skip
     quiet = parse_fault_eval(outs[2].stdout)
-    cases = next(iter(quiet.values())).get("cases") or []
+    first = next(iter(quiet.values()))
+    cases = first.get("cases") or []
     runs = ""  # what was run, from the command's own output
     if cases:
-        each = next(iter(quiet.values()))["simulated_s"] / len(cases)
+        each = first["simulated_s"] / len(cases)
         speeds = ", ".join(f"{c['speed_hz']:g}" for c in cases)
         runs = f": {each:g} s each at {speeds} Hz"
     lines += [
