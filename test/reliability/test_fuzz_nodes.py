@@ -101,6 +101,28 @@ def _all_finite_coefficients(msgs) -> bool:
     return all(np.all(np.isfinite(from_float_array(s.values))) for c in msgs for s in c.sets)
 
 
+def throw_until_taken_in(ros, throw, taken_in, renew, proc) -> None:
+    """
+    Run the fuzz ``throw()`` until the node under test takes in at least one of its messages.
+
+    From a writer the transport sometimes delivered nothing at all (issue 17; the fuzz writers'
+    messages in about 1 of 4-8 runs on a loaded machine, once all of a fuzz run in a fresh-clone
+    CI run: the node idle, every counter 0). What this module tests is what a node does with
+    the messages that reach it, so when ``taken_in()`` (the node's counters of everything it took
+    in, from ``/diagnostics``) has not moved 10 s after a fuzz run, ``renew()`` makes new writers
+    and the fuzz runs again, three times at most; then the test is an expected failure of
+    issue 17, with the node's log.
+    """
+    start = taken_in()
+    for attempt in range(3):
+        throw()
+        if ros.spin_until(lambda: taken_in() > start, 10.0):
+            return
+        print(f"fuzz run {attempt + 1}: the node took in none of it; again from new writers")
+        renew()
+    pytest.xfail(f"issue 17: none of three fuzz runs reached the node\n{proc.log()}")
+
+
 def test_filterbank_survives_random_and_garbled_measurements(ros, node_process) -> None:
     fb = node_process(
         "wavelet_filterbank", params={"samples_per_rev": SPR, "levels": 5, "status_period": 0.1}
@@ -127,16 +149,21 @@ def test_filterbank_survives_random_and_garbled_measurements(ros, node_process) 
             sent["raw"] += 1
         ros.spin_for(0.02)
 
-    throw()
-    # Let the node work off the fuzz burst before the valid stream follows: with a fixed 1 s
-    # pause the valid burst was lost in about 1 of 4 runs on a loaded machine (the node still
-    # busy with the burst). Quiescence: the node's counters of everything it took in
-    # (accepted, rejected, dropped) unchanged over 1 s of its 0.1 s status reports.
     keys = ("samples", "rejected", "stray_dropped", "stamp_rejected", "repeats_dropped")
 
     def taken_in() -> int:
         return sum(diag.number("wavelet_filterbank", k) for k in keys)
 
+    def renew() -> None:
+        nonlocal pub
+        pub = node.create_publisher(Measurement, "/amb/measurement", qos)
+        assert ros.spin_until(lambda: pub.get_subscription_count() > 0, 30.0), fb.log()
+
+    throw_until_taken_in(ros, throw, taken_in, renew, fb)
+    # Let the node work off the fuzz burst before the valid stream follows: with a fixed 1 s
+    # pause the valid burst was lost in about 1 of 4 runs on a loaded machine (the node still
+    # busy with the burst). Quiescence: the node's counters of everything it took in
+    # (accepted, rejected, dropped) unchanged over 1 s of its 0.1 s status reports.
     seen = (-1, time.monotonic())
     deadline = time.monotonic() + 60.0
     while time.monotonic() < deadline:
@@ -333,7 +360,20 @@ def test_controller_survives_random_measurements_and_coefficients(ros, node_proc
             )
         ros.spin_for(0.02)
 
-    throw()
+    name = "wavelet_controller"
+    counters = ("measurements_rejected", "coefficients_rejected", "coefficients_missing")
+
+    def taken_in() -> int:
+        seq = sum(int(v) for k, v in diag.values.get(name, {}).items() if k.startswith("samples_"))
+        processed = diag.get(name, "last_sample", "None") != "None"
+        return sum(diag.number(name, k) for k in counters) + seq + processed
+
+    def renew() -> None:
+        nonlocal pm, pc
+        pm, pc = ros.stream_writers(node, SPR, ctrl)
+
+    assert ros.spin_until(lambda: name in diag.values, 30.0), ctrl.log()
+    throw_until_taken_in(ros, throw, taken_in, renew, ctrl)
     ros.spin_for(0.5)
     before = len(got)
     pm, pc = ros.stream_writers(node, SPR, ctrl)  # new writers: from fuzz writers it was lost
@@ -390,7 +430,19 @@ def test_fault_monitor_survives_random_measurements_and_coefficients(ros, node_p
             )
         ros.spin_for(0.02)
 
-    throw()
+    refused = [
+        f"{s}_{k}" for s in ("samples", "coefficients") for k in ("repeat", "stray", "stamp")
+    ]
+    counters = ["measurements_rejected", "coefficients_rejected", *refused]
+
+    def taken_in() -> int:
+        return sum(diag.number(name, k) for k in ("messages", *counters))
+
+    def renew() -> None:
+        nonlocal pm, pc
+        pm, pc = ros.stream_writers(node, SPR, fm)
+
+    throw_until_taken_in(ros, throw, taken_in, renew, fm)
     ros.spin_for(1.0)
     before = diag.number(name, "messages")
     # new writers for the valid stream (this test lost it once in a fresh-clone CI run)
@@ -409,10 +461,6 @@ def test_fault_monitor_survives_random_measurements_and_coefficients(ros, node_p
     )
     ros.spin_for(0.3)
     assert fm.returncode is None, fm.log()
-    refused = [
-        f"{s}_{k}" for s in ("samples", "coefficients") for k in ("repeat", "stray", "stamp")
-    ]
-    counters = ["measurements_rejected", "coefficients_rejected", *refused]
     rejected = sum(diag.number(name, k) for k in counters)
     assert rejected > 0, diag.values.get(name)
     assert diag.get(name, "callback_errors") == "0", fm.log()
