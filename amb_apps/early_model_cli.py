@@ -10,7 +10,8 @@ Usage::
 Each model (:mod:`amb_controller.early_model`) is the FE route of
 :func:`amb_apps.plant_models.early_action_model`: the rig's linearised PID loop at one constant
 speed, its responses to 1 N on each bearing axis and to a sudden unit unbalance in each disk's
-plane. Without ``--band`` or ``--speeds`` the file holds the model at the scenario's speed;
+plane and at each AMB (a synchronous force through it, section 8.5.2). Without ``--band`` or
+``--speeds`` the file holds the model at the scenario's speed;
 ``--band 10`` holds models from 10 % below to 10 % above it, spaced twice the early action's
 ``speed_tolerance`` (1 %) so that every speed of the band has one within the tolerance;
 ``--speeds`` lists them in Hz. Give the file to the controller

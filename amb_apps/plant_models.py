@@ -191,11 +191,12 @@ def early_action_model(rig, scenario, samples_per_rev: int, horizon_periods: int
     Runs the simulated rig's PID loop, linearised (:func:`amb_plant_sim.control_limit
     .linear_rig`), noise-free, at ``scenario``'s constant speed: 1 N held over one sample on
     each bearing axis (the bearing Markov parameters), and a unit sudden unbalance (1 kg m,
-    angle 0 and pi/2) appearing at a sample instant in each disk's plane. Sensors: all eight,
-    so that the estimate uses every probe and the clearance check sees the rotor's ends (with
-    the inner four only, a plan that held the inner probes swung the ends into the retainers
-    on the figure-5.27 case 1); the plan minimises the feedback sensors, the controllers'
-    objective.
+    angle 0 and pi/2) appearing at a sample instant in each disk's plane and at each AMB's
+    node (planes named by the bearings' tags: a synchronous force ``F`` through the AMB,
+    section 8.5.2, is the unbalance ``F / Omega^2`` there). Sensors: all eight, so that the
+    estimate uses every probe and the clearance check sees the rotor's ends (with the inner
+    four only, a plan that held the inner probes swung the ends into the retainers on the
+    figure-5.27 case 1); the plan minimises the feedback sensors, the controllers' objective.
 
     Parameters
     ----------
@@ -219,11 +220,16 @@ def early_action_model(rig, scenario, samples_per_rev: int, horizon_periods: int
     still = PlantSimulator(lin, quiet, N)
     bearing = np.stack([b.displacement for b in still.pulse_responses(L)], axis=2)
     s0 = 2 * N  # the loss appears at this sample
+    omega = 2 * math.pi * scenario.speed_hz
+    sources = [("mass_loss", {"disk": d.tag, "me": 1.0}) for d in rig.disks]
+    # a synchronous force through an AMB (the thesis's test disturbance, section 8.5.2) is the
+    # unbalance me = F / omega^2 at the bearing's node (eq. 3.3): per 1 kg m, F = omega^2
+    sources += [("sync_force", {"bearing": b, "amplitude": omega**2}) for b in (1, 2)]
     planes = []
-    for disk in rig.disks:
+    for kind, params in sources:
         pair = []
         for angle in (0.0, math.pi / 2):
-            ev = Event("mass_loss", s0 / fs, None, {"disk": disk.tag, "me": 1.0, "angle": angle})
+            ev = Event(kind, s0 / fs, None, {**params, "angle": angle})
             sim = PlantSimulator(lin, replace(quiet, events=(ev,)), N)
             pair.append(sim.advance(s0 + lp).displacement[s0:])
         planes.append(np.stack(pair, axis=2))
@@ -231,11 +237,11 @@ def early_action_model(rig, scenario, samples_per_rev: int, horizon_periods: int
         samples_per_rev=N,
         bearing_markov=bearing,
         plane_responses=np.array(planes),
-        planes=tuple(d.tag for d in rig.disks),
+        planes=(*(d.tag for d in rig.disks), *(b.tag for b in rig.bearings[:2])),
         sensors=tuple(range(N_SENSORS)),  # displacement's columns [x1, y1, .., x4, y4]
         objective=tuple(rig.feedback_channels),
         clearance=min(c.radial_clearance for c in rig.clearance_bearings),
-        omega=2 * math.pi * scenario.speed_hz,
+        omega=omega,
         slew_rate=rig.amb.force_slew_rate,
         source="fe",
     )

@@ -130,7 +130,9 @@ again from the periods after it (``arm_periods`` quiet periods), so a second los
 on top of the first and added to the plan. The feedback law keeps running: it sees the rotor
 with the change cancelled and trims what the estimate missed.
 
-What it does not do: it acts on a sudden unbalance only (a mass loss, eq. 3.3), and it needs
+What it does not do: it acts on a sudden unbalance only (a mass loss, eq. 3.3, or a synchronous
+force through an AMB, the thesis's test disturbance of section 8.5.2: the same rotating force
+at the bearing's node, a plane of the model with ``me = F / Omega^2``), and it needs
 the sample-domain model above (the FE route: :func:`amb_apps.plant_models.early_action_model`;
 on a rig the bearing part can be identified as the coefficient model is, section 6.4, with the
 step response taken per sample, and the plane part by trial masses).

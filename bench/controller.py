@@ -11,8 +11,8 @@ saturation). Reported: median and 99th
 percentile over many periods, the median as a fraction of the control period at 11 Hz and
 67 Hz running speed (one revolution per period), and the p99 as a fraction at 67 Hz (issue
 18's target: <= 5 %). The early action on a sudden unbalance
-(:mod:`amb_controller.early_action`, 8 sensors, 4 planes): its per-period test
-(``end_period`` on quiet periods) and the plan it makes once when it decides.
+(:mod:`amb_controller.early_action`, 8 sensors, the rig's 4 disk and 2 AMB planes): its
+per-period test (``end_period`` on quiet periods) and the plan it makes once when it decides.
 
 Run from the repository root: ``PYTHONPATH=. python bench/controller.py [--periods N]``.
 """
@@ -24,6 +24,7 @@ import time
 
 import numpy as np
 
+from amb_common.rig import load_rig
 from amb_controller.basis import control_basis
 from amb_controller.config import ControllerConfig
 from amb_controller.early_action import EarlyAction, EarlyActionConfig
@@ -111,11 +112,13 @@ def _early(rng: np.random.Generator, n: int, periods: int) -> None:
     """Time the early action's period test and its plan on a random model of the real size."""
     config = EarlyActionConfig()
     L = config.horizon_periods * n
+    rig = load_rig()  # the FE route's planes: every disk and both AMBs
+    planes = (*(d.tag for d in rig.disks), *(b.tag for b in rig.bearings[:2]))
     model = EarlyActionModel(
         n,
         rng.normal(size=(L, 8, 4)) * 1e-7,
-        rng.normal(size=(4, L + 4 * n, 8, 2)) * 1e-3,
-        ("D1", "D2", "D3", "D4"),
+        rng.normal(size=(len(planes), L + 4 * n, 8, 2)) * 1e-3,
+        planes,
         tuple(range(8)),
         (2, 3, 4, 5),
     )

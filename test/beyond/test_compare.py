@@ -343,6 +343,38 @@ def test_early_action_finds_the_scenario_s_loss_and_beats_the_period_rate_law():
     assert run_metrics(early, speed)["peak"] < 0.7 * run_metrics(plain, speed)["peak"]
 
 
+def test_early_action_finds_the_bearing_s_synchronous_force_at_the_third_critical():
+    """Issue 18 item 4 with the thesis's section-8.5.2 disturbance (sync_150N_3rd).
+
+    A 150 N synchronous force through AMB 1 is the unbalance ``me = F / Omega^2`` at the
+    bearing's node (eq. 3.3): the estimate must name the bearing and give back 150 N (5 %,
+    as for the mass loss above; the likelihood ratio here is ~1e7) from the onset's period,
+    and its force must lower the peak of the predictive law without it (measured 113.0 ->
+    106.9 um at i = 2, 1.06 x the limit of docs/results.md#bound; 3 % asked).
+    """
+    from amb_apps.compare_cases import SPECS, Matrix
+    from amb_common.paths import config_file
+
+    matrix = Matrix(config_file("scenarios"), 64, None, True)
+    holder = {}
+
+    def keep(loop):
+        holder["loop"] = loop
+        return False
+
+    early = matrix.run(SPECS["predictive_early_i2"], "sync_150N_3rd", stop=keep)
+    plain = matrix.run(SPECS["predictive_i2"], "sync_150N_3rd")
+    (found,) = holder["loop"].pipeline.early.detections
+    scenario = matrix.scenarios["sync_150N_3rd"]
+    step = next(e for e in scenario.events if e.kind == "sync_force")
+    omega = 2 * math.pi * scenario.speed_hz
+    assert found.plane == f"AMB{step.get('bearing')}" and found.acted
+    assert found.me * omega**2 == pytest.approx(step.get("amplitude"), rel=0.05)
+    assert abs(found.onset_sample - step.time * scenario.speed_hz * 64) <= 2
+    speed = scenario.speed_hz
+    assert run_metrics(early, speed)["peak"] < 0.97 * run_metrics(plain, speed)["peak"]
+
+
 @pytest.mark.parametrize(
     ("factor", "single", "peak_ratio"),
     [
