@@ -27,6 +27,8 @@ from amb_plant_sim.scenario import load_scenario
 SCENARIOS = {
     "mass_loss_1st": "mass_loss_first_critical.yaml",
     "mass_loss_2nd": "mass_loss_second_critical.yaml",
+    "sync_150N_1st": "sync_force_150N_first_critical.yaml",
+    "sync_150N_2nd": "sync_force_150N_second_critical.yaml",
     "sync_150N_3rd": "sync_force_150N_third_critical.yaml",
     "contact_case2": "mass_loss_contact_case2.yaml",
 }

@@ -29,7 +29,9 @@ Controllers (all at the same per-axis force limit, the rig's bearing capacity un
   ``peak_to_limit`` is its peak over the limit at its own delay (``--no-limit``: skipped).
 
 Scenarios: 430 g cm mass loss at the model's first and second critical speeds, 150 N step
-synchronous force at the third, and the figure-5.27 case-2 mass loss that leads to contacts
+synchronous force through AMB 1 at the first, second and third (section 8.5.2; the step 3 s
+into the run at the first two, after the controllers and the early action's reference have
+settled), and the figure-5.27 case-2 mass loss that leads to contacts
 (19 Hz; with ``wavelet_reconf``: transient controller OFF until the fault monitor reports
 MASS_LOSS, HOLD on AUX_BEARING_CONTACT, section 3.3.2).
 

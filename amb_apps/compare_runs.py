@@ -339,10 +339,10 @@ def _row_cost(key: str, name: str) -> int:
     A row's cost relative to the others, to start the longest first (a scheduling hint only).
 
     From the wall times of ``amb-compare --quick``: the limit rows (linear programs) and the
-    rows of the contact and third-critical scenarios (contact integrated step by step) take
-    15-40 s each, a mass-loss run clear of the auxiliary bearings under a second.
+    rows of the contact, first- and third-critical step-force scenarios (contact integrated
+    step by step) take 15-45 s each, a run clear of the auxiliary bearings under a second.
     """
-    if name.startswith("limit_i") or key in ("contact_case2", "sync_150N_3rd"):
+    if name.startswith("limit_i") or key in ("contact_case2", "sync_150N_1st", "sync_150N_3rd"):
         return 2 if name != "pid" else 1
     return 0
 

@@ -386,6 +386,8 @@ def _compare_report(outs: list[Output], work: Path) -> list[str]:
                 for name, m in rows.items()
             ],
         )
+        for name, why in doc.get("limits_unavailable", {}).get(key, {}).items():
+            lines += ["", f"No {name} row: {why}."]
     lines += ["", "Time for one command (controller step + synthesis + force limit):", ""]
     lines += table(
         ["controller", "median (µs)", "p99 (µs)"],

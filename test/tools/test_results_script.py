@@ -193,6 +193,7 @@ COMPARISON = json.dumps(
         "speeds_hz": {"mass_loss_1st": 9.719},
         "force_limit": 1000.0,
         "table": {"mass_loss_1st": {"wavelet_i1": _row(94.7e-6), "harmonic_i1": _row(91.1e-6)}},
+        "limits_unavailable": {"mass_loss_1st": {"limit_i2": "clearance bound already exceeded"}},
         "robustness": None,
         "timing": {"transient": {"median_s": 2.1e-5, "p99_s": 4.0e-5}},
         "wall_time": 600.0,
@@ -330,6 +331,7 @@ def test_sections_render_tables_from_the_samples(tmp_path: Path) -> None:
     )
     text = "\n".join(S.BY_NAME["compare"].report([out("")], tmp_path))
     assert "| wavelet_i1 | 94.7 | - | 12 |" in text
+    assert "No limit_i2 row: clearance bound already exceeded." in text
     (run / "bound.json").write_text(BOUND)
     text = "\n".join(S.BY_NAME["bound"].report([out("")], tmp_path))
     row = "| mass_loss_1st | 1 | 0.891 (own) | 0.109 | 25.6 | 25.6 | 25.6 | 140.8 | 2 | 262 |"
