@@ -309,16 +309,10 @@ def test_controllers_their_own_model_says_diverge_run_as_pid_only_at_the_third_c
     assert run_row(matrix, "mass_loss_1st", "wavelet_i1").refused == ""
 
 
-def test_early_action_finds_the_scenario_s_loss_and_beats_the_period_rate_law():
-    """Issue 18 item 4 on the simulated rig (mass_loss_1st: 430 g cm at D1, 64 samples/rev).
-
-    The reference is the scenario's own fault: the estimate must find its disk and
-    unbalance (4.3e-3 kg m) in the fault's own period, where seven samples carry the change:
-    with the likelihood ratio found there (~1.6e3, energy over noise variance) the amplitude's
-    relative standard deviation is about 1 / sqrt(1.6e3) = 2.5 %, so 5 % is two of them. Its
-    force, from the next period, must lower the peak of the same predictive law without it
-    (82.5 um in docs/results.md#compare) by 30 % or more (measured: 56 %).
-    """
+def _early_and_plain(key: str, delay: int):
+    """amb-compare's scenario ``key`` (--quick, 64 samples/rev) run with the predictive law at
+    ``delay`` with and without the early action: (scenario, early run, plain run, the one
+    detection)."""
     from amb_apps.compare_cases import SPECS, Matrix
     from amb_common.paths import config_file
 
@@ -329,10 +323,23 @@ def test_early_action_finds_the_scenario_s_loss_and_beats_the_period_rate_law():
         holder["loop"] = loop
         return False
 
-    early = matrix.run(SPECS["predictive_early_i1"], "mass_loss_1st", stop=keep)
-    plain = matrix.run(SPECS["predictive_i1"], "mass_loss_1st")
+    early = matrix.run(SPECS[f"predictive_early_i{delay}"], key, stop=keep)
+    plain = matrix.run(SPECS[f"predictive_i{delay}"], key)
     (found,) = holder["loop"].pipeline.early.detections
-    scenario = matrix.scenarios["mass_loss_1st"]
+    return matrix.scenarios[key], early, plain, found
+
+
+def test_early_action_finds_the_scenario_s_loss_and_beats_the_period_rate_law():
+    """Issue 18 item 4 on the simulated rig (mass_loss_1st: 430 g cm at D1, 64 samples/rev).
+
+    The reference is the scenario's own fault: the estimate must find its disk and
+    unbalance (4.3e-3 kg m) in the fault's own period, where seven samples carry the change:
+    with the likelihood ratio found there (~1.6e3, energy over noise variance) the amplitude's
+    relative standard deviation is about 1 / sqrt(1.6e3) = 2.5 %, so 5 % is two of them. Its
+    force, from the next period, must lower the peak of the same predictive law without it
+    (82.5 um in docs/results.md#compare) by 30 % or more (measured: 56 %).
+    """
+    scenario, early, plain, found = _early_and_plain("mass_loss_1st", 1)
     loss = next(e for e in scenario.events if e.kind == "mass_loss")
     fs = scenario.speed_hz * 64
     assert found.plane == loss.get("disk") and found.acted
@@ -352,20 +359,7 @@ def test_early_action_finds_the_bearing_s_synchronous_force_at_the_third_critica
     and its force must lower the peak of the predictive law without it (measured 113.0 ->
     106.9 um at i = 2, 1.06 x the limit of docs/results.md#bound; 3 % asked).
     """
-    from amb_apps.compare_cases import SPECS, Matrix
-    from amb_common.paths import config_file
-
-    matrix = Matrix(config_file("scenarios"), 64, None, True)
-    holder = {}
-
-    def keep(loop):
-        holder["loop"] = loop
-        return False
-
-    early = matrix.run(SPECS["predictive_early_i2"], "sync_150N_3rd", stop=keep)
-    plain = matrix.run(SPECS["predictive_i2"], "sync_150N_3rd")
-    (found,) = holder["loop"].pipeline.early.detections
-    scenario = matrix.scenarios["sync_150N_3rd"]
+    scenario, early, plain, found = _early_and_plain("sync_150N_3rd", 2)
     step = next(e for e in scenario.events if e.kind == "sync_force")
     omega = 2 * math.pi * scenario.speed_hz
     assert found.plane == f"AMB{step.get('bearing')}" and found.acted
