@@ -39,6 +39,7 @@ __all__ = [
     "band_speeds",
     "early_action_bank",
     "early_action_model",
+    "early_action_planes",
     "harmonic_model",
     "influence_by_trials",
     "level_models",
@@ -184,6 +185,11 @@ def level_models(rig, omega: float, config, route: str = "fe", scenario=None,
     return out
 
 
+def early_action_planes(rig) -> tuple[str, ...]:
+    """The planes of :func:`early_action_model`, in its order: every disk, then both AMBs."""
+    return (*(d.tag for d in rig.disks), *(b.tag for b in rig.bearings[:2]))
+
+
 def early_action_model(rig, scenario, samples_per_rev: int, horizon_periods: int = 6):
     """
     The sample-domain model of :mod:`amb_controller.early_action` from the FE route.
@@ -225,6 +231,7 @@ def early_action_model(rig, scenario, samples_per_rev: int, horizon_periods: int
     # a synchronous force through an AMB (the thesis's test disturbance, section 8.5.2) is the
     # unbalance me = F / omega^2 at the bearing's node (eq. 3.3): per 1 kg m, F = omega^2
     sources += [("sync_force", {"bearing": b, "amplitude": omega**2}) for b in (1, 2)]
+    names = early_action_planes(rig)  # the same order
     planes = []
     for kind, params in sources:
         pair = []
@@ -237,7 +244,7 @@ def early_action_model(rig, scenario, samples_per_rev: int, horizon_periods: int
         samples_per_rev=N,
         bearing_markov=bearing,
         plane_responses=np.array(planes),
-        planes=(*(d.tag for d in rig.disks), *(b.tag for b in rig.bearings[:2])),
+        planes=names,
         sensors=tuple(range(N_SENSORS)),  # displacement's columns [x1, y1, .., x4, y4]
         objective=tuple(rig.feedback_channels),
         clearance=min(c.radial_clearance for c in rig.clearance_bearings),

@@ -24,6 +24,7 @@ import time
 
 import numpy as np
 
+from amb_apps.plant_models import early_action_planes
 from amb_common.rig import load_rig
 from amb_controller.basis import control_basis
 from amb_controller.config import ControllerConfig
@@ -112,8 +113,7 @@ def _early(rng: np.random.Generator, n: int, periods: int) -> None:
     """Time the early action's period test and its plan on a random model of the real size."""
     config = EarlyActionConfig()
     L = config.horizon_periods * n
-    rig = load_rig()  # the FE route's planes: every disk and both AMBs
-    planes = (*(d.tag for d in rig.disks), *(b.tag for b in rig.bearings[:2]))
+    planes = early_action_planes(load_rig())  # the FE route's: every disk and both AMBs
     model = EarlyActionModel(
         n,
         rng.normal(size=(L, 8, 4)) * 1e-7,
