@@ -5,10 +5,11 @@ AMB force laws per control axis (section 2.3).
 eq. 2.32-2.37), ``i`` the control current (A, ``i_1 = -i_2 = i``).
 
 - Linearised (eq. 2.37-2.40): ``f = K_i i + K_z x``.
-- Opposing pair (eq. 2.33) with the Table 2.2 geometry and the levitation current ``I_s = 0``
-  (gravity is not in the lateral model): ``f = mu0 N^2 A [((I_b + i)/(c_g - x))^2
-  - ((I_b - i)/(c_g + x))^2]``, with ``I_b`` from :attr:`AmbData.bias_current`; its slopes at
-  the origin are ``K_i`` and ``K_z`` (2.24e6 N/m with Table 2.2).
+- Opposing pair (eq. 2.33) with the levitation current ``I_s = 0`` (gravity is not in the
+  lateral model): ``f = k [((I_b + i)/(c_g - x))^2 - ((I_b - i)/(c_g + x))^2]``, with ``k``
+  and ``I_b`` from :attr:`AmbData.pair_constant` and :attr:`AmbData.bias_current`: its slopes
+  at the origin are the rig's ``K_i`` and ``K_z`` (Table 2.2's geometry, ``k = mu0 N^2 A``,
+  gives 2.24e6 N/m; the rig's measured 2.075e6 N/m sets ``k`` 8 % higher).
 - Channel loss: ``both`` coils dead gives no force; a single working coil gives its own term;
   the current sensors then read what the coils carry (:func:`measured_current`).
 - Saturation: the control part ``K_i i`` is limited to ``+-force_limit`` (1 kN, section 2.6),
@@ -17,14 +18,11 @@ eq. 2.32-2.37), ``i`` the control current (A, ``i_1 = -i_2 = i``).
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from numpy.typing import NDArray
 
 from amb_common.rig import AmbData
 
-MU0 = 4e-7 * math.pi
 NORMAL, LOST, COIL_POSITIVE, COIL_NEGATIVE = 0, 1, 2, 3
 CHANNEL_MODES = {"both": LOST, "positive": COIL_POSITIVE, "negative": COIL_NEGATIVE}
 
@@ -46,11 +44,11 @@ def coil_forces(amb: AmbData, current: NDArray, x: NDArray) -> tuple[NDArray, ND
     Returns
     -------
     f1 : ndarray
-        Coil 1 (attracts towards +x): ``mu0 N^2 A ((I_b + i)/(c_g - x))^2``.
+        Coil 1 (attracts towards +x): ``k ((I_b + i)/(c_g - x))^2``.
     f2 : ndarray
-        Coil 2 (attracts towards -x): ``-mu0 N^2 A ((I_b - i)/(c_g + x))^2``.
+        Coil 2 (attracts towards -x): ``-k ((I_b - i)/(c_g + x))^2``.
     """
-    k = MU0 * amb.turns**2 * amb.pole_area
+    k = amb.pair_constant
     ib, cg = amb.bias_current, amb.nominal_air_gap
     i = np.asarray(current, float)
     xx = np.clip(np.asarray(x, float), -0.95 * cg, 0.95 * cg)  # the laminations are not reached
@@ -72,7 +70,7 @@ def measured_current(amb: AmbData, current: NDArray, modes: NDArray) -> NDArray[
     The two coils of an axis carry ``I_b + i`` and ``I_b - i`` (eq. 2.33); the control
     current is half their difference, ``i`` while both work. A lost coil carries nothing:
     ``both`` lost reads 0, coil 1 alone ``(I_b + i) / 2``, coil 2 alone ``(i - I_b) / 2`` (a
-    step of ``I_b / 2`` = 2.35 A with Table 2.2 and the gain halved). What the demand ``i``
+    step of ``I_b / 2`` = 2.18 A with the rig's slopes and the gain halved). What the demand ``i``
     asked for and what the coils carry then differ: the fault monitor's coil check
     (:mod:`amb_fault_monitor.coil_check`).
 

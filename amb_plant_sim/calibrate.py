@@ -7,15 +7,17 @@ the two inner sensor planes by at most ``--max-shift`` (default 60 mm) from the 
 keeping the thesis's arrangement (disk outboard of each AMB, the inner sensor next to its AMB
 on the inner side, two disks inboard), and chooses the disk and core masses between the
 stated values (10 kg, 5 kg; section 2.2.4) and the geometric values of Table 2.1
-(12.95 kg, 8.25 kg), so that the zero-speed natural frequencies of the full model with the real
-PID (inner sensors, integral, filtered derivative) approach 11, 18, 29 and 67 Hz
-(sections 5.2, 8.5: the critical speeds used in the experiments).
+(12.95 kg, 8.25 kg) and the shaft's non-structural mass between 0 and
+``--max-nonstructural-mass`` (default 0; the text's 50 kg shaft less the Table 2.1 section's
+30.8 kg allows 19.2 kg), so that the zero-speed natural frequencies of the full model
+with the real PID (inner sensors, integral, filtered derivative) approach 11, 18, 29 and
+67 Hz (sections 5.2, 8.5: the critical speeds used in the experiments).
 
 Run ``python -m amb_plant_sim.calibrate [--rig config/rig.yaml] [--write]``; with ``--write``
 the positions, masses and a ``calibration`` record (targets, achieved, residual) are written
 back into the rig file. The fit is a bounded least-squares problem on the relative frequency
 errors plus a small pull towards the proposal (weight ``--regularisation``) that makes the
-under-determined problem (10 parameters, 4 targets) well posed.
+under-determined problem (11 parameters, 4 targets) well posed.
 """
 
 from __future__ import annotations
@@ -39,6 +41,9 @@ TARGETS_HZ = (11.0, 18.0, 29.0, 67.0)
 # Stated masses (section 2.2.4) as the lower bounds of the mass search.
 STATED_DISK_MASS = 10.0
 STATED_CORE_MASS = 5.0
+# The shaft "weighing 50kg" (section 2.2.4): the upper bound of the shaft's geometric mass plus
+# its non-structural mass (the Table 2.1 section gives 30.8 kg).
+STATED_SHAFT_MASS = 50.0
 # Original proposal of /work/shared/rig/bath_rig.yaml, in thesis order (non-driven end first).
 PROPOSAL = {
     "disks": (1.94, 1.28, 0.72, 0.06),
@@ -49,13 +54,16 @@ MIN_GAP = 0.04  # m: minimum distance between an AMB centre and its sensor or a 
 
 
 def parameters_of(rig: Rig) -> np.ndarray:
-    """Parameter vector: 4 disk z, 2 bearing z, 2 inner-plane z (m), disk mass, core mass (kg)."""
+    """Parameter vector: 4 disk z, 2 bearing z, 2 inner planes z (m), 3 masses (kg).
+
+    The masses: disk, core, and the shaft's non-structural mass.
+    """
     inner = [rig.sensor_planes[b.sensor_plane - 1].z for b in rig.bearings]
     return np.array(
         [d.z for d in rig.disks]
         + [b.z for b in rig.bearings]
         + inner
-        + [rig.disks[0].mass, rig.amb_cores[0].mass]
+        + [rig.disks[0].mass, rig.amb_cores[0].mass, rig.shaft.nonstructural_mass]
     )
 
 
@@ -63,6 +71,7 @@ def apply_parameters(rig: Rig, p: np.ndarray) -> Rig:
     """Copy of ``rig`` with the layout and masses of parameter vector ``p``."""
     z_disk, z_brg, z_in = p[0:4], p[4:6], p[6:8]
     m_disk, m_core = float(p[8]), float(p[9])
+    shaft = replace(rig.shaft, nonstructural_mass=float(p[10]))
     disks = tuple(
         replace(d, z=float(z), mass=m_disk) for d, z in zip(rig.disks, z_disk, strict=True)
     )
@@ -80,6 +89,7 @@ def apply_parameters(rig: Rig, p: np.ndarray) -> Rig:
     )
     return replace(
         rig,
+        shaft=shaft,
         disks=disks,
         amb_cores=cores,
         bearings=bearings,
@@ -108,6 +118,7 @@ def calibrate(
     rig: Rig,
     max_shift: float = 0.06,
     regularisation: float = 0.02,
+    max_nonstructural_mass: float = 0.0,
     targets: tuple[float, ...] = TARGETS_HZ,
     popsize: int = 8,
     maxiter: int = 30,
@@ -126,6 +137,9 @@ def calibrate(
     regularisation : float
         Weight of the pull towards the proposal (relative to one unit of relative frequency
         error per ``max_shift`` of displacement or full mass range).
+    max_nonstructural_mass : float
+        Largest non-structural shaft mass the fit may add, kg (0 to the text's 50 kg less the
+        section's mass).
     targets : tuple of float
         Target frequencies, Hz.
     popsize, maxiter, seed : int
@@ -142,7 +156,7 @@ def calibrate(
         list(PROPOSAL["disks"])
         + list(PROPOSAL["bearings"])
         + list(PROPOSAL["inner_planes"])
-        + [rig.disks[0].geometric_mass, rig.amb_cores[0].geometric_mass]
+        + [rig.disks[0].geometric_mass, rig.amb_cores[0].geometric_mass, 0.0]
     )
     lo = p0.copy()
     hi = p0.copy()
@@ -155,15 +169,30 @@ def calibrate(
     hi[0] = min(hi[0], rig.shaft.length - rig.disks[0].width / 2)
     lo[8], hi[8] = STATED_DISK_MASS, rig.disks[0].geometric_mass
     lo[9], hi[9] = STATED_CORE_MASS, rig.amb_cores[0].geometric_mass
-    scale = np.r_[np.full(8, max_shift), hi[8] - lo[8], hi[9] - lo[9]]
+    stated_room = STATED_SHAFT_MASS - rig.shaft.geometric_mass
+    if not 0.0 <= max_nonstructural_mass <= stated_room:
+        raise ValueError(
+            f"max_nonstructural_mass {max_nonstructural_mass} kg: expected 0 to {stated_room:.1f}"
+            f" kg (the text's {STATED_SHAFT_MASS:g} kg shaft less the section's"
+            f" {rig.shaft.geometric_mass:.1f} kg)"
+        )
+    lo[10], hi[10] = 0.0, max_nonstructural_mass
+    scale = np.r_[np.full(8, max_shift), hi[8:] - lo[8:]]
+    scale[scale == 0.0] = 1.0
     tgt = np.asarray(targets, float)
+    free = hi > lo  # a parameter whose bounds meet (no non-structural mass allowed) is fixed
+
+    def full(xf: np.ndarray) -> np.ndarray:
+        x = lo.copy()
+        x[free] = xf
+        return x
 
     def residual(x: np.ndarray) -> np.ndarray:
         trial = apply_parameters(rig, x)
         try:
             f, stable = frequencies(trial, len(tgt))
         except ValueError:
-            return np.full(len(tgt) + 10 + 7, 10.0)
+            return np.full(len(tgt) + p0.size + 7, 10.0)
         if len(f) < len(tgt):
             f = f + [0.0] * (len(tgt) - len(f))
         r = np.asarray(f) / tgt - 1.0
@@ -175,8 +204,8 @@ def calibrate(
 
     # Global stage (the problem has cliffs where the PID loses stability), then a local polish.
     glob = scipy.optimize.differential_evolution(
-        lambda x: float(np.sum(residual(x) ** 2)),
-        list(zip(lo, hi, strict=True)),
+        lambda xf: float(np.sum(residual(full(xf)) ** 2)),
+        list(zip(lo[free], hi[free], strict=True)),
         popsize=popsize,
         maxiter=maxiter,
         tol=1e-8,
@@ -185,10 +214,16 @@ def calibrate(
         init="sobol",
     )
     sol = scipy.optimize.least_squares(
-        residual, glob.x, bounds=(lo, hi), x_scale=scale, diff_step=1e-3, max_nfev=200
+        lambda xf: residual(full(xf)),
+        glob.x,
+        bounds=(lo[free], hi[free]),
+        x_scale=scale[free],
+        diff_step=1e-3,
+        max_nfev=200,
     )
-    best = np.round(sol.x, 4)
-    best[8:] = np.round(sol.x[8:], 3)
+    x_best = full(sol.x)
+    best = np.round(x_best, 4)
+    best[8:] = np.round(x_best[8:], 3)
     best = np.clip(best, lo, hi)
     out = apply_parameters(rig, best)
     f, stable = frequencies(out, len(tgt))
@@ -201,21 +236,27 @@ def calibrate(
         "max_relative_error": round(float(np.max(np.abs(rel))), 4),
         "stable": bool(stable),
         "max_shift_m": max_shift,
+        "max_nonstructural_mass_kg": max_nonstructural_mass,
         "regularisation": regularisation,
         "disk_mass_kg": float(best[8]),
         "core_mass_kg": float(best[9]),
+        "shaft_nonstructural_mass_kg": float(best[10]),
         "largest_move_m": round(float(np.max(np.abs(best[:8] - p0[:8]))), 4),
     }
     return out, record
+
+
+def _number(value: float) -> str:
+    """YAML float text: 6 significant digits, always with a point or an exponent."""
+    txt = f"{value:.6g}"
+    return txt + ".0" if "." not in txt and "e" not in txt else txt
 
 
 def _set_on_tag_line(text: str, tag: str, key: str, value: float) -> str:
     pat = re.compile(
         r"^(\s*- \{tag: " + re.escape(tag) + r",.*?\b" + key + r": )([-0-9.eE+]+)", re.M
     )
-    txt = f"{value:.6g}"
-    if "." not in txt and "e" not in txt:
-        txt += ".0"
+    txt = _number(value)
     new, n = pat.subn(lambda m: m.group(1) + txt, text)
     if n != 1:
         raise ValueError(f"rig file: expected one line with tag {tag} and key {key}, found {n}")
@@ -234,10 +275,17 @@ def write_calibration(path: Path, rig: Rig, record: dict) -> None:
         text = _set_on_tag_line(text, s.tag, "z", s.z)
     for c in rig.clearance_bearings:
         text = _set_on_tag_line(text, c.tag, "z", c.z)
-    text = text.split("\ncalibration:")[0].rstrip("\n") + "\n"
+    pat = re.compile(r"^(  nonstructural_mass: )([-0-9.eE+]+)", re.M)
+    text, n = pat.subn(lambda m: m.group(1) + _number(rig.shaft.nonstructural_mass), text)
+    if n != 1:
+        raise ValueError(f"rig file: expected one shaft line 'nonstructural_mass:', found {n}")
+    head = (
+        "# Output of `python -m amb_plant_sim.calibrate --write` (do not edit by hand): zero-speed"
+    )
+    text = text.split("\ncalibration:")[0].split("\n" + head)[0].rstrip("\n") + "\n"
     lines = [
         "",
-        "# Output of `python -m amb_plant_sim.calibrate --write` (do not edit by hand): zero-speed",
+        head,
         "# natural frequencies of the full model (14 elements, real PID on the inner sensors,",
         "# integral, filtered derivative) against the thesis's 11, 18, 29, 67 Hz.",
         "calibration:",
@@ -252,11 +300,17 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m amb_plant_sim.calibrate", description=__doc__)
     ap.add_argument("--rig", type=Path, default=DEFAULT_RIG_PATH, help="rig YAML file")
     ap.add_argument("--max-shift", type=float, default=0.06, help="largest move, m")
+    ap.add_argument(
+        "--max-nonstructural-mass",
+        type=float,
+        default=0.0,
+        help="largest non-structural shaft mass, kg (the text's 50 kg shaft allows 19.2)",
+    )
     ap.add_argument("--regularisation", type=float, default=0.02)
     ap.add_argument("--write", action="store_true", help="write the result into the rig file")
     args = ap.parse_args(argv)
     rig = load_rig(args.rig)
-    out, record = calibrate(rig, args.max_shift, args.regularisation)
+    out, record = calibrate(rig, args.max_shift, args.regularisation, args.max_nonstructural_mass)
     layout = {
         "disks_z": [d.z for d in out.disks],
         "bearings_z": [b.z for b in out.bearings],

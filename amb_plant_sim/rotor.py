@@ -193,7 +193,7 @@ def assemble(
             z[e + 1] - z[e],
             mat.E,
             mat.G,
-            mat.rho,
+            shaft.inertia_density,
             shaft.inner_radius,
             shaft.outer_radius,
             mat.poisson,

@@ -32,9 +32,8 @@ def rig():
 
 def test_the_current_sensors_read_what_the_coils_carry(rig) -> None:
     amb = rig.amb
-    mu0 = 4e-7 * math.pi  # H/m
-    ib = amb.Ki * amb.nominal_air_gap**2 / (4 * mu0 * amb.turns**2 * amb.pole_area)  # eq. 2.40
-    assert ib == pytest.approx(4.70, abs=0.005)
+    ib = 1.2e-3 * 2240e3 / 572.0  # eq. 2.39-2.40: K_z / K_i = I_b / c_g (section 2.3)
+    assert amb.bias_current == pytest.approx(ib, rel=1e-3)  # rig.yaml's 2.24e6 and 572 N/A
     i = np.array([0.3, -0.2, 0.7, -1.1])
     modes = np.array([amb_law.NORMAL, amb_law.LOST, amb_law.COIL_POSITIVE, amb_law.COIL_NEGATIVE])
     got = amb_law.measured_current(amb, i, modes)

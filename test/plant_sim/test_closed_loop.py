@@ -6,6 +6,7 @@ Table 2.2), the thesis's 11, 18, 29, 67 Hz, and the numbers recorded in config/r
 """
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -32,16 +33,28 @@ def test_pid_state_space_is_the_table_2_3_law(rig):
 
 
 def test_table_2_2_geometry_gives_the_thesis_stiffness_and_gain(rig):
+    """Section 2.3: eq. 2.39-2.40 with Table 2.2's geometry and 572 N/A give 2240 N/mm."""
     a = rig.amb
+    mu0 = 4e-7 * math.pi
+    k = mu0 * a.turns**2 * a.pole_area
+    ib = 572.0 * a.nominal_air_gap**2 / (4 * k)
+    assert 4 * k * ib**2 / a.nominal_air_gap**3 == pytest.approx(2240e3, rel=0.01)
+
+
+@pytest.mark.parametrize("kz", [2240e3, (2156e3 + 1994e3) / 2])
+def test_both_force_laws_have_the_rig_s_slopes(rig, kz):
+    """The pair law (eq. 2.33) and the linear law have the same slopes at the origin: 572 N/A
+    (section 2.3) and the rig's K_z, the computed 2240 N/mm or the mean of the two measured
+    2156 and 1994 N/mm (figure 2.11)."""
+    a = replace(rig.amb, Kz=kz)
     x = np.array([-1e-7, 1e-7])
     i = np.array([-1e-5, 1e-5])
-    kz = np.diff(amb_law.pair_force(a, np.zeros(2), x))[0] / 2e-7
-    ki = np.diff(amb_law.pair_force(a, i, np.zeros(2)))[0] / 2e-5
-    assert ki == pytest.approx(572.0, rel=1e-6)  # I_b is chosen from K_i
-    assert kz == pytest.approx(2240e3, rel=0.01)  # section 2.3: 2240 N/mm from Table 2.2
-    # the linear law has the same slopes
+    kz_pair = np.diff(amb_law.pair_force(a, np.zeros(2), x))[0] / 2e-7
+    ki_pair = np.diff(amb_law.pair_force(a, i, np.zeros(2)))[0] / 2e-5
+    assert ki_pair == pytest.approx(572.0, rel=1e-6)
+    assert kz_pair == pytest.approx(kz, rel=1e-6)
     assert amb_law.linear_force(a, 1.0, 0.0) == pytest.approx(572.0)
-    assert amb_law.linear_force(a, 0.0, 1e-3) == pytest.approx(2240.0)
+    assert amb_law.linear_force(a, 0.0, 1.0) == pytest.approx(kz)
 
 
 def test_the_force_slew_rate_is_the_coil_equation_at_table_2_2_s_peak_voltage(rig):
@@ -60,8 +73,8 @@ def test_single_coil_left_attracts_by_its_bias_force(rig):
     a = rig.amb
     modes = np.array([amb_law.COIL_POSITIVE, amb_law.COIL_NEGATIVE, amb_law.LOST, 0])
     f = amb_law.amb_force(a, np.zeros(4), np.zeros(4), modes)
-    mu0 = 4e-7 * math.pi
-    f_bias = mu0 * a.turns**2 * a.pole_area * (a.bias_current / a.nominal_air_gap) ** 2
+    # k (I_b / c_g)^2 with K_i = 4 k I_b / c_g^2 and K_z = 4 k I_b^2 / c_g^3 (eq. 2.39-2.40)
+    f_bias = a.Kz * a.nominal_air_gap / 4
     np.testing.assert_allclose(f, [f_bias, -f_bias, 0.0, 0.0], rtol=1e-12)
     assert 500.0 < f_bias < 1000.0  # uncompensated pull of several hundred newtons
 
@@ -143,14 +156,25 @@ def test_calibration_record_round_trips_through_the_rig_file(rig, tmp_path):
     path = tmp_path / "rig.yaml"
     shutil.copy(RIG_PATH, path)
     p = parameters_of(rig)
-    p[0] -= 0.01  # move D1 by 10 mm and make the disks 11 kg
+    p[0] -= 0.01  # move D1 by 10 mm, make the disks 11 kg, add 7.5 kg to the shaft
     p[8] = 11.0
+    p[10] = 7.5
     moved = apply_parameters(rig, p)
     write_calibration(path, moved, {"targets_hz": [11.0], "note": "test"})
+    write_calibration(path, moved, {"targets_hz": [11.0], "note": "test"})  # twice: no repeats
     back = load_rig(path)
     assert back.disks[0].z == pytest.approx(rig.disks[0].z - 0.01)
     assert all(d.mass == 11.0 for d in back.disks)
+    assert back.shaft.nonstructural_mass == 7.5
     assert back.calibration == {"targets_hz": [11.0], "note": "test"}
     assert dataclasses.replace(back, calibration={}, source="") == dataclasses.replace(
         moved, calibration={}, source=""
     )
+    assert path.read_text().count("(do not edit by hand)") == 1
+
+
+def test_calibration_refuses_more_non_structural_mass_than_the_text_s_shaft(rig):
+    from amb_plant_sim.calibrate import calibrate
+
+    with pytest.raises(ValueError, match=r"expected 0 to 19\.2 kg"):
+        calibrate(rig, max_nonstructural_mass=25.0)

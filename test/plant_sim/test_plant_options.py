@@ -59,5 +59,7 @@ def test_base_acceleration_is_carried_by_the_bearings(rig):
     np.testing.assert_allclose(f[-20:, 1] + f[-20:, 3], 0.0, atol=1e-3 * mass * a)
     assert np.all(np.abs(f[blk.time < 0.1]) < 1e-9)
     assert mass == pytest.approx(
-        sum(b.mass for b in rig.rigid_bodies) + 7850 * math.pi * 0.025**2 * 2
+        sum(b.mass for b in rig.rigid_bodies)
+        + 7850 * math.pi * 0.025**2 * 2
+        + rig.shaft.nonstructural_mass
     )

@@ -4,6 +4,7 @@ against a hand sum of the Table 2.1 parts.
 """
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -24,6 +25,7 @@ def table21_rig():
     for key in ("disks", "amb_cores", "collars"):
         for body in data[key]:
             body.pop("mass", None)
+    data["shaft"].pop("nonstructural_mass", None)
     return rig_from_dict(data)
 
 
@@ -97,6 +99,23 @@ def test_mass_and_inertia_vs_hand_sum(table21_rig):
     assert R[:, 3] @ m.M @ R[:, 3] == pytest.approx(id0, rel=1e-9)
     # polar inertia: the gyroscopic work of a unit tilt pair
     assert R[:, 3] @ m.G @ R[:, 2] == pytest.approx(ip, rel=1e-9)
+
+
+def test_nonstructural_mass_is_inertia_of_a_uniform_rod_without_stiffness(table21_rig):
+    """Mass m spread uniformly over the 2 m, 25 mm radius shaft adds m to the mass,
+    m (L^2/3 + r^2/4) to I_d about the drive end (a thin rod plus its sections' own diametral
+    inertia), m r^2/2 to I_p, and nothing to the stiffness."""
+    m_ns, L, r = 18.5, 2.0, 0.025
+    plain = build_rotor(table21_rig)
+    heavy = build_rotor(
+        replace(table21_rig, shaft=replace(table21_rig.shaft, nonstructural_mass=m_ns))
+    )
+    R = plain.rigid_modes()
+    dM = heavy.M - plain.M
+    assert R[:, 0] @ dM @ R[:, 0] == pytest.approx(m_ns, rel=1e-9)
+    assert R[:, 2] @ dM @ R[:, 2] == pytest.approx(m_ns * (L**2 / 3 + r**2 / 4), rel=1e-9)
+    assert R[:, 3] @ (heavy.G - plain.G) @ R[:, 2] == pytest.approx(m_ns * r**2 / 2, rel=1e-9)
+    np.testing.assert_array_equal(heavy.K, plain.K)
 
 
 def test_rigid_body_nutation_frequency(rig):
