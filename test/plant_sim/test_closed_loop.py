@@ -176,5 +176,7 @@ def test_calibration_record_round_trips_through_the_rig_file(rig, tmp_path):
 def test_calibration_refuses_more_non_structural_mass_than_the_text_s_shaft(rig):
     from amb_plant_sim.calibrate import calibrate
 
-    with pytest.raises(ValueError, match=r"expected 0 to 19\.2 kg"):
+    with pytest.raises(ValueError, match=r"expected 0 to 19\.17 kg"):
         calibrate(rig, max_nonstructural_mass=25.0)
+    with pytest.raises(ValueError, match="expected 'least_squares' or 'minimax'"):
+        calibrate(rig, objective="max")
