@@ -236,9 +236,10 @@ def early_action_model(rig, scenario, samples_per_rev: int, horizon_periods: int
     for kind, params in sources:
         pair = []
         for angle in (0.0, math.pi / 2):
-            ev = Event(kind, s0 / fs, None, {**params, "angle": angle})
-            sim = PlantSimulator(lin, replace(quiet, events=(ev,)), N)
-            pair.append(sim.advance(s0 + lp).displacement[s0:])
+            # the same simulator for every source: its discretisation is built once
+            still.reset()
+            still.inject(Event(kind, s0 / fs, None, {**params, "angle": angle}))
+            pair.append(still.advance(s0 + lp).displacement[s0:])
         planes.append(np.stack(pair, axis=2))
     return EarlyActionModel(
         samples_per_rev=N,
@@ -259,7 +260,7 @@ def early_action_bank(rig, scenario, samples_per_rev: int, speeds_hz, progress=N
     :func:`early_action_model` at each of ``speeds_hz`` (Hz), as an :class:`EarlyModelBank`.
 
     ``progress(k, K, hz)``, if given, is called before each model (a bank of tens of models
-    takes seconds to tens of seconds).
+    takes seconds).
     """
     speeds = sorted({float(hz) for hz in speeds_hz})
     if not speeds or speeds[0] <= 0.0:
