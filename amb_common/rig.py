@@ -174,7 +174,7 @@ class AmbData:
         amplifier's peak voltage leaves ``V - R I`` across the inductance, so ``|di/dt| >=
         (V - R I) / L`` is always available and the force ``K_i i`` changes at up to ``K_i (V
         - R I) / L``. Table 2.2 (95.2 V, 0.365 ohm, 10 A, 0.0732 H, 572 N/A): 7.15e5 N/s, i.e.
-        997 N per sample at 11.2 Hz x 64 samples per revolution and 334 N at 67 Hz x 32.
+        1150 N per sample at 9.7 Hz x 64 samples per revolution and 334 N at 67 Hz x 32.
         """
         headroom = self.peak_voltage - self.coil_resistance * self.peak_current
         return self.Ki * headroom / self.coil_inductance
@@ -186,8 +186,8 @@ class AmbData:
 
         Eq. (2.39)-(2.40) with the levitation current I_s = 0 (gravity is not part of the
         lateral model about the static equilibrium): K_i = 4 k I_b / c_g^2 and
-        K_z = 4 k I_b^2 / c_g^3, so I_b = c_g K_z / K_i (4.35 A with 2075 N/mm, 572 N/A and
-        the nominal 1.2 mm gap; Table 2.2's geometry with 572 N/A gives 4.70 A and 2240 N/mm).
+        K_z = 4 k I_b^2 / c_g^3, so I_b = c_g K_z / K_i: 4.70 A with rig.yaml's 2240 N/mm,
+        572 N/A and the nominal 1.2 mm gap (4.35 A with the measured mean, 2075 N/mm).
         """
         return self.nominal_air_gap * self.Kz / self.Ki
 
@@ -198,10 +198,11 @@ class AmbData:
 
         ``k = K_i^2 c_g / (4 K_z)``: the constant whose slopes at the origin are the rig's
         ``Ki`` and ``Kz`` over the nominal gap (:attr:`bias_current`). Table 2.2's geometry
-        gives ``mu0 N^2 A`` = 4.39e-5 and, with 572 N/A, 2240 N/mm; the measured negative
-        stiffness (2075 N/mm) needs 4.73e-5: the nominal gap and geometry do not hold the
-        iron and leakage that the measurement sees, so the pair law is fitted to the slopes
-        and the gap sets only the scale of its nonlinearity.
+        gives ``mu0 N^2 A`` = 4.39e-5 and, with 572 N/A, 2240 N/mm (rig.yaml's Kz: the two
+        agree); the measured negative stiffness (2075 N/mm mean) would need 4.73e-5: the
+        nominal gap and geometry do not hold the iron and leakage that the measurement sees,
+        so the pair law follows the slopes and the gap sets only the scale of its
+        nonlinearity.
         """
         return self.Ki**2 * self.nominal_air_gap / (4.0 * self.Kz)
 

@@ -8,8 +8,8 @@ eq. 2.32-2.37), ``i`` the control current (A, ``i_1 = -i_2 = i``).
 - Opposing pair (eq. 2.33) with the levitation current ``I_s = 0`` (gravity is not in the
   lateral model): ``f = k [((I_b + i)/(c_g - x))^2 - ((I_b - i)/(c_g + x))^2]``, with ``k``
   and ``I_b`` from :attr:`AmbData.pair_constant` and :attr:`AmbData.bias_current`: its slopes
-  at the origin are the rig's ``K_i`` and ``K_z`` (Table 2.2's geometry, ``k = mu0 N^2 A``,
-  gives 2.24e6 N/m; the rig's measured 2.075e6 N/m sets ``k`` 8 % higher).
+  at the origin are the rig's ``K_i`` and ``K_z`` (with rig.yaml's 2.24e6 N/m, ``k`` is Table
+  2.2's ``mu0 N^2 A``; the measured mean 2.075e6 N/m would set it 8 % higher).
 - Channel loss: ``both`` coils dead gives no force; a single working coil gives its own term;
   the current sensors then read what the coils carry (:func:`measured_current`).
 - Saturation: the control part ``K_i i`` is limited to ``+-force_limit`` (1 kN, section 2.6),
@@ -70,7 +70,7 @@ def measured_current(amb: AmbData, current: NDArray, modes: NDArray) -> NDArray[
     The two coils of an axis carry ``I_b + i`` and ``I_b - i`` (eq. 2.33); the control
     current is half their difference, ``i`` while both work. A lost coil carries nothing:
     ``both`` lost reads 0, coil 1 alone ``(I_b + i) / 2``, coil 2 alone ``(i - I_b) / 2`` (a
-    step of ``I_b / 2`` = 2.18 A with the rig's slopes and the gain halved). What the demand ``i``
+    step of ``I_b / 2`` = 2.35 A with the rig's slopes and the gain halved). What the demand ``i``
     asked for and what the coils carry then differ: the fault monitor's coil check
     (:mod:`amb_fault_monitor.coil_check`).
 
