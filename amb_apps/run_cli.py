@@ -7,17 +7,15 @@ parameters and the ``--set`` overrides, each node's under its fully qualified na
 :func:`amb_apps.system.run_params_document`), the recorder writes ``OUT/bag``, progress
 (simulated time, real-time factor) is printed from the plant's ``/diagnostics`` while it runs,
 and when ``plant_sim`` exits at the end of its scenario the other nodes are stopped with SIGINT
-(the recorder last, after its queue has drained). Logs of every node are in ``OUT/logs``. The
-exit status is 0 only if every node stopped cleanly.
+(the recorder last, once it has written every message published). Logs of every node are in
+``OUT/logs``. The exit status is 0 only if every node stopped cleanly.
 
-Draining: a node that is behind the plant when the plant exits still has the end of the run in
-its subscription queues (the fault monitor, off the lock-step chain, may be many revolutions
-behind on a loaded machine, with a fault decision among them). Before they are stopped, the
-filterbank, the controller and the fault monitor are therefore waited for until the sample
-indices they report as processed on ``/diagnostics`` (:data:`DRAINED`) reach the plant's last
-sample, at most ``--drain-timeout`` wall seconds (progress printed each second). A node that has
-not caught up by then is stopped anyway, named with how far it got, and the exit status is 1:
-what it had not processed (events, commands, coefficients) is missing from the bag.
+Ending: when the plant has exited, the filterbank, the controller and the fault monitor are
+waited for until they report the plant's last sample as processed, then the recorder until it
+reports every published message as written (:mod:`amb_apps.run_end`), each at most
+``--drain-timeout`` wall seconds (progress printed each second). A node or recorder still short
+then is stopped anyway, named with how far it got, and the exit status is 1: what it had not
+processed or written (events, commands, coefficients) is missing from the bag.
 
 Namespace: ``--namespace /rig1`` starts every node in ``/rig1`` (``-r __ns:=/rig1``), so that
 the system's topics are ``/rig1/amb/...`` and a second run in another namespace, on the same
@@ -50,7 +48,6 @@ import argparse
 import importlib.util
 import math
 import os
-import re
 import signal
 import subprocess
 import sys
@@ -63,6 +60,7 @@ import yaml
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.executors import SingleThreadedExecutor
 
+from amb_apps.run_end import DRAIN_TIMEOUT, drain, settle_recording
 from amb_apps.system import (
     COMPOSED,
     NODE_MODULES,
@@ -83,20 +81,6 @@ INSTALL_LIB = Path(__file__).resolve().parent.parent / "install" / "amb_wavelet_
 # fault_monitor is not niced by default: niced, it lags the lock-step chain and the end of the
 # run waits for it to drain (what it did before runs drained: docs/history.md, "amb-run").
 NICENESS = {"recorder": 10}
-#: /diagnostics keys (sample indices processed) of the nodes drained before they are stopped
-#: (module notes). The filterbank publishes coefficients for odd samples only (its finest level
-#: completes every second sample), so ``last_coefficient_sample`` ends at the last odd sample.
-DRAINED = {
-    "wavelet_filterbank": ("last_sample",),
-    "wavelet_controller": ("last_sample",),
-    "fault_monitor": ("last_sample", "last_coefficient_sample"),
-}
-#: Default ``--drain-timeout``, wall s: well above the time a fault monitor niced to 19 on a
-#: loaded machine takes to catch up (docs/results.md#drain; the first measurement:
-#: docs/history.md, "amb-run"), so that only a stuck node reaches it.
-DRAIN_TIMEOUT = 300.0
-#: The plant's completion line in its log (read when its final /diagnostics report was missed).
-PLANT_COMPLETE = re.compile(r"complete at t = [\d.]+ s \((?P<samples>\d+) samples\)")
 
 
 @dataclass
@@ -269,10 +253,13 @@ class _Progress:
         """The plant's last report (empty before the first)."""
         return self.statuses.get(topics.diagnostic_name("plant_sim", self.namespace), {})
 
+    def report(self, name: str) -> dict[str, str]:
+        """Node ``name``'s last report, key -> value (empty before the first)."""
+        return self.statuses.get(topics.diagnostic_name(name, self.namespace), {})
+
     def processed(self, name: str, key: str) -> int | None:
         """Sample index ``key`` last reported by node ``name`` (None if not reported yet)."""
-        status = self.statuses.get(topics.diagnostic_name(name, self.namespace), {})
-        value = status.get(key)
+        value = self.report(name).get(key)
         return int(value) if value is not None and value.lstrip("-").isdigit() else None
 
     def spin(self, seconds: float) -> None:
@@ -462,7 +449,9 @@ def run(args: argparse.Namespace) -> int:
                     flush=True,
                 )
         if status == 0 and plant.proc.returncode == 0:
-            status = _drain(progress, runs, args.drain_timeout, args.quiet)
+            status = drain(progress, runs, args.drain_timeout, args.quiet)
+        if status == 0:
+            status = settle_recording(progress, runs, args.drain_timeout, args.quiet)
     finally:
         progress.close()
         codes = {}
@@ -471,8 +460,6 @@ def run(args: argparse.Namespace) -> int:
             return r.name == "recorder" or "recorder" in r.hosts
 
         for r in sorted(runs, key=records):  # the recorder (or the stack holding it) last
-            if records(r):
-                time.sleep(0.5)
             codes[r.name] = r.stop()
     wall = time.monotonic() - t0
     bad = {n: c for n, c in codes.items() if c != 0}
@@ -488,95 +475,6 @@ def run(args: argparse.Namespace) -> int:
             flush=True,
         )
     return status
-
-
-def _drain(progress: _Progress, runs: list[NodeRun], timeout: float, quiet: bool) -> int:
-    """Wait until the running nodes of :data:`DRAINED` have processed the plant's last sample.
-
-    Parameters
-    ----------
-    progress : _Progress
-        The /diagnostics reader (holds the plant's last report: ``sample_index`` samples).
-    runs : list of NodeRun
-        The run's nodes; those still running and named in :data:`DRAINED` are waited for.
-    timeout : float
-        Wall s to wait at most.
-    quiet : bool
-        No progress lines (a failure to drain is printed either way).
-
-    Returns
-    -------
-    int
-        0 when every node has caught up; 1 if the bound was hit, a node exited meanwhile, or
-        the plant's last report never arrived (the nodes are then stopped as they are).
-    """
-    progress.spin(0.2)  # the plant's last report, sent just before it exited
-    plant = progress.values
-    if plant.get("done") == "True" and plant.get("sample_index", "").isdigit():
-        last = int(plant["sample_index"]) - 1
-    else:
-        # /diagnostics is volatile: a short run can end before the progress node's reader is
-        # matched to the plant's writer (seen once in make demo). The plant logged its count.
-        plant_run = next(r for r in runs if r.name == "plant_sim")
-        found = PLANT_COMPLETE.search(plant_run.log_path.read_text(errors="replace"))
-        if found is None:
-            print(
-                "[amb-run] the plant's final report was not received and its log has no "
-                "completion line: cannot tell whether the other nodes processed its last "
-                "sample; stopping them as they are",
-                file=sys.stderr,
-            )
-            return 1
-        last = int(found.group("samples")) - 1
-    targets = {
-        (n, key): last if key == "last_sample" or last % 2 else last - 1
-        for r in runs
-        for n in r.hosts
-        if n in DRAINED
-        for key in DRAINED[n]
-    }
-    procs = {n: r.proc for r in runs for n in r.hosts}
-    start = time.monotonic()
-    last_print = -math.inf
-    first = True
-    while True:
-        gone = sorted({n for n, _ in targets if procs[n].poll() is not None})
-        if gone:
-            print(
-                f"[amb-run] {', '.join(gone)} exited before processing sample {last}, the "
-                "plant's last; see the logs",
-                file=sys.stderr,
-            )
-            return 1
-        at = {nk: progress.processed(*nk) for nk in targets}
-        behind = {nk: v for nk, v in at.items() if v is None or v < targets[nk]}
-        waited = time.monotonic() - start
-        shown = ", ".join(
-            f"{n} {k} {'-' if v is None else v}" for (n, k), v in (behind or at).items()
-        )
-        if first and not quiet:
-            print(f"[amb-run] plant done at sample {last}; {shown}", flush=True)
-            first = False
-        if not behind:
-            if not quiet:
-                print(
-                    f"[amb-run] drained in {waited:.1f} s: every node processed the plant's last "
-                    f"sample {last} ({shown})",
-                    flush=True,
-                )
-            return 0
-        if waited > timeout:
-            print(
-                f"[amb-run] drain timeout ({timeout:g} s, --drain-timeout): still behind the "
-                f"plant's last sample {last}: {shown}; stopped anyway, what they had not "
-                "processed is missing from the bag",
-                file=sys.stderr,
-            )
-            return 1
-        if not quiet and waited - last_print >= 1.0:
-            last_print = waited
-            print(f"[amb-run] draining ({waited:5.1f} s): {shown} of {last}", flush=True)
-        progress.spin(0.2)
 
 
 def _available(name: str) -> bool:

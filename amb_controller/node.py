@@ -197,6 +197,8 @@ class WaveletControllerNode(Node):
         self._early_omega: float | None = -1.0  # the early action's model speed last logged
         self._blind_reported = False  # the error of a reader not fed (module notes), this silence
         self._pending_config: ControllerConfig | None = None
+        # messages published, per topic (amb-run waits until its bag holds as many)
+        self.commands_published = self.statuses_published = 0
         self.counts = dict.fromkeys(
             (
                 "measurements_rejected",
@@ -516,8 +518,10 @@ class WaveletControllerNode(Node):
             )
             out = command_msg(zero, header, labels, n, cfg.delay_periods, control_waveform(cfg))
         self._cmd_pub.publish(out)
+        self.commands_published += 1
         try:
             self._status_pub.publish(controller_status_msg(self._pipe.status(), header))
+            self.statuses_published += 1
         except MessageError as exc:
             self._last_reason = f"status not published: {exc}"
         if self._pending_config is not None:
@@ -542,6 +546,8 @@ class WaveletControllerNode(Node):
             "measurements_stale": self._stale,
             "last_sample": self._last_processed,
             "commands_sent": status["commands_sent"],
+            "commands_published": self.commands_published,
+            "statuses_published": self.statuses_published,
             "commands_late": status["commands_late"],
             "callback_errors": getattr(self, "callback_errors", 0),
             "inputs_rejected": status["inputs_rejected"],

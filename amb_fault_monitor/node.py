@@ -190,6 +190,7 @@ class FaultMonitorNode(Node):
         self._coef_seq = SampleSequencer(self._spr // 2)
         self._omega = 0.0
         self.received = self.restarts = self.bags_written = 0
+        self.events_published = 0  # this run's, not the log's (amb-run waits for the bag)
         self.control_transients = 0
         self._last_control: dict | None = None
         # indices of the last measurement and coefficient message processed: on /diagnostics,
@@ -512,6 +513,7 @@ class FaultMonitorNode(Node):
         out.header.stamp = now
         out.header.frame_id = "rotor"
         self._pub.publish(out)
+        self.events_published += 1
         self.get_logger().warning(f"{ev.fault_type.name}: {ev.description}")
 
     def _publish_status(self) -> None:
@@ -547,6 +549,7 @@ class FaultMonitorNode(Node):
             "last_sample": self.last_sample,
             "last_coefficient_sample": self.last_coefficient_sample,
             "events_logged": len(self._log.events),
+            "events_published": self.events_published,
             "restarts": self.restarts,
             "blackbox_bags": self.bags_written,
             "masked_channels": self._monitor.masked_channels,

@@ -488,7 +488,7 @@ SECTIONS = [
         "drain",
         "amb-run draining a lagging fault monitor",
         "minutes",
-        "amb_apps.run_cli.DRAIN_TIMEOUT",
+        "amb_apps.run_end.DRAIN_TIMEOUT",
         _drain_commands,
         _drain_report,
     ),
