@@ -219,8 +219,25 @@ class BacklogReader:
         # without a bound or a batch hook each message goes straight to ``deliver``: no extra
         # call per message
         batched = self.max_backlog or after_batch is not None
-        callback = self._on_message if batched else deliver
-        self.subscription = node.create_subscription(msg_type, name, callback, qos, raw=True)
+        self._callback = self._on_message if batched else deliver
+        self._qos = qos
+        self._node = node
+        self.subscription = node.create_subscription(msg_type, name, self._callback, qos, raw=True)
+
+    def move_to(self, node: Node) -> None:
+        """Subscribe the same topic from ``node`` and destroy the subscription held until now.
+
+        For a reader the transport stopped feeding: ``node`` is in another participant
+        (:class:`amb_tools.reader_participant.ReaderParticipant`). The topic is the resolved
+        name of the subscription replaced; counts and the age estimate carry over (the writer
+        is the same).
+        """
+        topic = self.subscription.topic_name
+        self._node.destroy_subscription(self.subscription)
+        self._node = node
+        self.subscription = node.create_subscription(
+            self._msg_type, topic, self._callback, self._qos, raw=True
+        )
 
     def poll(self) -> None:
         """Take and deliver, as at a wake, whatever is queued now.

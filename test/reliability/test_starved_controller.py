@@ -11,12 +11,16 @@ otherwise its integrators wind up while the rotor sits on its PID, and the first
 gets through throws it beyond the PID-only response (the failure of a loaded CI run of
 ``test_restart.py``: 0.76 mm at x2). Reference: the same scenario on PID alone (in process).
 
-In about one run in six to ten the transport stops feeding the starved controller's
-measurement reader for good (docs/history.md, "A reader the transport stopped feeding"; stop 29's
-and stop 36's CI; with the controller over UDP alone it happened too, stop 37). The controller
-then says so (``amb_controller.node.BLIND_READER``) and can neither resume nor be judged: the
-test reports that run as an expected failure of the transport (issue 17) instead of a verdict on
-the controller, whose wind-up is what it is about.
+In some runs (two of five idle here on 2026-12-05, before the cure) the transport stops feeding
+the starved controller's readers for good (docs/history.md, "A reader the transport stopped
+feeding"). The controller then moves its two stream readers to a DDS participant of their own
+(``amb_tools.reader_participant``: when the coefficients run ahead of silent measurements,
+``amb_controller.node.BLIND_READER``, or when neither stream brings anything for twice
+``measurement_timeout`` while the plant's writer is matched), and must resume from there: the
+assertions below then judge it as any other run. Only a run whose lock step never came back
+while the controller was stale or blind (its ``/diagnostics``, its log) is reported as an
+expected failure of the transport (issue 17) instead of a verdict on the controller, whose
+wind-up is what the test is about.
 
 With the controller blind to the flag (the old node) a starvation of this kind gave 0.91 /
 0.92 mm at the end planes and 0.76 mm at the inner ones (x2, y2): 2.2-5.4 times PID alone.
@@ -27,7 +31,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from amb_msgs.msg import ControllerStatus, Measurement
-from reliability_helpers import fe_model_file
+from reliability_helpers import Diagnostics, fe_model_file
 from scenarios import SAMPLES_PER_REV, first_critical_mass_loss
 from throttle import Throttle
 
@@ -58,6 +62,7 @@ def test_a_starved_controller_does_not_wind_up(ros, node_process, tmp_path) -> N
     status_sub = node.create_subscription(
         ControllerStatus, "/amb/control/status", statuses.append, 1000
     )
+    diagnostics = Diagnostics(node)
     node_process("wavelet_filterbank", params={"samples_per_rev": SPR})
     controller = node_process(
         "wavelet_controller",
@@ -94,9 +99,19 @@ def test_a_starved_controller_does_not_wind_up(ros, node_process, tmp_path) -> N
     # work, which the controller must survive just the same)
     assert any(i >= starved_from - SPR for i in missing), "the starving cost commands"
     last_missing = max(missing)
-    if BLIND_READER in controller.log():
-        pytest.xfail(f"issue 17: the transport stopped feeding the controller ({BLIND_READER})")
-    assert last_missing < len(samples) - 10 * SPR, "lock step resumed before the end"
+    log = controller.log()
+    report = diagnostics.values.get("wavelet_controller", {})
+    if last_missing >= len(samples) - 10 * SPR:  # lock step never resumed: was it the transport?
+        if BLIND_READER in log or (
+            report.get("measurements_stale") == "True"
+            and int(report.get("last_sample", "-1")) < len(samples) - 10 * SPR
+        ):
+            pytest.xfail(
+                "issue 17: the transport stopped feeding the controller, and its readers' new "
+                f"participant did not help (renewed {report.get('readers_renewed', '?')} times; "
+                f"stale at sample {report.get('last_sample', '?')} of {len(samples)})"
+            )
+    assert last_missing < len(samples) - 10 * SPR, "lock step resumed before the end\n" + log
     assert any(np.any(m.wavelet_force) for m in samples[last_missing + 1 :]), controller.log()
 
     rig = load_rig()
@@ -111,4 +126,7 @@ def test_a_starved_controller_does_not_wind_up(ros, node_process, tmp_path) -> N
     )
     end = np.abs(x[-5 * SPR :]).max(axis=0)
     assert np.all(end < 0.3 * pid), "converged again by the end"
-    assert statuses[-1].commands_late > 0, "the controller counted its lost commands"
+    if int(report.get("readers_renewed", "0")) == 0:
+        assert statuses[-1].commands_late > 0, "the controller counted its lost commands"
+    # else its old readers lost the flagged samples of the starvation: it cannot have counted
+    # them, and resumed from the new participant (lock step resumed, asserted above)
