@@ -416,3 +416,51 @@ def test_coefficients_ahead_of_silent_measurements_are_reported_once(ros, node_p
     assert ros.spin_until(lambda: error in ctrl.log(), 10.0), ctrl.log()
     ros.spin_for(0.5)
     assert ctrl.log().count(error) == 1, ctrl.log()
+
+
+def test_silent_streams_with_a_matched_writer_move_the_readers_to_a_new_participant(
+    ros, node_process
+) -> None:
+    """Both streams silent while their writers are matched: the readers get a participant anew.
+
+    What the controller does when the transport stops feeding both of its readers
+    (``amb_tools.reader_participant``), shown with writers that merely pause: after twice
+    ``measurement_timeout`` without a message, the readers move once to a new participant (a
+    node ``wavelet_controller_readers_1`` in the graph), and the stream that resumes is read
+    from there: commands come again for the periods after the pause.
+    """
+    ctrl = _start(node_process, measurement_timeout=0.5)
+    node = ros.node("amb_test_renewed_readers")
+    commands: list[ControlCommand] = []
+    node.create_subscription(ControlCommand, "/amb/control/command", commands.append, COMMAND_QOS)
+    diagnostics = Diagnostics(node)
+    pm, pc = ros.stream_writers(node, SPR, ctrl)
+    _command_reader_matched(ros, node, ctrl)
+    stream = _stream(12)
+
+    def send(periods: range) -> None:
+        for m, c in stream[periods.start * SPR : periods.stop * SPR]:
+            if c is not None:
+                pc.publish(c)
+            pm.publish(m)
+
+    send(range(0, 2))
+    assert ros.spin_until(lambda: len(commands) == 2, 30.0), ctrl.log()
+    moved = "moved to a new participant"
+    assert ros.spin_until(lambda: moved in ctrl.log(), 20.0), ctrl.log()
+    readers = "wavelet_controller_readers_1"
+    for topic in ("/amb/measurement", "/amb/wavelet/coefficients"):
+        assert ros.spin_until(
+            lambda t=topic: (
+                readers in {i.node_name for i in node.get_subscriptions_info_by_topic(t)}
+            ),
+            20.0,
+        ), ctrl.log()
+    assert ros.spin_until(
+        lambda: diagnostics.get("wavelet_controller", "readers_renewed") == "1", 10.0
+    ), ctrl.log()
+    ros.spin_for(1.0)  # the test's writers match the new readers (their own view may lag)
+    send(range(2, 12))
+    assert ros.spin_until(lambda: len(commands) >= 6, 30.0), (len(commands), ctrl.log())
+    assert ctrl.log().count(moved) == 1, ctrl.log()
+    assert "measurements resumed" in ctrl.log()
