@@ -39,9 +39,10 @@ restart. Coefficients that run ahead of the measurements while no measurement ha
 ``measurement_timeout`` s mean the filterbank is fed and this node is not: the node says so once
 per silence, as an error (the transport stopped feeding its reader, as seen after the process
 was stopped for seconds, with shared memory or UDP; docs/history.md), and moves both stream
-readers to a DDS participant of their own (:mod:`amb_tools.reader_participant`), as it does
-when neither stream has brought anything for twice ``measurement_timeout`` while the
-measurement writer is still matched. A command the
+readers to a DDS participant of their own once no measurement has come for
+``reader_renewal_after`` s while the measurement writer is still matched
+(:class:`amb_tools.reader_participant.DeafReaders`; also when the coefficients are silent too, a
+case the node cannot tell from a paused writer). A command the
 pipeline made with a non-finite value (never expected) is replaced by a
 zero command. A period whose measurements carry ``STATUS_COMMAND_MISSING`` ran without the
 command sent for it (lost, late, or the plant's watchdog): it is counted ``commands_late`` and
@@ -140,7 +141,7 @@ from amb_tools.conversions import (
 )
 from amb_tools.local_bus import LocalBus, stream_subscription
 from amb_tools.node_main import ConfigurationError, run_node
-from amb_tools.reader_participant import ReaderParticipant
+from amb_tools.reader_participant import DeafReaders, declare_reader_renewal
 from amb_tools.streams import (
     COMMAND_QOS,
     FRAME_CODES,
@@ -200,12 +201,6 @@ class WaveletControllerNode(Node):
         self._stale = False
         self._early_omega: float | None = -1.0  # the early action's model speed last logged
         self._blind_reported = False  # the error of a reader not fed (module notes), this silence
-        # DDS readers only (composed, the streams come in process): moved to a participant of
-        # their own when the transport stops feeding them (module notes, _renew_if_deaf)
-        self._renewable = bus is None
-        self._reader_participant: ReaderParticipant | None = None
-        self._renew_wanted = False  # coefficients from the future while measurements are silent
-        self._renewed_this_silence = False
         self._pending_config: ControllerConfig | None = None
         # messages published, per topic (amb-run waits until its bag holds as many)
         self.commands_published = self.statuses_published = 0
@@ -218,12 +213,19 @@ class WaveletControllerNode(Node):
                 "stalls",
                 "pending_dropped",
                 "config_changes",
-                "readers_renewed",
             ),
             0,
         )
         self._last_reason = ""
         self._warnings = ThrottledWarnings(self.get_logger(), period=5.0)
+        # DDS readers only (composed, the streams come in process): moved to a participant of
+        # their own when the transport stops feeding them (module notes)
+        after = declare_reader_renewal(self)
+        self._deaf = (
+            DeafReaders(self, self._readers, lambda: self._last_wall, after)
+            if bus is None
+            else None
+        )
         self.create_timer(0.05, self._watchdog)
         self._status_timer = self.create_timer(
             self.get_parameter("status_period").value, self._publish_diagnostics
@@ -342,7 +344,7 @@ class WaveletControllerNode(Node):
             return
         now = time.monotonic()
         self._last_wall = now
-        self._blind_reported = self._renewed_this_silence = False
+        self._blind_reported = False
         if self._stale:
             self._stale = False
             self.get_logger().info(f"measurements resumed at sample {msg.sample_index}")
@@ -449,7 +451,6 @@ class WaveletControllerNode(Node):
     def _watchdog(self) -> None:
         if self._pending:
             self._drain()  # a dead filterbank: stop waiting after coefficient_timeout
-        self._renew_if_deaf()
         if self._last_wall is None or self._stale:
             return
         # in lock-step the plant waits for our command: no measurement comes while the
@@ -482,57 +483,14 @@ class WaveletControllerNode(Node):
             self.get_logger().error(
                 f"no measurement for over {timeout:g} s while the filterbank's coefficients "
                 f"still arrive: {BLIND_READER} (seen after this process was stopped for "
-                "seconds; docs/history.md); its readers move to a new participant"
+                "seconds; docs/history.md); its readers move to a new participant after "
+                "reader_renewal_after s of silence"
             )
-            self._renew_wanted = True
-
-    def _renew_if_deaf(self) -> None:
-        """Move the stream readers to a new participant if the transport stopped feeding them.
-
-        Done once per silence, when the measurement writer is still matched and either the
-        coefficients run ahead of silent measurements (:data:`BLIND_READER`) or neither stream
-        has brought anything for twice ``measurement_timeout`` (both readers deaf: in lock-step
-        the plant's watchdog runs on without our commands, so its stream does not stop). The
-        readers' queues are emptied first: a process let go after a stop has its backlog there.
-        A writer that merely paused costs one new participant (module notes;
-        :mod:`amb_tools.reader_participant`).
-        """
-        if not self._renewable or self._renewed_this_silence or self._last_wall is None:
-            return
-        timeout = self.get_parameter("measurement_timeout").value
-        if not self._renew_wanted and time.monotonic() - self._last_wall <= 2 * timeout:
-            return
-        readers = [r for r in self._readers if r is not None]
-        if not readers or readers[0].subscription.get_publisher_count() == 0:
-            return  # no writer: a silent stream, not a deaf reader
-        for reader in readers:
-            reader.poll()
-        silent = time.monotonic() - self._last_wall
-        if silent <= timeout:  # the queue had measurements after all
-            self._renew_wanted = False
-            return
-        fresh = ReaderParticipant(self)
-        for reader in readers:
-            reader.move_to(fresh.node)
-        old, self._reader_participant = self._reader_participant, fresh
-        if old is not None:
-            old.close()
-        self._renewed_this_silence = True
-        self._renew_wanted = False
-        self.counts["readers_renewed"] += 1
-        self._last_reason = (
-            f"no measurement for {silent:.2f} s after sample {self._last_processed} while its "
-            f"writer is still matched: the stream readers moved to a new participant "
-            f'({fresh.node.get_name()}; docs/history.md, "A reader the transport stopped '
-            'feeding")'
-        )
-        self.get_logger().warning(self._last_reason)
 
     def destroy_node(self) -> None:
         """Close the readers' own participant, if one was made, then the node."""
-        if self._reader_participant is not None:
-            self._reader_participant.close()
-            self._reader_participant = None
+        if getattr(self, "_deaf", None) is not None:  # not made if the configuration failed
+            self._deaf.close()
         super().destroy_node()
 
     def _process(self, m: MeasurementView, coeffs: CoefficientsView | None) -> None:
@@ -614,6 +572,7 @@ class WaveletControllerNode(Node):
             "callback_errors": getattr(self, "callback_errors", 0),
             "inputs_rejected": status["inputs_rejected"],
             **self.counts,
+            "readers_renewed": 0 if self._deaf is None else self._deaf.renewals,
             **{f"samples_{k}": v for k, v in seq.items()},
             **matched_subscribers(self._cmd_pub, self._status_pub),
             **backlog_counts(*self._readers),

@@ -133,6 +133,7 @@ from amb_tools.conversions import (
 )
 from amb_tools.local_bus import LocalBus, stream_subscription
 from amb_tools.node_main import ConfigurationError, run_node
+from amb_tools.reader_participant import DeafReaders, declare_reader_renewal
 from amb_tools.streams import matched_subscribers, stream_qos
 from amb_tools.throttled_log import ThrottledWarnings
 from amb_tools.validation import SampleSequencer, check_measurement
@@ -221,6 +222,12 @@ class FaultMonitorNode(Node):
             ),
         )  # fmt: skip
         self._status_timer = self.create_timer(p("status_period").value, self._publish_status)
+        # DDS readers (composed, the streams may come in process) move to a participant of
+        # their own when the transport stops feeding them (amb_tools.reader_participant)
+        after = declare_reader_renewal(self)
+        self._deaf = (
+            DeafReaders(self, self._readers[::-1], self._heard, after) if bus is None else None
+        )
         self.get_logger().info(
             f"{len(self._log.events)} logged events reloaded; contacts per bearing "
             f"{dict(self._log.contacts)}"
@@ -287,10 +294,17 @@ class FaultMonitorNode(Node):
         return box
 
     def destroy_node(self) -> None:
-        """Write an open black-box capture before the node goes away."""
+        """Write an open black-box capture and close the readers' own participant, if made."""
         if self._box is not None and self._box.flush() is not None:
             self.bags_written += 1
+        if getattr(self, "_deaf", None) is not None:  # not made if the configuration failed
+            self._deaf.close()
         super().destroy_node()
+
+    def _heard(self) -> tuple[int | None, int, int]:
+        """Changes whenever a measurement arrived (processed, rejected or sequenced away)."""
+        rejected = self.counts["measurements_rejected"]
+        return self.last_sample, rejected, sum(self._meas_seq.counts.values())
 
     def _level(self, value: float, which: str) -> float | np.ndarray:
         """Trip level per plane, m: ``value`` if > 0, else the fraction of the clearances."""
@@ -551,6 +565,7 @@ class FaultMonitorNode(Node):
             "events_logged": len(self._log.events),
             "events_published": self.events_published,
             "restarts": self.restarts,
+            "readers_renewed": 0 if self._deaf is None else self._deaf.renewals,
             "blackbox_bags": self.bags_written,
             "masked_channels": self._monitor.masked_channels,
             "control_transients": self.control_transients,

@@ -10,8 +10,8 @@ is not fed either (tried: 2d05ebb). A new participant has a new port, which the 
 opens afresh: :class:`ReaderParticipant` is one, in a context of its own in the same process,
 spun by the node's executor, whose node takes the stream readers over
 (:meth:`amb_tools.backlog.BacklogReader.move_to`). It is made only when a node finds its stream
-silent while the stream's writer is still matched (``amb_controller.node``), so that a healthy
-run never has it.
+silent for ``reader_renewal_after`` s while the stream's writer is still matched and the
+readers' queues hold nothing (:class:`DeafReaders`), so that a healthy run never has it.
 
 The new participant costs one discovery (its readers match the writers within tens of ms
 idle); what the writers published between the stall and the match is not received (a gap the
@@ -23,12 +23,20 @@ again at once.
 from __future__ import annotations
 
 import itertools
+import time
+from collections.abc import Callable, Sequence
 
 import rclpy
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
-__all__ = ["ReaderParticipant"]
+from amb_tools.backlog import BacklogReader
+from amb_tools.node_main import descriptor
+
+__all__ = ["RENEWAL_AFTER", "DeafReaders", "ReaderParticipant", "declare_reader_renewal"]
+
+#: Parameter: s of silence, with the writer matched, before the readers move (0 = never).
+RENEWAL_AFTER = "reader_renewal_after"
 
 _numbers = itertools.count(1)
 
@@ -74,3 +82,103 @@ class ReaderParticipant:
         self._executor.remove_node(self.node)
         self.node.destroy_node()
         self.context.try_shutdown()
+
+
+def declare_reader_renewal(node: Node) -> float:
+    """Declare ``reader_renewal_after`` on ``node`` (read-only); return it, s."""
+    node.declare_parameter(
+        RENEWAL_AFTER,
+        4.0,
+        descriptor(
+            "s without a measurement while its writer is still matched and nothing is queued, "
+            "before the stream readers move to a DDS participant of their own (the transport "
+            "stopped feeding them; 0 = never)",
+            floats=(0.0, 3600.0),
+        ),
+    )
+    return float(node.get_parameter(RENEWAL_AFTER).value)
+
+
+class DeafReaders:
+    """Watches a node's stream readers and moves them to a new participant when they go deaf.
+
+    Deaf: the first reader's stream (the measurements) has brought nothing for ``after`` s,
+    its writer is still matched, and the readers' queues, emptied first, held nothing (a
+    process let go after a stop has its backlog there). Once per silence: a new renewal needs
+    a message first. A writer that merely paused costs one participant (module docstring).
+
+    Parameters
+    ----------
+    node : rclpy.node.Node
+        The readers' node; must be spinning in an executor when a renewal happens.
+    readers : sequence of BacklogReader or None
+        The node's DDS stream readers, the measurements' first (None entries are skipped).
+    progress : callable
+        Returns a value that changes whenever a measurement arrived (a count, a wall time).
+    after : float
+        s of silence before a renewal; 0: never (no timer is made).
+    period : float
+        s between checks.
+
+    Attributes
+    ----------
+    renewals : int
+        Renewals so far (``readers_renewed`` on the node's ``/diagnostics``).
+    """
+
+    def __init__(
+        self,
+        node: Node,
+        readers: Sequence[BacklogReader | None],
+        progress: Callable[[], object],
+        after: float,
+        period: float = 0.25,
+    ) -> None:
+        self._node = node
+        self._readers = [r for r in readers if isinstance(r, BacklogReader)]
+        self._progress = progress
+        self.after = after
+        self.renewals = 0
+        self._seen = progress()
+        self._seen_at = time.monotonic()
+        self._heard = False  # a message since the start or the last renewal
+        self._participant: ReaderParticipant | None = None
+        if after > 0 and self._readers:
+            node.create_timer(period, self.check)
+
+    def check(self) -> str | None:
+        """Move the readers if they are deaf; return what was logged then, else None."""
+        now = time.monotonic()
+        value = self._progress()
+        if value != self._seen:
+            self._seen, self._seen_at, self._heard = value, now, True
+            return None
+        if not self._heard or now - self._seen_at <= self.after:
+            return None
+        if self._readers[0].subscription.get_publisher_count() == 0:
+            return None  # no writer: a silent stream, not a deaf reader
+        for reader in self._readers:
+            reader.poll()
+        if self._progress() != self._seen:
+            return None  # the queue had messages after all (taken now)
+        fresh = ReaderParticipant(self._node)
+        for reader in self._readers:
+            reader.move_to(fresh.node)
+        old, self._participant = self._participant, fresh
+        if old is not None:
+            old.close()
+        self.renewals += 1
+        self._heard = False
+        text = (
+            f"no measurement for {now - self._seen_at:.2f} s while its writer is still "
+            f"matched: the stream readers moved to a new participant ({fresh.node.get_name()}; "
+            'docs/history.md, "A reader the transport stopped feeding")'
+        )
+        self._node.get_logger().warning(text)
+        return text
+
+    def close(self) -> None:
+        """Close the readers' own participant, if one was made."""
+        if self._participant is not None:
+            self._participant.close()
+            self._participant = None

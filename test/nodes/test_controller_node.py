@@ -424,12 +424,12 @@ def test_silent_streams_with_a_matched_writer_move_the_readers_to_a_new_particip
     """Both streams silent while their writers are matched: the readers get a participant anew.
 
     What the controller does when the transport stops feeding both of its readers
-    (``amb_tools.reader_participant``), shown with writers that merely pause: after twice
-    ``measurement_timeout`` without a message, the readers move once to a new participant (a
+    (``amb_tools.reader_participant``), shown with writers that merely pause: after
+    ``reader_renewal_after`` s without a message, the readers move once to a new participant (a
     node ``wavelet_controller_readers_1`` in the graph), and the stream that resumes is read
     from there: commands come again for the periods after the pause.
     """
-    ctrl = _start(node_process, measurement_timeout=0.5)
+    ctrl = _start(node_process, reader_renewal_after=1.0)
     node = ros.node("amb_test_renewed_readers")
     commands: list[ControlCommand] = []
     node.create_subscription(ControlCommand, "/amb/control/command", commands.append, COMMAND_QOS)

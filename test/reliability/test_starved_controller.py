@@ -14,10 +14,9 @@ gets through throws it beyond the PID-only response (the failure of a loaded CI 
 In some runs (two of five idle here on 2026-12-05, before the cure) the transport stops feeding
 the starved controller's readers for good (docs/history.md, "A reader the transport stopped
 feeding"). The controller then moves its two stream readers to a DDS participant of their own
-(``amb_tools.reader_participant``: when the coefficients run ahead of silent measurements,
-``amb_controller.node.BLIND_READER``, or when neither stream brings anything for twice
-``measurement_timeout`` while the plant's writer is matched), and must resume from there: the
-assertions below then judge it as any other run. Only a run whose lock step never came back
+(``amb_tools.reader_participant``: once no measurement has come for ``reader_renewal_after``
+s while the plant's writer is matched) and must resume from there: the assertions below then
+judge it as any other run. Only a run whose lock step never came back
 while the controller was stale or blind (its ``/diagnostics``, its log) is reported as an
 expected failure of the transport (issue 17) instead of a verdict on the controller, whose
 wind-up is what the test is about.

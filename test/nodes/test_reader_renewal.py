@@ -1,0 +1,77 @@
+"""The filterbank and the fault monitor move their stream readers to a new participant, once.
+
+What they do when the transport stops feeding their readers while the writer runs on
+(``amb_tools.reader_participant``; the starved controller of
+``test/reliability/test_starved_controller.py`` and the lost observer of
+``test_restart_filterbank_monitor.py``, docs/history.md), shown here with a writer that merely
+pauses: after ``reader_renewal_after`` s without a measurement, its writer still matched, the
+node's readers move to a node ``<name>_readers_1`` of a participant of their own, and the
+stream that resumes is read from there to its last sample. The controller's case is in
+``test_controller_node.py``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from amb_msgs.msg import Measurement
+from reliability_helpers import Diagnostics
+
+from amb_tools.streams import stream_qos
+
+pytestmark = pytest.mark.ros
+
+SPR = 16
+MOVED = "moved to a new participant"
+
+
+def _measurement(index: int) -> Measurement:
+    angle = 2 * math.pi * (index % SPR) / SPR
+    m = Measurement(sample_index=index, samples_per_rev=SPR, rotor_angle=angle)
+    m.rotor_speed = 2 * math.pi * 11.0
+    m.displacement = 1e-5 * np.array([math.cos(angle + 0.3 * c) for c in range(8)])
+    t = index / (SPR * 11.0)
+    m.header.stamp.sec = int(t)
+    m.header.stamp.nanosec = int((t % 1.0) * 1e9)
+    return m
+
+
+@pytest.mark.parametrize("name", ["wavelet_filterbank", "fault_monitor"])
+def test_a_silent_stream_with_its_writer_matched_moves_the_readers(ros, node_process, name) -> None:
+    proc = node_process(
+        name, params={"samples_per_rev": SPR, "reader_renewal_after": 1.0, "status_period": 0.2}
+    )
+    node = ros.node(f"amb_test_renewal_{name}")
+    diagnostics = Diagnostics(node)
+    pub = node.create_publisher(Measurement, "/amb/measurement", stream_qos(SPR))
+    assert ros.spin_until(lambda: pub.get_subscription_count() > 0, 30.0), proc.log()
+    ros.spin_for(0.5)  # the node's reader matched our writer (its own view may lag ours)
+
+    def send(first: int, last: int) -> None:
+        for i in range(first, last + 1):
+            pub.publish(_measurement(i))
+
+    def last_sample() -> str:
+        return diagnostics.get(name, "last_sample")
+
+    send(0, 2 * SPR - 1)
+    assert ros.spin_until(lambda: last_sample() == str(2 * SPR - 1), 30.0), proc.log()
+    assert ros.spin_until(lambda: MOVED in proc.log(), 20.0), proc.log()
+    readers = f"{name}_readers_1"
+    assert ros.spin_until(
+        lambda: (
+            readers
+            in {i.node_name for i in node.get_subscriptions_info_by_topic("/amb/measurement")}
+        ),
+        20.0,
+    ), proc.log()
+    ros.spin_for(1.0)  # our writer matches the new reader
+    send(2 * SPR, 6 * SPR - 1)
+    assert ros.spin_until(lambda: last_sample() == str(6 * SPR - 1), 30.0), (
+        diagnostics.values.get(name),
+        proc.log(),
+    )
+    assert diagnostics.get(name, "readers_renewed") == "1"
+    assert proc.log().count(MOVED) == 1, proc.log()
