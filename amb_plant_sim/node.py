@@ -89,6 +89,7 @@ from amb_plant_sim.scenario import load_scenario, resolve_samples_per_rev
 from amb_plant_sim.simulator import MeasurementBlock, PlantSimulator
 from amb_tools.conversions import MessageError, measurement_bytes, stamp, stamp_seconds
 from amb_tools.node_main import ConfigurationError, descriptor, run_node
+from amb_tools.reader_participant import DeafReaders, MovableSubscription, declare_reader_renewal
 from amb_tools.streams import COMMAND_QOS, matched_subscribers, stream_qos
 from amb_tools.throttled_log import ThrottledWarnings
 from amb_tools.validation import check_command
@@ -171,8 +172,14 @@ class PlantSimNode(Node):
         self._meas_pub = self.create_publisher(Measurement, topics.MEASUREMENT, stream_qos(self._N))
         self._clock_pub = self.create_publisher(Clock, topics.CLOCK, 10)
         self._diag_pub = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS, 10)
-        self._cmd_sub = self.create_subscription(
-            ControlCommand, topics.COMMAND, self._on_command, COMMAND_QOS
+        self._cmd_reader = MovableSubscription(
+            self, ControlCommand, topics.COMMAND, self._on_command, COMMAND_QOS
+        )
+        self.commands_received = 0
+        # moved to a participant of its own when the transport stops feeding it
+        # (amb_tools.reader_participant: a controller stopped for seconds met it)
+        self._deaf = DeafReaders(
+            self, [self._cmd_reader], lambda: self.commands_received, declare_reader_renewal(self)
         )
         self.create_service(InjectFault, topics.INJECT_FAULT, self._on_inject)
         self._status_timer = self.create_timer(
@@ -277,7 +284,14 @@ class PlantSimNode(Node):
         self._n_total = periods * self._N if not scenario.profile_hz else None
 
     # ------------------------------------------------------------------ commands
+    def destroy_node(self) -> None:
+        """Close the command reader's own participant, if one was made, then the node."""
+        if getattr(self, "_deaf", None) is not None:  # not made if the configuration failed
+            self._deaf.close()
+        super().destroy_node()
+
     def _on_command(self, msg: ControlCommand) -> None:
+        self.commands_received += 1
         k = msg.period_index
         next_period = self._sim.sample_index // self._N
         reason = None
@@ -383,15 +397,15 @@ class PlantSimNode(Node):
         if not self._started:
             want = self.get_parameter("wait_for_subscribers").value
             # lockstep also needs the command publisher matched, or the first command is lost
-            commander = self._mode != "lockstep" or self._cmd_sub.get_publisher_count() > 0
+            cmd = self._cmd_reader.subscription
+            commander = self._mode != "lockstep" or cmd.get_publisher_count() > 0
             if self._meas_pub.get_subscription_count() < want or not commander:
                 if time.monotonic() < self._startup_deadline:
                     return
                 self.get_logger().warning(
                     f"{self._meas_pub.get_subscription_count()} of {want} subscribers of "
-                    f"{self._meas_pub.topic_name}, {self._cmd_sub.get_publisher_count()} "
-                    f"publishers of {self._cmd_sub.topic_name} after startup_timeout: starting "
-                    "anyway"
+                    f"{self._meas_pub.topic_name}, {cmd.get_publisher_count()} "
+                    f"publishers of {cmd.topic_name} after startup_timeout: starting anyway"
                 )
             self._started = True
             if self._mode == "realtime" and self._remaining() > 0:
@@ -607,6 +621,7 @@ class PlantSimNode(Node):
             "speed_hz": f"{self._sim.omega / (2 * math.pi):.4f}",
             "done": self.done or self._remaining() <= 0,
             "controller_lost": self._controller_lost,
+            "readers_renewed": self._deaf.renewals,
             "callback_errors": getattr(self, "callback_errors", 0),
             **self.counts,
             **matched_subscribers(self._meas_pub),

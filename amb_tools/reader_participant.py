@@ -33,7 +33,13 @@ from rclpy.signals import SignalHandlerOptions
 from amb_tools.backlog import BacklogReader
 from amb_tools.node_main import descriptor
 
-__all__ = ["RENEWAL_AFTER", "DeafReaders", "ReaderParticipant", "declare_reader_renewal"]
+__all__ = [
+    "RENEWAL_AFTER",
+    "DeafReaders",
+    "MovableSubscription",
+    "ReaderParticipant",
+    "declare_reader_renewal",
+]
 
 #: Parameter: s of silence, with the writer matched, before the readers move (0 = never).
 RENEWAL_AFTER = "reader_renewal_after"
@@ -90,19 +96,59 @@ def declare_reader_renewal(node: Node) -> float:
         RENEWAL_AFTER,
         4.0,
         descriptor(
-            "s without a measurement while its writer is still matched and nothing is queued, "
-            "before the stream readers move to a DDS participant of their own (the transport "
-            "stopped feeding them; 0 = never)",
+            "s without a message on the node's watched stream (the measurements; the plant's: "
+            "the commands) while its writer is still matched and nothing is queued, before the "
+            "stream readers move to a DDS participant of their own (the transport stopped "
+            "feeding them; 0 = never)",
             floats=(0.0, 3600.0),
         ),
     )
     return float(node.get_parameter(RENEWAL_AFTER).value)
 
 
+class MovableSubscription:
+    """An ordinary (deserialising) subscription that :class:`DeafReaders` can move.
+
+    What :class:`amb_tools.backlog.BacklogReader` offers for the raw streams, for a node's
+    low-rate reader (the plant's commands): ``poll`` delivers what is queued now, ``move_to``
+    subscribes the same topic from another node and destroys the subscription held until then.
+    """
+
+    def __init__(
+        self, node: Node, msg_type: type, name: str, callback: Callable[[object], None], qos
+    ) -> None:
+        self._node = node
+        self._msg_type = msg_type
+        self._callback = callback
+        self._qos = qos
+        self.subscription = node.create_subscription(msg_type, name, callback, qos)
+
+    def poll(self) -> None:
+        """Deliver, in order, every message queued now."""
+        taken = []
+        with self.subscription.handle:
+            while (
+                item := self.subscription.handle.take_message(self._msg_type, False)
+            ) is not None:
+                taken.append(item[0])
+        for msg in taken:
+            self._callback(msg)
+
+    def move_to(self, node: Node) -> None:
+        """Subscribe the same (resolved) topic from ``node``; destroy the old subscription."""
+        topic = self.subscription.topic_name
+        self._node.destroy_subscription(self.subscription)
+        self._node = node
+        self.subscription = node.create_subscription(
+            self._msg_type, topic, self._callback, self._qos
+        )
+
+
 class DeafReaders:
     """Watches a node's stream readers and moves them to a new participant when they go deaf.
 
-    Deaf: the first reader's stream (the measurements) has brought nothing for ``after`` s,
+    Deaf: the first reader's stream (the measurements; the plant's commands) has brought nothing
+    for ``after`` s,
     its writer is still matched, and the readers' queues, emptied first, held nothing (a
     process let go after a stop has its backlog there). Once per silence: a new renewal needs
     a message first. A writer that merely paused costs one participant (module docstring).
@@ -111,10 +157,11 @@ class DeafReaders:
     ----------
     node : rclpy.node.Node
         The readers' node; must be spinning in an executor when a renewal happens.
-    readers : sequence of BacklogReader or None
-        The node's DDS stream readers, the measurements' first (None entries are skipped).
+    readers : sequence of BacklogReader, MovableSubscription or None
+        The node's DDS stream readers, the watched one first (None entries are skipped).
     progress : callable
-        Returns a value that changes whenever a measurement arrived (a count, a wall time).
+        Returns a value that changes whenever a message of the watched stream arrived (a count,
+        a wall time).
     after : float
         s of silence before a renewal; 0: never (no timer is made).
     period : float
@@ -129,13 +176,13 @@ class DeafReaders:
     def __init__(
         self,
         node: Node,
-        readers: Sequence[BacklogReader | None],
+        readers: Sequence[BacklogReader | MovableSubscription | None],
         progress: Callable[[], object],
         after: float,
         period: float = 0.25,
     ) -> None:
         self._node = node
-        self._readers = [r for r in readers if isinstance(r, BacklogReader)]
+        self._readers = [r for r in readers if isinstance(r, BacklogReader | MovableSubscription)]
         self._progress = progress
         self.after = after
         self.renewals = 0
@@ -169,8 +216,9 @@ class DeafReaders:
             old.close()
         self.renewals += 1
         self._heard = False
+        topic = self._readers[0].subscription.topic_name
         text = (
-            f"no measurement for {now - self._seen_at:.2f} s while its writer is still "
+            f"nothing on {topic} for {now - self._seen_at:.2f} s while its writer is still "
             f"matched: the stream readers moved to a new participant ({fresh.node.get_name()}; "
             'docs/history.md, "A reader the transport stopped feeding")'
         )

@@ -6,8 +6,9 @@ What they do when the transport stops feeding their readers while the writer run
 ``test_restart_filterbank_monitor.py``, docs/history.md), shown here with a writer that merely
 pauses: after ``reader_renewal_after`` s without a measurement, its writer still matched, the
 node's readers move to a node ``<name>_readers_1`` of a participant of their own, and the
-stream that resumes is read from there to its last sample. The controller's case is in
-``test_controller_node.py``.
+stream that resumes is read from there to its last sample. The plant watches its command
+reader the same way: a controller that stops answering while its writer stays matched. The
+controller's case is in ``test_controller_node.py``.
 """
 
 from __future__ import annotations
@@ -16,10 +17,12 @@ import math
 
 import numpy as np
 import pytest
-from amb_msgs.msg import Measurement
+import yaml
+from amb_msgs.msg import ControlCommand, Measurement
 from reliability_helpers import Diagnostics
 
-from amb_tools.streams import stream_qos
+from amb_tools.conversions import to_float_array
+from amb_tools.streams import COMMAND_QOS, stream_qos
 
 pytestmark = pytest.mark.ros
 
@@ -75,3 +78,60 @@ def test_a_silent_stream_with_its_writer_matched_moves_the_readers(ros, node_pro
     )
     assert diagnostics.get(name, "readers_renewed") == "1"
     assert proc.log().count(MOVED) == 1, proc.log()
+
+
+def test_the_plants_command_reader_moves_when_the_commands_stop_with_the_writer_matched(
+    ros, node_process, tmp_path
+) -> None:
+    """Lock-step: the test's controller stops answering at period 4 and resumes once the plant's
+    command reader has moved and matched the test's writer again (a new participant's discovery
+    took ~2 s with one core busy: what is published before the match is lost)."""
+    delay, duration = 2, 8.0  # the lost plant runs on at 20 periods/s meanwhile
+    scenario = tmp_path / "scenario.yaml"
+    scenario.write_text(
+        yaml.safe_dump({"name": "renewal", "speed": {"hz": 20.0}, "duration": duration})
+    )
+    node = ros.node("amb_test_renewal_commander")
+    diagnostics = Diagnostics(node)
+    pub = node.create_publisher(ControlCommand, "/amb/control/command", COMMAND_QOS)
+    samples: list[Measurement] = []
+    silent = {"from": 4, "until": None}  # periods the test does not answer
+
+    def answer(m: Measurement) -> None:
+        samples.append(m)
+        target = m.sample_index // SPR + delay
+        if m.sample_index % SPR != SPR - 1:
+            return
+        if target >= silent["from"] and silent["until"] is None:
+            return
+        c = ControlCommand(period_index=target, start_sample_index=target * SPR)
+        c.samples_per_period, c.delay_periods = SPR, delay
+        c.force = to_float_array(np.zeros(4 * SPR))
+        pub.publish(c)
+
+    node.create_subscription(Measurement, "/amb/measurement", answer, stream_qos(SPR))
+    plant = node_process(
+        "plant_sim",
+        params={"scenario_file": str(scenario), "samples_per_rev": SPR, "delay_periods": delay,
+                "command_timeout": 0.2, "reader_renewal_after": 1.0, "status_period": 0.2},
+    )  # fmt: skip
+    assert ros.spin_until(lambda: MOVED in plant.log(), 30.0), plant.log()
+    assert ros.spin_until(
+        lambda: (
+            "plant_sim_readers_1"
+            in {i.node_name for i in node.get_subscriptions_info_by_topic("/amb/control/command")}
+            and pub.get_subscription_count() == 1
+        ),
+        20.0,
+    ), plant.log()
+    silent["until"] = samples[-1].sample_index // SPR + delay
+    n = int(duration * 20) * SPR
+    assert ros.spin_until(lambda: len(samples) == n, 60.0), (len(samples), plant.log())
+    assert plant.wait(30) == 0, plant.log()
+    assert plant.log().count(MOVED) == 1, plant.log()
+    assert diagnostics.get("plant_sim", "readers_renewed") == "1", diagnostics.values
+    missing = {m.sample_index // SPR for m in samples if m.status & m.STATUS_COMMAND_MISSING}
+    assert set(range(4, silent["until"] - 1)) <= missing, sorted(missing)
+    # the commands come through the new reader: lock step resumed, the last periods controlled
+    assert "commands resumed" in plant.log(), plant.log()
+    assert not missing & set(range(n // SPR - 10, n // SPR)), (sorted(missing), plant.log())
