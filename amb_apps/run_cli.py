@@ -60,7 +60,7 @@ import yaml
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.executors import SingleThreadedExecutor
 
-from amb_apps.run_end import DRAIN_TIMEOUT, drain, settle_recording
+from amb_apps.run_end import DRAIN_TIMEOUT, drain, plant_samples, settle_recording
 from amb_apps.system import (
     COMPOSED,
     NODE_MODULES,
@@ -449,9 +449,10 @@ def run(args: argparse.Namespace) -> int:
                     flush=True,
                 )
         if status == 0 and plant.proc.returncode == 0:
-            status = drain(progress, runs, args.drain_timeout, args.quiet)
-        if status == 0:
-            status = settle_recording(progress, runs, args.drain_timeout, args.quiet)
+            samples = plant_samples(progress, runs)
+            status = drain(progress, runs, samples, args.drain_timeout, args.quiet)
+            if status == 0:  # samples is known
+                status = settle_recording(progress, runs, samples, args.drain_timeout, args.quiet)
     finally:
         progress.close()
         codes = {}

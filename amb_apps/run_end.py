@@ -26,11 +26,20 @@ import math
 import re
 import sys
 import time
+from pathlib import Path
 from typing import Protocol
 
 from amb_common import topics
 
-__all__ = ["DRAINED", "DRAIN_TIMEOUT", "PLANT_COMPLETE", "PUBLISHED", "drain", "settle_recording"]
+__all__ = [
+    "DRAINED",
+    "DRAIN_TIMEOUT",
+    "PLANT_COMPLETE",
+    "PUBLISHED",
+    "drain",
+    "plant_samples",
+    "settle_recording",
+]
 
 #: /diagnostics keys (sample indices processed) of the nodes drained before they are stopped.
 #: The filterbank publishes coefficients for odd samples only (its finest level completes every
@@ -47,7 +56,7 @@ DRAIN_TIMEOUT = 300.0
 #: The plant's completion line in its log (read when its final /diagnostics report was missed).
 PLANT_COMPLETE = re.compile(r"complete at t = [\d.]+ s \((?P<samples>\d+) samples\)")
 #: Stream topic -> (its publisher, the /diagnostics key of the messages it has published). The
-#: plant's count is its ``sample_index`` at the end (:func:`drain` finds it).
+#: plant's count is its ``sample_index`` at the end (:func:`plant_samples`).
 PUBLISHED = {
     topics.MEASUREMENT: ("plant_sim", "sample_index"),
     topics.COEFFICIENTS: ("wavelet_filterbank", "messages_published"),
@@ -81,7 +90,7 @@ class Process(Protocol):
 
     name: str
     hosts: tuple[str, ...]
-    log_path: object
+    log_path: Path
     proc: object
 
 
@@ -101,16 +110,20 @@ def plant_samples(progress: Reports, runs: list[Process]) -> int | None:
     return None if found is None else int(found.group("samples"))
 
 
-def drain(progress: Reports, runs: list[Process], timeout: float, quiet: bool) -> int:
+def drain(
+    progress: Reports, runs: list[Process], samples: int | None, timeout: float, quiet: bool
+) -> int:
     """Wait until the running nodes of :data:`DRAINED` have processed the plant's last sample.
 
     Parameters
     ----------
     progress : Reports
-        The /diagnostics reader (holds the plant's last report: ``sample_index`` samples).
+        The /diagnostics reader (the nodes' reports of what they processed).
     runs : list of Process
         The run's processes; the nodes still running and named in :data:`DRAINED` are waited
         for.
+    samples : int or None
+        Samples the plant produced (:func:`plant_samples`); None: unknown.
     timeout : float
         Wall s to wait at most.
     quiet : bool
@@ -122,7 +135,6 @@ def drain(progress: Reports, runs: list[Process], timeout: float, quiet: bool) -
         0 when every node has caught up; 1 if the bound was hit, a node exited meanwhile, or
         the plant's count is unknown (the nodes are then stopped as they are).
     """
-    samples = plant_samples(progress, runs)
     if samples is None:
         print(
             "[amb-run] the plant's final report was not received and its log has no "
@@ -183,7 +195,7 @@ def drain(progress: Reports, runs: list[Process], timeout: float, quiet: bool) -
         progress.spin(0.2)
 
 
-def published(progress: Reports, runs: list[Process]) -> dict[str, int]:
+def published(progress: Reports, runs: list[Process], samples: int) -> dict[str, int]:
     """Messages published per stream topic (absolute names), by the publishers that ran.
 
     Read after :func:`drain`: each drained node's last report then describes it after the
@@ -191,7 +203,6 @@ def published(progress: Reports, runs: list[Process]) -> dict[str, int]:
     left out (it was not waited for).
     """
     running = {n for r in runs for n in r.hosts}
-    samples = plant_samples(progress, runs)
     out: dict[str, int] = {}
     for topic, (node, key) in PUBLISHED.items():
         if node not in running:
@@ -202,7 +213,9 @@ def published(progress: Reports, runs: list[Process]) -> dict[str, int]:
     return out
 
 
-def settle_recording(progress: Reports, runs: list[Process], timeout: float, quiet: bool) -> int:
+def settle_recording(
+    progress: Reports, runs: list[Process], samples: int, timeout: float, quiet: bool
+) -> int:
     """Wait until the recorder has written every message the publishers report as published.
 
     Parameters
@@ -212,6 +225,8 @@ def settle_recording(progress: Reports, runs: list[Process], timeout: float, qui
         ``status_period`` (1 s by default).
     runs : list of Process
         The run's processes; nothing is waited for if none of them hosts a running recorder.
+    samples : int
+        Samples the plant produced (:func:`plant_samples`; known after a :func:`drain`).
     timeout : float
         Wall s to wait at most.
     quiet : bool
@@ -224,7 +239,7 @@ def settle_recording(progress: Reports, runs: list[Process], timeout: float, qui
     """
     if not any("recorder" in r.hosts and r.proc.poll() is None for r in runs):
         return 0
-    expected = published(progress, runs)
+    expected = published(progress, runs, samples)
     start = time.monotonic()
     while True:
         written = progress.report("recorder")

@@ -20,7 +20,7 @@ import sys
 import pytest
 
 from amb_apps.run_cli import NodeRun
-from amb_apps.run_end import DRAINED, drain, settle_recording
+from amb_apps.run_end import DRAINED, drain, plant_samples, settle_recording
 
 PLANT_LINE = (
     "[INFO] [1.0] [plant_sim]: scenario x complete at t = 8.0250 s (4992 samples) in 2.10 s "
@@ -63,6 +63,11 @@ class _Reports:
         return self._nodes.get(name, {})
 
 
+def _drain(reports: _Reports, runs, **kw) -> int:
+    """amb-run's end: the plant's count (its report, else its log), then the drain."""
+    return drain(reports, runs, plant_samples(reports, runs), **kw)
+
+
 @pytest.fixture
 def runs(tmp_path):
     out = []
@@ -81,24 +86,24 @@ def runs(tmp_path):
 
 def test_count_read_from_the_plant_log_when_the_report_was_missed(runs, capsys) -> None:
     runs[0].log_path.write_text(PLANT_LINE)
-    assert drain(_Reports({}, processed=4991), runs, timeout=5.0, quiet=False) == 0
+    assert _drain(_Reports({}, processed=4991), runs, timeout=5.0, quiet=False) == 0
     assert "plant done at sample 4991" in capsys.readouterr().out
 
 
 def test_nodes_behind_the_logged_count_are_waited_for(runs, capsys) -> None:
     runs[0].log_path.write_text(PLANT_LINE)
-    assert drain(_Reports({}, processed=4000), runs, timeout=0.5, quiet=True) == 1
+    assert _drain(_Reports({}, processed=4000), runs, timeout=0.5, quiet=True) == 1
     assert "drain timeout" in capsys.readouterr().err
 
 
 def test_no_report_and_no_completion_line_stops_the_nodes_as_they_are(runs, capsys) -> None:
-    assert drain(_Reports({}, processed=4991), runs, timeout=5.0, quiet=True) == 1
+    assert _drain(_Reports({}, processed=4991), runs, timeout=5.0, quiet=True) == 1
     assert "no completion line" in capsys.readouterr().err
 
 
 def test_the_report_wins_when_received(runs, capsys) -> None:
     report = {"done": "True", "sample_index": "100"}
-    assert drain(_Reports(report, processed=99), runs, timeout=5.0, quiet=False) == 0
+    assert _drain(_Reports(report, processed=99), runs, timeout=5.0, quiet=False) == 0
     assert "plant done at sample 99" in capsys.readouterr().out
 
 
@@ -117,23 +122,20 @@ COMPLETE = {
 
 
 def test_the_recorder_is_waited_for_until_it_wrote_every_published_message(runs, capsys) -> None:
-    runs[0].log_path.write_text(PLANT_LINE)
     short = {**COMPLETE, "/amb/control/command": "153"}  # the last command still on its way
     reports = _Reports({}, 4991, PUBLISHERS, [{}, short, short, COMPLETE])
-    assert settle_recording(reports, runs, timeout=5.0, quiet=False) == 0
+    assert settle_recording(reports, runs, 4992, timeout=5.0, quiet=False) == 0
     assert reports.spins >= 3  # the two short reports were waited out
     assert "bag complete" in capsys.readouterr().out
 
 
 def test_a_recording_left_short_fails_the_run_and_names_the_topic(runs, capsys) -> None:
-    runs[0].log_path.write_text(PLANT_LINE)
     short = {**COMPLETE, "/amb/control/command": "153"}
     reports = _Reports({}, 4991, PUBLISHERS, [short])
-    assert settle_recording(reports, runs, timeout=0.5, quiet=True) == 1
+    assert settle_recording(reports, runs, 4992, timeout=0.5, quiet=True) == 1
     assert "/amb/control/command 153 of 154" in capsys.readouterr().err
 
 
 def test_no_recorder_nothing_to_wait_for(runs) -> None:
-    runs[0].log_path.write_text(PLANT_LINE)
     without = [r for r in runs if r.name != "recorder"]
-    assert settle_recording(_Reports({}, 4991, PUBLISHERS, []), without, 0.5, True) == 0
+    assert settle_recording(_Reports({}, 4991, PUBLISHERS, []), without, 4992, 0.5, True) == 0
