@@ -141,7 +141,7 @@ from amb_tools.conversions import (
 )
 from amb_tools.local_bus import LocalBus, stream_subscription
 from amb_tools.node_main import ConfigurationError, run_node
-from amb_tools.reader_participant import DeafReaders, declare_reader_renewal
+from amb_tools.reader_participant import watch_readers
 from amb_tools.streams import (
     COMMAND_QOS,
     FRAME_CODES,
@@ -220,11 +220,8 @@ class WaveletControllerNode(Node):
         self._warnings = ThrottledWarnings(self.get_logger(), period=5.0)
         # DDS readers only (composed, the streams come in process): moved to a participant of
         # their own when the transport stops feeding them (module notes)
-        after = declare_reader_renewal(self)
-        self._deaf = (
-            DeafReaders(self, self._readers, lambda: self._last_wall, after)
-            if bus is None
-            else None
+        self._deaf = watch_readers(
+            self, self._readers if bus is None else (), lambda: self._last_wall
         )
         self.create_timer(0.05, self._watchdog)
         self._status_timer = self.create_timer(
@@ -572,7 +569,7 @@ class WaveletControllerNode(Node):
             "callback_errors": getattr(self, "callback_errors", 0),
             "inputs_rejected": status["inputs_rejected"],
             **self.counts,
-            "readers_renewed": 0 if self._deaf is None else self._deaf.renewals,
+            "readers_renewed": self._deaf.renewals,
             **{f"samples_{k}": v for k, v in seq.items()},
             **matched_subscribers(self._cmd_pub, self._status_pub),
             **backlog_counts(*self._readers),

@@ -133,7 +133,7 @@ from amb_tools.conversions import (
 )
 from amb_tools.local_bus import LocalBus, stream_subscription
 from amb_tools.node_main import ConfigurationError, run_node
-from amb_tools.reader_participant import DeafReaders, declare_reader_renewal
+from amb_tools.reader_participant import watch_readers
 from amb_tools.streams import matched_subscribers, stream_qos
 from amb_tools.throttled_log import ThrottledWarnings
 from amb_tools.validation import SampleSequencer, check_measurement
@@ -224,10 +224,7 @@ class FaultMonitorNode(Node):
         self._status_timer = self.create_timer(p("status_period").value, self._publish_status)
         # DDS readers (composed, the streams may come in process) move to a participant of
         # their own when the transport stops feeding them (amb_tools.reader_participant)
-        after = declare_reader_renewal(self)
-        self._deaf = (
-            DeafReaders(self, self._readers[::-1], self._heard, after) if bus is None else None
-        )
+        self._deaf = watch_readers(self, self._readers[::-1] if bus is None else (), self._heard)
         self.get_logger().info(
             f"{len(self._log.events)} logged events reloaded; contacts per bearing "
             f"{dict(self._log.contacts)}"
@@ -565,7 +562,7 @@ class FaultMonitorNode(Node):
             "events_logged": len(self._log.events),
             "events_published": self.events_published,
             "restarts": self.restarts,
-            "readers_renewed": 0 if self._deaf is None else self._deaf.renewals,
+            "readers_renewed": self._deaf.renewals,
             "blackbox_bags": self.bags_written,
             "masked_channels": self._monitor.masked_channels,
             "control_transients": self.control_transients,

@@ -89,7 +89,7 @@ from amb_plant_sim.scenario import load_scenario, resolve_samples_per_rev
 from amb_plant_sim.simulator import MeasurementBlock, PlantSimulator
 from amb_tools.conversions import MessageError, measurement_bytes, stamp, stamp_seconds
 from amb_tools.node_main import ConfigurationError, descriptor, run_node
-from amb_tools.reader_participant import DeafReaders, MovableSubscription, declare_reader_renewal
+from amb_tools.reader_participant import MovableSubscription, watch_readers
 from amb_tools.streams import COMMAND_QOS, matched_subscribers, stream_qos
 from amb_tools.throttled_log import ThrottledWarnings
 from amb_tools.validation import check_command
@@ -178,9 +178,7 @@ class PlantSimNode(Node):
         self.commands_received = 0
         # moved to a participant of its own when the transport stops feeding it
         # (amb_tools.reader_participant: a controller stopped for seconds met it)
-        self._deaf = DeafReaders(
-            self, [self._cmd_reader], lambda: self.commands_received, declare_reader_renewal(self)
-        )
+        self._deaf = watch_readers(self, [self._cmd_reader], lambda: self.commands_received)
         self.create_service(InjectFault, topics.INJECT_FAULT, self._on_inject)
         self._status_timer = self.create_timer(
             self.get_parameter("status_period").value, self._publish_status

@@ -39,6 +39,7 @@ __all__ = [
     "MovableSubscription",
     "ReaderParticipant",
     "declare_reader_renewal",
+    "watch_readers",
 ]
 
 #: Parameter: s of silence, with the writer matched, before the readers move (0 = never).
@@ -148,17 +149,18 @@ class DeafReaders:
     """Watches a node's stream readers and moves them to a new participant when they go deaf.
 
     Deaf: the first reader's stream (the measurements; the plant's commands) has brought nothing
-    for ``after`` s,
-    its writer is still matched, and the readers' queues, emptied first, held nothing (a
-    process let go after a stop has its backlog there). Once per silence: a new renewal needs
-    a message first. A writer that merely paused costs one participant (module docstring).
+    for ``after`` s, its writer is still matched, and the readers' queues, emptied first, held
+    nothing (a process let go after a stop has its backlog there). Once per silence: a new
+    renewal needs a message first. A writer that merely paused costs one participant (module
+    docstring).
 
     Parameters
     ----------
     node : rclpy.node.Node
         The readers' node; must be spinning in an executor when a renewal happens.
     readers : sequence of BacklogReader, MovableSubscription or None
-        The node's DDS stream readers, the watched one first (None entries are skipped).
+        The node's DDS stream readers, the watched one first (None entries are skipped; none at
+        all: nothing is watched, ``renewals`` stays 0).
     progress : callable
         Returns a value that changes whenever a message of the watched stream arrived (a count,
         a wall time).
@@ -230,3 +232,16 @@ class DeafReaders:
         if self._participant is not None:
             self._participant.close()
             self._participant = None
+
+
+def watch_readers(
+    node: Node,
+    readers: Sequence[BacklogReader | MovableSubscription | None],
+    progress: Callable[[], object],
+) -> DeafReaders:
+    """Declare ``reader_renewal_after`` on ``node`` and watch ``readers`` with it.
+
+    ``readers`` empty for a composed node (its streams come in process, or through readers the
+    stack shares): the parameter is declared all the same, nothing is watched.
+    """
+    return DeafReaders(node, readers, progress, declare_reader_renewal(node))

@@ -44,7 +44,7 @@ from amb_tools.cdr import MeasurementView, read_measurement
 from amb_tools.conversions import MessageError, stamp_seconds
 from amb_tools.local_bus import LocalBus, stream_publisher, stream_subscription
 from amb_tools.node_main import ConfigurationError, descriptor, run_node
-from amb_tools.reader_participant import DeafReaders, declare_reader_renewal
+from amb_tools.reader_participant import watch_readers
 from amb_tools.streams import FRAME_CODES, QUAD_CODES, matched_subscribers, stream_qos
 from amb_tools.throttled_log import ThrottledWarnings
 from amb_tools.validation import SampleSequencer, check_measurement
@@ -110,10 +110,7 @@ class WaveletFilterbankNode(Node):
         self.add_on_set_parameters_callback(self._on_set_parameters)
         # a DDS reader (composed, the measurements may come in process) moves to a participant
         # of its own when the transport stops feeding it (amb_tools.reader_participant)
-        after = declare_reader_renewal(self)
-        self._deaf = (
-            DeafReaders(self, [self._meas_reader], self._heard, after) if bus is None else None
-        )
+        self._deaf = watch_readers(self, [self._meas_reader] if bus is None else (), self._heard)
         self.get_logger().info(
             f"{self._wavelet}, {self._levels} levels, frames {self._frames}, "
             f"quadrature {self._quad}, {self._spr} samples/rev"
@@ -262,7 +259,7 @@ class WaveletFilterbankNode(Node):
             "stray_dropped": counts["stray"],
             "stamp_rejected": counts["stamp"],
             "restarts": counts["restart"],
-            "readers_renewed": 0 if self._deaf is None else self._deaf.renewals,
+            "readers_renewed": self._deaf.renewals,
             "callback_errors": getattr(self, "callback_errors", 0),
             "wavelet": self._wavelet,
             "levels": self._levels,

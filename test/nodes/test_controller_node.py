@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from amb_msgs.msg import ControlCommand, ControllerStatus, Measurement
 from amb_msgs.srv import SetControllerMode, StartIdentification
-from reliability_helpers import Diagnostics, call_service, set_parameters
+from reliability_helpers import Diagnostics, call_service, set_parameters, subscribed_by
 
 from amb_tools.streams import COMMAND_QOS, FRAME_CODES, QUAD_CODES
 from amb_wavelet.analysis import AnalysisFilterbank
@@ -450,12 +450,7 @@ def test_silent_streams_with_a_matched_writer_move_the_readers_to_a_new_particip
     assert ros.spin_until(lambda: moved in ctrl.log(), 20.0), ctrl.log()
     readers = "wavelet_controller_readers_1"
     for topic in ("/amb/measurement", "/amb/wavelet/coefficients"):
-        assert ros.spin_until(
-            lambda t=topic: (
-                readers in {i.node_name for i in node.get_subscriptions_info_by_topic(t)}
-            ),
-            20.0,
-        ), ctrl.log()
+        assert ros.spin_until(lambda t=topic: subscribed_by(node, t, readers), 20.0), ctrl.log()
     assert ros.spin_until(
         lambda: diagnostics.get("wavelet_controller", "readers_renewed") == "1", 10.0
     ), ctrl.log()

@@ -1,4 +1,4 @@
-"""The filterbank and the fault monitor move their stream readers to a new participant, once.
+"""The filterbank, the fault monitor and the plant move their stream readers to a new participant.
 
 What they do when the transport stops feeding their readers while the writer runs on
 (``amb_tools.reader_participant``; the starved controller of
@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 import yaml
 from amb_msgs.msg import ControlCommand, Measurement
-from reliability_helpers import Diagnostics
+from reliability_helpers import Diagnostics, subscribed_by
 
 from amb_tools.conversions import to_float_array
 from amb_tools.streams import COMMAND_QOS, stream_qos
@@ -62,13 +62,8 @@ def test_a_silent_stream_with_its_writer_matched_moves_the_readers(ros, node_pro
     send(0, 2 * SPR - 1)
     assert ros.spin_until(lambda: last_sample() == str(2 * SPR - 1), 30.0), proc.log()
     assert ros.spin_until(lambda: MOVED in proc.log(), 20.0), proc.log()
-    readers = f"{name}_readers_1"
     assert ros.spin_until(
-        lambda: (
-            readers
-            in {i.node_name for i in node.get_subscriptions_info_by_topic("/amb/measurement")}
-        ),
-        20.0,
+        lambda: subscribed_by(node, "/amb/measurement", f"{name}_readers_1"), 20.0
     ), proc.log()
     ros.spin_for(1.0)  # our writer matches the new reader
     send(2 * SPR, 6 * SPR - 1)
@@ -118,8 +113,7 @@ def test_the_plants_command_reader_moves_when_the_commands_stop_with_the_writer_
     assert ros.spin_until(lambda: MOVED in plant.log(), 30.0), plant.log()
     assert ros.spin_until(
         lambda: (
-            "plant_sim_readers_1"
-            in {i.node_name for i in node.get_subscriptions_info_by_topic("/amb/control/command")}
+            subscribed_by(node, "/amb/control/command", "plant_sim_readers_1")
             and pub.get_subscription_count() == 1
         ),
         20.0,

@@ -43,6 +43,11 @@ class Diagnostics:
         return int(self.get(name, MATCHED_KEY + topic, "-1"))
 
 
+def subscribed_by(node, topic: str, name: str) -> bool:
+    """Whether a node called ``name`` subscribes ``topic``, in the graph ``node`` sees."""
+    return name in {i.node_name for i in node.get_subscriptions_info_by_topic(topic)}
+
+
 def call_service(ros, client, request, attempts: int = 4, wait: float = 5.0):
     """
     Call a service and return its response, asking again if no response comes in ``wait`` s.
