@@ -25,12 +25,12 @@ from __future__ import annotations
 import itertools
 import time
 from collections.abc import Callable, Sequence
+from typing import Any, Protocol
 
 import rclpy
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
-from amb_tools.backlog import BacklogReader
 from amb_tools.node_main import descriptor
 
 __all__ = [
@@ -38,6 +38,8 @@ __all__ = [
     "DeafReaders",
     "MovableSubscription",
     "ReaderParticipant",
+    "Readers",
+    "StreamReader",
     "declare_reader_renewal",
     "watch_readers",
 ]
@@ -107,6 +109,22 @@ def declare_reader_renewal(node: Node) -> float:
     return float(node.get_parameter(RENEWAL_AFTER).value)
 
 
+class StreamReader(Protocol):
+    """What :class:`DeafReaders` needs of a reader: its subscription, a poll and a move."""
+
+    subscription: Any
+
+    def poll(self) -> object:
+        """Deliver, in order, every message queued now."""
+
+    def move_to(self, node: Node) -> None:
+        """Subscribe the same topic from ``node``; destroy the subscription held until then."""
+
+
+#: A node's readers: fixed, or a callable returning the current ones (a recorder's grow).
+Readers = Sequence[StreamReader | None] | Callable[[], Sequence[StreamReader | None]]
+
+
 class MovableSubscription:
     """An ordinary (deserialising) subscription that :class:`DeafReaders` can move.
 
@@ -158,9 +176,11 @@ class DeafReaders:
     ----------
     node : rclpy.node.Node
         The readers' node; must be spinning in an executor when a renewal happens.
-    readers : sequence of BacklogReader, MovableSubscription or None
+    readers : sequence of StreamReader or None, or a callable returning one
         The node's DDS stream readers, the watched one first (None entries are skipped; none at
-        all: nothing is watched, ``renewals`` stays 0).
+        all: nothing is watched, ``renewals`` stays 0). A callable is asked at each check (a
+        recorder subscribes topics as they appear; it returns nothing while the watched stream
+        has no reader); a reader made after a renewal belongs on :attr:`readers_node`.
     progress : callable
         Returns a value that changes whenever a message of the watched stream arrived (a count,
         a wall time).
@@ -178,13 +198,13 @@ class DeafReaders:
     def __init__(
         self,
         node: Node,
-        readers: Sequence[BacklogReader | MovableSubscription | None],
+        readers: Readers,
         progress: Callable[[], object],
         after: float,
         period: float = 0.25,
     ) -> None:
         self._node = node
-        self._readers = [r for r in readers if isinstance(r, BacklogReader | MovableSubscription)]
+        self._readers_of = readers if callable(readers) else (lambda fixed=tuple(readers): fixed)
         self._progress = progress
         self.after = after
         self.renewals = 0
@@ -192,8 +212,16 @@ class DeafReaders:
         self._seen_at = time.monotonic()
         self._heard = False  # a message since the start or the last renewal
         self._participant: ReaderParticipant | None = None
-        if after > 0 and self._readers:
+        if after > 0 and (callable(readers) or self._readers()):
             node.create_timer(period, self.check)
+
+    def _readers(self) -> list[StreamReader]:
+        return [r for r in self._readers_of() if r is not None]
+
+    @property
+    def readers_node(self) -> Node:
+        """The node the stream readers are on now: the owner's, or the newest participant's."""
+        return self._node if self._participant is None else self._participant.node
 
     def check(self) -> str | None:
         """Move the readers if they are deaf; return what was logged then, else None."""
@@ -204,21 +232,22 @@ class DeafReaders:
             return None
         if not self._heard or now - self._seen_at <= self.after:
             return None
-        if self._readers[0].subscription.get_publisher_count() == 0:
+        readers = self._readers()
+        if not readers or readers[0].subscription.get_publisher_count() == 0:
             return None  # no writer: a silent stream, not a deaf reader
-        for reader in self._readers:
+        for reader in readers:
             reader.poll()
         if self._progress() != self._seen:
             return None  # the queue had messages after all (taken now)
         fresh = ReaderParticipant(self._node)
-        for reader in self._readers:
+        for reader in readers:
             reader.move_to(fresh.node)
         old, self._participant = self._participant, fresh
         if old is not None:
             old.close()
         self.renewals += 1
         self._heard = False
-        topic = self._readers[0].subscription.topic_name
+        topic = readers[0].subscription.topic_name
         text = (
             f"nothing on {topic} for {now - self._seen_at:.2f} s while its writer is still "
             f"matched: the stream readers moved to a new participant ({fresh.node.get_name()}; "
@@ -234,14 +263,11 @@ class DeafReaders:
             self._participant = None
 
 
-def watch_readers(
-    node: Node,
-    readers: Sequence[BacklogReader | MovableSubscription | None],
-    progress: Callable[[], object],
-) -> DeafReaders:
+def watch_readers(node: Node, readers: Readers, progress: Callable[[], object]) -> DeafReaders:
     """Declare ``reader_renewal_after`` on ``node`` and watch ``readers`` with it.
 
-    ``readers`` empty for a composed node (its streams come in process, or through readers the
-    stack shares): the parameter is declared all the same, nothing is watched.
+    ``readers`` empty for a composed node whose streams come in process or through the reader
+    the stack shares (the filterbank, which holds that reader, watches it): the parameter is
+    declared all the same, nothing is watched.
     """
     return DeafReaders(node, readers, progress, declare_reader_renewal(node))

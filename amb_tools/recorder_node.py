@@ -60,6 +60,7 @@ from __future__ import annotations
 
 import fnmatch
 import importlib
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -78,6 +79,7 @@ from amb_common import topics
 from amb_tools.bag_writer import STORAGE_PLUGINS, BagWriter, QueuedBagWriter, header_stamp_ns
 from amb_tools.local_bus import LocalBus
 from amb_tools.node_main import ConfigurationError, descriptor, run_node
+from amb_tools.reader_participant import watch_readers
 
 STAMP_SOURCES = ("receive", "header")
 
@@ -101,6 +103,48 @@ class DrainedGroup(CallbackGroup):
     def ending_execution(self, entity: Any) -> None:
         """Nothing to release (nothing began)."""
         return None
+
+
+class RecordedSubscription:
+    """One recorded topic's DDS subscription: drained into the bag, and movable.
+
+    ``poll`` writes every message queued now; ``move_to`` subscribes the same topic, QoS and
+    callback group from another node (a participant of the recorder's own,
+    :class:`amb_tools.reader_participant.DeafReaders`) and destroys the subscription held so far.
+    """
+
+    def __init__(
+        self,
+        node: Node,
+        msg_class: type,
+        topic: str,
+        qos: QoSProfile,
+        callback: Callable[[bytes], None],
+        group: CallbackGroup | None,
+        write: Callable[[bytes, dict], None],
+    ) -> None:
+        self._node = node
+        self._args = (msg_class, topic, callback, qos)
+        self._group = group
+        self._write = write
+        self.subscription = node.create_subscription(*self._args, callback_group=group, raw=True)
+
+    def poll(self) -> int:
+        """Write every message queued now to the bag; return how many."""
+        sub, n = self.subscription, 0
+        with sub.handle:
+            while (taken := sub.handle.take_message(sub.msg_type, True)) is not None:
+                self._write(*taken)
+                n += 1
+        return n
+
+    def move_to(self, node: Node) -> None:
+        """Subscribe the same topic from ``node``; destroy the old subscription."""
+        self._node.destroy_subscription(self.subscription)
+        self._node = node
+        self.subscription = node.create_subscription(
+            *self._args, callback_group=self._group, raw=True
+        )
 
 
 def import_message_class(msgtype: str) -> type:
@@ -202,7 +246,7 @@ class Recorder(Node):
             self._bag = QueuedBagWriter(output, storage=storage)
         self._recorded: dict[str, Any] = {}
         self._drained = DrainedGroup()
-        self._readers: list[tuple[Any, Any]] = []  # (subscription, writer of one message)
+        self._readers: list[RecordedSubscription] = []
         self._diag_pub = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS, 10)
         self.create_timer(self.get_parameter("discovery_period").value, self._discover)
         status_period = self.get_parameter("status_period").value
@@ -222,7 +266,29 @@ class Recorder(Node):
                 raise ConfigurationError(f"parameter 'topic_types' entry {entry!r}: {exc}") from exc
             self._subscribe(topic, msgtype)
         self._discover()
+        # alone, the recorder's DDS readers move to a participant of their own when the
+        # transport stops feeding them (amb_tools.reader_participant), watched on the
+        # measurements; composed, the stack's filterbank watches the reader they come through
+        self._measurements = self.resolve_topic_name(topics.MEASUREMENT)
+        self._deaf = watch_readers(self, self._watched if bus is None else (), self._heard)
         self.get_logger().info(f"recording {self._patterns} to {output} ({storage})")
+
+    def _watched(self) -> list[RecordedSubscription]:
+        """The DDS readers, the measurements' first; none while those are not recorded."""
+        first = self._recorded.get(self._measurements)
+        if not isinstance(first, RecordedSubscription):
+            return []
+        return [first, *(r for r in self._readers if r is not first)]
+
+    def _heard(self) -> int:
+        """Measurements written so far (changes whenever one arrived)."""
+        return self._bag.counts.get(self._measurements, 0)
+
+    def destroy_node(self) -> None:
+        """Close the readers' own participant, if one was made, then the node."""
+        if getattr(self, "_deaf", None) is not None:  # not made if the configuration failed
+            self._deaf.close()
+        super().destroy_node()
 
     def _discover(self) -> None:
         for topic, types in self.get_topic_names_and_types():
@@ -283,24 +349,21 @@ class Recorder(Node):
             callback, group = (lambda raw: None), self._drained  # never called: drained
         else:
             callback, group = (lambda raw: write(raw, {})), None
-        sub = self.create_subscription(
-            msg_class, topic, callback, self._qos_for(topic), callback_group=group, raw=True
+        # after a renewal, a topic found later is read from the new participant too
+        deaf = getattr(self, "_deaf", None)
+        node = self if deaf is None else deaf.readers_node
+        reader = RecordedSubscription(
+            node, msg_class, topic, self._qos_for(topic), callback, group, write
         )
-        self._recorded[topic] = sub
-        self._readers.append((sub, write))
+        self._recorded[topic] = reader
+        self._readers.append(reader)
         self.get_logger().info(f"recording {topic} [{msgtype}]")
 
     def drain(self) -> int:
         """Write every message queued on the subscriptions to the bag; return how many."""
-        written = 0
         if self._bag.closed:
-            return written
-        for sub, write in self._readers:
-            with sub.handle:
-                while (taken := sub.handle.take_message(sub.msg_type, True)) is not None:
-                    write(*taken)
-                    written += 1
-        return written
+            return 0
+        return sum(reader.poll() for reader in self._readers)
 
     def _publish_status(self) -> None:
         status = DiagnosticStatus(
@@ -308,7 +371,8 @@ class Recorder(Node):
             name=topics.diagnostic_name("recorder", self.get_namespace()),
             message=f"{sum(self.counts.values())} messages written to {self._bag.path}",
             hardware_id=str(self._bag.path),
-            values=[KeyValue(key=t, value=str(n)) for t, n in sorted(self.counts.items())],
+            values=[KeyValue(key=t, value=str(n)) for t, n in sorted(self.counts.items())]
+            + [KeyValue(key="readers_renewed", value=str(self._deaf.renewals))],
         )
         self._diag_pub.publish(
             DiagnosticArray(header=_stamp(self.get_clock().now()), status=[status])

@@ -108,9 +108,10 @@ class WaveletFilterbankNode(Node):
         self._last_reason = ""
         self._warnings = ThrottledWarnings(self.get_logger(), period=5.0)
         self.add_on_set_parameters_callback(self._on_set_parameters)
-        # a DDS reader (composed, the measurements may come in process) moves to a participant
-        # of its own when the transport stops feeding it (amb_tools.reader_participant)
-        self._deaf = watch_readers(self, [self._meas_reader] if bus is None else (), self._heard)
+        # the measurements' DDS reader moves to a participant of its own when the transport
+        # stops feeding it (amb_tools.reader_participant); composed, it is the reader the stack
+        # shares, held by this node (the first composed), and every composed reader follows
+        self._deaf = watch_readers(self, [self._meas_reader], self._heard)
         self.get_logger().info(
             f"{self._wavelet}, {self._levels} levels, frames {self._frames}, "
             f"quadrature {self._quad}, {self._spr} samples/rev"

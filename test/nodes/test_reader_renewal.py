@@ -1,4 +1,4 @@
-"""The filterbank, the fault monitor and the plant move their stream readers to a new participant.
+"""The filterbank, the fault monitor, the recorder and the plant move their stream readers.
 
 What they do when the transport stops feeding their readers while the writer runs on
 (``amb_tools.reader_participant``; the starved controller of
@@ -6,9 +6,10 @@ What they do when the transport stops feeding their readers while the writer run
 ``test_restart_filterbank_monitor.py``, docs/history.md), shown here with a writer that merely
 pauses: after ``reader_renewal_after`` s without a measurement, its writer still matched, the
 node's readers move to a node ``<name>_readers_1`` of a participant of their own, and the
-stream that resumes is read from there to its last sample. The plant watches its command
-reader the same way: a controller that stops answering while its writer stays matched. The
-controller's case is in ``test_controller_node.py``.
+stream that resumes is read from there to its last sample (a recorder's bag holds all of it).
+Composed (``wavelet_stack``), the filterbank moves the reader the stack shares. The plant
+watches its command reader the same way: a controller that stops answering while its writer
+stays matched. The controller's case is in ``test_controller_node.py``.
 """
 
 from __future__ import annotations
@@ -19,7 +20,9 @@ import numpy as np
 import pytest
 import yaml
 from amb_msgs.msg import ControlCommand, Measurement
+from rclpy.serialization import deserialize_message
 from reliability_helpers import Diagnostics, subscribed_by
+from rosbags.rosbag2 import Reader
 
 from amb_tools.conversions import to_float_array
 from amb_tools.streams import COMMAND_QOS, stream_qos
@@ -41,12 +44,34 @@ def _measurement(index: int) -> Measurement:
     return m
 
 
-@pytest.mark.parametrize("name", ["wavelet_filterbank", "fault_monitor"])
-def test_a_silent_stream_with_its_writer_matched_moves_the_readers(ros, node_process, name) -> None:
-    proc = node_process(
-        name, params={"samples_per_rev": SPR, "reader_renewal_after": 1.0, "status_period": 0.2}
-    )
-    node = ros.node(f"amb_test_renewal_{name}")
+#: Each case: the executable, the status name whose readers move, how it reports its progress
+#: (a /diagnostics key: the last sample processed, or for the recorder the count written).
+CASES = {
+    "wavelet_filterbank": ("wavelet_filterbank", "last_sample"),
+    "fault_monitor": ("fault_monitor", "last_sample"),
+    "recorder": ("recorder", "/amb/measurement"),
+    # composed: the filterbank holds the measurement reader the stack shares; the recorder
+    # composed with it takes the resumed stream in process from that reader
+    "wavelet_stack": ("wavelet_filterbank", "last_sample"),
+}
+
+
+def _progress(diagnostics: Diagnostics, name: str, key: str, last: int) -> bool:
+    value = diagnostics.get(name, key)
+    return value == (str(last + 1) if key.startswith("/") else str(last))
+
+
+@pytest.mark.parametrize("executable", list(CASES))
+def test_a_silent_stream_with_its_writer_matched_moves_the_readers(
+    ros, node_process, tmp_path, executable
+) -> None:
+    name, key = CASES[executable]
+    bag = tmp_path / "bag"
+    params = {"samples_per_rev": SPR, "reader_renewal_after": 1.0, "status_period": 0.2}
+    if executable in ("recorder", "wavelet_stack"):
+        params["output"] = str(bag)
+    proc = node_process(executable, params=params)
+    node = ros.node(f"amb_test_renewal_{executable}")
     diagnostics = Diagnostics(node)
     pub = node.create_publisher(Measurement, "/amb/measurement", stream_qos(SPR))
     assert ros.spin_until(lambda: pub.get_subscription_count() > 0, 30.0), proc.log()
@@ -56,23 +81,42 @@ def test_a_silent_stream_with_its_writer_matched_moves_the_readers(ros, node_pro
         for i in range(first, last + 1):
             pub.publish(_measurement(i))
 
-    def last_sample() -> str:
-        return diagnostics.get(name, "last_sample")
-
     send(0, 2 * SPR - 1)
-    assert ros.spin_until(lambda: last_sample() == str(2 * SPR - 1), 30.0), proc.log()
+    assert ros.spin_until(lambda: _progress(diagnostics, name, key, 2 * SPR - 1), 30.0), (
+        diagnostics.values.get(name),
+        proc.log(),
+    )
     assert ros.spin_until(lambda: MOVED in proc.log(), 20.0), proc.log()
+    moved_to = f"{name}_readers_1"
     assert ros.spin_until(
-        lambda: subscribed_by(node, "/amb/measurement", f"{name}_readers_1"), 20.0
+        lambda: (
+            subscribed_by(node, "/amb/measurement", moved_to)
+            and not subscribed_by(node, "/amb/measurement", name)
+            and pub.get_subscription_count() == 1
+        ),
+        20.0,
     ), proc.log()
-    ros.spin_for(1.0)  # our writer matches the new reader
+    ros.spin_for(1.0)  # our writer matches the new reader (its own view may lag the graph's)
     send(2 * SPR, 6 * SPR - 1)
-    assert ros.spin_until(lambda: last_sample() == str(6 * SPR - 1), 30.0), (
+    assert ros.spin_until(lambda: _progress(diagnostics, name, key, 6 * SPR - 1), 30.0), (
         diagnostics.values.get(name),
         proc.log(),
     )
     assert diagnostics.get(name, "readers_renewed") == "1"
     assert proc.log().count(MOVED) == 1, proc.log()
+    if executable == "wavelet_stack":  # the composed recorder got the resumed stream too
+        assert ros.spin_until(
+            lambda: _progress(diagnostics, "recorder", "/amb/measurement", 6 * SPR - 1), 30.0
+        ), (diagnostics.values.get("recorder"), proc.log())
+    if "output" in params:  # nothing lost: the bag holds every sample published
+        assert proc.stop() == 0, proc.log()
+        with Reader(bag) as reader:
+            indices = [
+                deserialize_message(raw, Measurement).sample_index
+                for conn, _t, raw in reader.messages()
+                if conn.topic == "/amb/measurement"
+            ]
+        assert indices == list(range(6 * SPR)), indices
 
 
 def test_the_plants_command_reader_moves_when_the_commands_stop_with_the_writer_matched(
