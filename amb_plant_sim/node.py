@@ -616,6 +616,9 @@ class PlantSimNode(Node):
         values = {
             "time": f"{self._sim.time:.6f}",
             "sample_index": self._sim.sample_index,
+            # realtime simulates each period at its start: the last sample published so far
+            # is behind the simulated ``time`` by up to a period (-1: none yet)
+            "published_time": f"{self._last_stamp:.6f}",
             "speed_hz": f"{self._sim.omega / (2 * math.pi):.4f}",
             "done": self.done or self._remaining() <= 0,
             "controller_lost": self._controller_lost,

@@ -253,6 +253,8 @@ def hog_windows(out: Path, cpu_log: Path, hog: Hog, spr: int, total: int) -> dic
         "during": frac(settled & (start >= on) & (start + period <= off)),
         "after": frac(start >= off + 2 * period),
         "recover": float((start[later[-1]] + period - off) / period) if later.size else 0.0,
+        # run s of each period without a command from 2 periods after the hog
+        "uncontrolled_after": start[later[start[later] >= off + 2 * period]].tolist(),
         "lost": total - len(meas.sample_index),
     }
 
@@ -384,6 +386,11 @@ def main() -> None:
                 print(_row(f"{hz} Hz x {spr} #{i + 1}", r), flush=True)
                 for mode in ("lockstep", "realtime"):
                     print(_cpu_line(mode, r[mode], r["fs"]), flush=True)
+                late = r.get("hog", {}).get("uncontrolled_after")
+                if late:
+                    shown = ", ".join(f"{t:.2f}" for t in late[:12])
+                    more = f" and {len(late) - 12} more" if len(late) > 12 else ""
+                    print(f"{'':>16} uncontrolled after the hog, run s: {shown}{more}", flush=True)
             if len(runs) > 1:
                 med = {
                     "lockstep": {"rtf": statistics.median(r["lockstep"]["rtf"] for r in runs)},
