@@ -113,6 +113,7 @@ class Matrix:
 
     def __init__(self, scenario_dir: Path, samples_per_rev: int | None, force_limit, quick):
         self.args = (Path(scenario_dir), samples_per_rev, force_limit, bool(quick))
+        self.quick = bool(quick)
         self.rig = load_rig()
         self.force_limit = float(force_limit or self.rig.amb.force_limit)
         self.scenarios = {}

@@ -277,6 +277,12 @@ def markdown(result: dict, timing: dict, speeds: dict, force_limit: float | None
         "controller with delay 1 / 2 could give (amb-bound: clairvoyant force, replayed "
         "noise-free); peak / limit: a row's peak over the limit at its own delay (PID: i = 1)."
     )
+    if any(m.get("settle_skipped") for rows in result["table"].values() for m in rows.values()):
+        lines.append(
+            "\n--quick: the limit rows replay the least force of the optimal peak, without the "
+            "settling objective: their settling, steady and residual columns (-) would not be "
+            "the limit's, and their peak (the replay's) can differ slightly from a full run's."
+        )
     for key, rows in result["table"].items():
         lines += ["", f"## {key} ({speeds[key]:.2f} Hz)", ""]
         lines.append(
@@ -288,13 +294,15 @@ def markdown(result: dict, timing: dict, speeds: dict, force_limit: float | None
         lines.append("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
         for name, m in rows.items():
             radius, to_limit = m.get("model_radius"), m.get("peak_to_limit")
+            fmt = _fmt if not m.get("settle_skipped") else (lambda *_: "-")
+            residual = m.get("residual_um")
             lines.append(
-                f"| {name} | {_fmt(m['peak'], 1e6)} | {_fmt(m['revs_to_10'], 1, 0)} | "
-                f"{_fmt(m.get('revs_to_10_1x'), 1, 0)} | "
-                f"{_fmt(m.get('revs_below_10pct_pid'), 1, 0)} | "
-                f"{_fmt(m['steady_1x'], 1e6, 2)} | {_fmt(m['attenuation_db'], 1, 1)} | "
+                f"| {name} | {_fmt(m['peak'], 1e6)} | {fmt(m['revs_to_10'], 1, 0)} | "
+                f"{fmt(m.get('revs_to_10_1x'), 1, 0)} | "
+                f"{fmt(m.get('revs_below_10pct_pid'), 1, 0)} | "
+                f"{fmt(m['steady_1x'], 1e6, 2)} | {fmt(m['attenuation_db'], 1, 1)} | "
                 f"{m['peak_force']:.0f} | {m['rms_force']:.1f} | {m['contacts']} | "
-                f"{m.get('residual_um', float('nan')):.2f} | "
+                f"{'-' if residual is None else f'{residual:.2f}'} | "
                 f"{'-' if radius is None else f'{radius:.3f}'} | "
                 f"{'-' if to_limit is None else f'{to_limit:.2f}'} |"
             )

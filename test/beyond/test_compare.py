@@ -468,3 +468,30 @@ def test_the_early_action_holds_the_law_instead_of_doubling_its_answer():
     alone = peak("predictive_i2")
     assert peak("predictive_early_i2") <= alone
     assert peak("predictive_early_i2", early_config=EarlyActionConfig(hold_law=False)) > alone
+
+
+def test_quick_limit_rows_leave_out_the_columns_their_settling_objective_decides():
+    """``--quick`` solves the limit rows without the settling objective (amb_apps.compare_runs,
+    ``SETTLE_SKIPPED``): their steady, settling and residual columns are shown as "-", with a
+    note, not as the limit's; a full run's limit row shows them."""
+    from amb_apps.compare_report import markdown
+    from amb_apps.compare_runs import SETTLE_SKIPPED
+
+    full = _row(25.6e-6, 3, 3, 0.1)
+    full.update(
+        revs_below_10pct_pid=2, steady_1x=0.4e-6, attenuation_db=-40.0, residual_um=13.33,
+        peak_to_limit=1.0,
+    )  # fmt: skip
+    quick = {**full, **dict.fromkeys(SETTLE_SKIPPED), "settle_skipped": True}
+    speeds = {"mass_loss_1st": 9.72}
+
+    def limit_line(row: dict) -> tuple[str, str]:
+        text = markdown({"table": {"mass_loss_1st": {"limit_i1": row}}}, {}, speeds)
+        return text, next(ln for ln in text.splitlines() if ln.startswith("| limit_i1"))
+
+    text, line = limit_line(full)
+    assert "| 25.6 | 3 | 3 | 2 | 0.40 | -40.0 | 40 | 10.0 | 0 | 13.33 | - | 1.00 |" in line
+    assert "--quick" not in text
+    text, line = limit_line(quick)
+    assert "| 25.6 | - | - | - | - | - | 40 | 10.0 | 0 | - | - | 1.00 |" in line
+    assert "--quick: the limit rows replay the least force of the optimal peak" in text
