@@ -274,9 +274,12 @@ class Recorder(Node):
         self.get_logger().info(f"recording {self._patterns} to {output} ({storage})")
 
     def _watched(self) -> list[RecordedSubscription]:
-        """The DDS readers, the measurements' first; none while those are not recorded."""
+        """The DDS readers, the measurements' first; none while those are not recorded.
+
+        None either once the bag is closed: nothing more is written.
+        """
         first = self._recorded.get(self._measurements)
-        if not isinstance(first, RecordedSubscription):
+        if not isinstance(first, RecordedSubscription) or self._bag.closed:
             return []
         return [first, *(r for r in self._readers if r is not first)]
 
