@@ -68,7 +68,8 @@ CONTROL = re.compile(
 )
 
 
-def _run(cmd: list[str], env: dict | None = None) -> subprocess.CompletedProcess:
+def run_checked(cmd: list[str], env: dict | None = None) -> subprocess.CompletedProcess:
+    """Run ``cmd`` in the project's root; exit with its output if it fails."""
     out = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT, env=env)
     if out.returncode != 0:
         raise SystemExit(f"failed: {' '.join(cmd)}\n{out.stdout}\n{out.stderr}")
@@ -91,7 +92,7 @@ def prepare(hz: float, spr: int, duration: float, work: Path) -> tuple[Path, Pat
         )
     )
     model_dir = work / f"model_{hz:g}"
-    _run([sys.executable, "-m", "amb_apps.sim_cli", "--scenario", str(scenario),
+    run_checked([sys.executable, "-m", "amb_apps.sim_cli", "--scenario", str(scenario),
           "--controller", "transient", "--model", "fe", "--duration", "0.5", "--no-bag",
           "--out", str(model_dir)])  # fmt: skip
     return scenario, model_dir / "model.npz"
@@ -206,7 +207,7 @@ def run_mode(
     if hog is not None:
         hog.arm()
     try:
-        _run([sys.executable, "-m", "amb_apps.run_cli", "--scenario", str(scenario),
+        run_checked([sys.executable, "-m", "amb_apps.run_cli", "--scenario", str(scenario),
               "--out", str(out), "--controller", "transient", "--quiet",
               *[a for s in sets for a in ("--set", s)], *run_args], env=env)  # fmt: skip
     finally:

@@ -24,9 +24,7 @@ from __future__ import annotations
 
 import argparse
 import os
-import re
 import statistics
-import subprocess
 import sys
 import tempfile
 from pathlib import Path
@@ -34,13 +32,10 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from pipeline import CONTROL, COUNTS, ROOT, run_checked
 
-COUNTS = re.compile(
-    r"commands: applied (?P<applied>\d+), missing (?P<missing>\d+), late (?P<late>\d+)"
-)
-CONTROLLED = re.compile(r"periods controlled (?P<controlled>[\d.]+)%")
+sys.path.insert(0, str(ROOT))
 
 
 def _scenario(name: str, hz: float, spr: int, work: Path) -> Path:
@@ -57,11 +52,7 @@ def _amb_run(scenario: Path, out: Path, sets: list[str], composed: bool) -> str:
     cmd = [sys.executable, "-m", "amb_apps.run_cli", "--scenario", str(scenario), "--out",
            str(out), "--controller", "transient", "--quiet",
            *[a for s in ["plant_sim.mode:=realtime", *sets] for a in ("--set", s)]]  # fmt: skip
-    if composed:
-        cmd.append("--composed")
-    done = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT)
-    if done.returncode != 0:
-        raise SystemExit(f"failed: {' '.join(cmd)}\n{done.stdout}\n{done.stderr}")
+    run_checked([*cmd, "--composed"] if composed else cmd)
     return (out / "logs" / "plant_sim.log").read_text()
 
 
@@ -110,7 +101,7 @@ def monitor_lag(bag: Path, spr: int) -> np.ndarray:
 def phase_numbers(log: str, bag: Path, spr: int) -> dict:
     """Command counts, periods controlled and the monitor's lag of one ``amb-run``."""
     counts = COUNTS.search(log)
-    controlled = CONTROLLED.search(log)
+    controlled = CONTROL.search(log)
     lag = monitor_lag(bag, spr)
     return {
         **({k: int(v) for k, v in counts.groupdict().items()} if counts else {}),
