@@ -141,7 +141,7 @@ from amb_tools.conversions import (
 )
 from amb_tools.local_bus import LocalBus, stream_subscription
 from amb_tools.node_main import ConfigurationError, run_node
-from amb_tools.reader_participant import watch_readers
+from amb_tools.reader_participant import ClosesReaderParticipant, watch_readers
 from amb_tools.streams import (
     COMMAND_QOS,
     FRAME_CODES,
@@ -163,7 +163,7 @@ COEFFICIENT_HORIZON_PERIODS = 8
 BLIND_READER = "the transport no longer feeds this node's measurement reader"
 
 
-class WaveletControllerNode(Node):
+class WaveletControllerNode(ClosesReaderParticipant, Node):
     """The wavelet controller (module docstring)."""
 
     def __init__(self, bus: LocalBus | None = None) -> None:
@@ -483,12 +483,6 @@ class WaveletControllerNode(Node):
                 "seconds; docs/history.md); its readers move to a new participant after "
                 "reader_renewal_after s of silence"
             )
-
-    def destroy_node(self) -> None:
-        """Close the readers' own participant, if one was made, then the node."""
-        if getattr(self, "_deaf", None) is not None:  # not made if the configuration failed
-            self._deaf.close()
-        super().destroy_node()
 
     def _process(self, m: MeasurementView, coeffs: CoefficientsView | None) -> None:
         records = []

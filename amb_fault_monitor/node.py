@@ -133,7 +133,7 @@ from amb_tools.conversions import (
 )
 from amb_tools.local_bus import LocalBus, stream_subscription
 from amb_tools.node_main import ConfigurationError, run_node
-from amb_tools.reader_participant import watch_readers
+from amb_tools.reader_participant import ClosesReaderParticipant, watch_readers
 from amb_tools.streams import matched_subscribers, stream_qos
 from amb_tools.throttled_log import ThrottledWarnings
 from amb_tools.validation import SampleSequencer, check_measurement
@@ -150,7 +150,7 @@ QUEUE_REVS = 256
 REFUSED = ("repeat", "stray", "stamp")
 
 
-class FaultMonitorNode(Node):
+class FaultMonitorNode(ClosesReaderParticipant, Node):
     """Publish fault events classified from the wavelet coefficients (module docstring)."""
 
     def __init__(self, bus: LocalBus | None = None) -> None:
@@ -291,11 +291,9 @@ class FaultMonitorNode(Node):
         return box
 
     def destroy_node(self) -> None:
-        """Write an open black-box capture and close the readers' own participant, if made."""
+        """Write an open black-box capture, then close the readers' participant and the node."""
         if self._box is not None and self._box.flush() is not None:
             self.bags_written += 1
-        if getattr(self, "_deaf", None) is not None:  # not made if the configuration failed
-            self._deaf.close()
         super().destroy_node()
 
     def _heard(self) -> tuple[int | None, int, int]:

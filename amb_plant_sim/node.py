@@ -89,7 +89,7 @@ from amb_plant_sim.scenario import load_scenario, resolve_samples_per_rev
 from amb_plant_sim.simulator import MeasurementBlock, PlantSimulator
 from amb_tools.conversions import MessageError, measurement_bytes, stamp, stamp_seconds
 from amb_tools.node_main import ConfigurationError, descriptor, run_node
-from amb_tools.reader_participant import MovableSubscription, watch_readers
+from amb_tools.reader_participant import ClosesReaderParticipant, MovableSubscription, watch_readers
 from amb_tools.streams import COMMAND_QOS, matched_subscribers, stream_qos
 from amb_tools.throttled_log import ThrottledWarnings
 from amb_tools.validation import check_command
@@ -107,7 +107,7 @@ def _spread(values) -> dict[str, float]:
     return {"p50": float(np.median(a)), "p99": float(np.quantile(a, 0.99)), "max": float(a.max())}
 
 
-class PlantSimNode(Node):
+class PlantSimNode(ClosesReaderParticipant, Node):
     """The simulated rig (module docstring)."""
 
     def __init__(self) -> None:
@@ -282,12 +282,6 @@ class PlantSimNode(Node):
         self._n_total = periods * self._N if not scenario.profile_hz else None
 
     # ------------------------------------------------------------------ commands
-    def destroy_node(self) -> None:
-        """Close the command reader's own participant, if one was made, then the node."""
-        if getattr(self, "_deaf", None) is not None:  # not made if the configuration failed
-            self._deaf.close()
-        super().destroy_node()
-
     def _on_command(self, msg: ControlCommand) -> None:
         self.commands_received += 1
         k = msg.period_index

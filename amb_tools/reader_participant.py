@@ -35,6 +35,7 @@ from amb_tools.node_main import descriptor
 
 __all__ = [
     "RENEWAL_AFTER",
+    "ClosesReaderParticipant",
     "DeafReaders",
     "MovableSubscription",
     "ReaderParticipant",
@@ -261,6 +262,23 @@ class DeafReaders:
         if self._participant is not None:
             self._participant.close()
             self._participant = None
+
+
+class ClosesReaderParticipant:
+    """Mixin of a node that watches its readers (``self._deaf = watch_readers(...)``).
+
+    ``destroy_node`` closes the readers' own participant, if one was made, then the node.
+    ``_deaf`` stays None for a node whose configuration failed before it was made. List it
+    before ``Node``: ``class FilterbankNode(ClosesReaderParticipant, Node)``.
+    """
+
+    _deaf: DeafReaders | None = None
+
+    def destroy_node(self) -> None:
+        """Close the readers' own participant, if one was made, then the node."""
+        if self._deaf is not None:
+            self._deaf.close()
+        super().destroy_node()
 
 
 def watch_readers(node: Node, readers: Readers, progress: Callable[[], object]) -> DeafReaders:

@@ -79,7 +79,7 @@ from amb_common import topics
 from amb_tools.bag_writer import STORAGE_PLUGINS, BagWriter, QueuedBagWriter, header_stamp_ns
 from amb_tools.local_bus import LocalBus
 from amb_tools.node_main import ConfigurationError, descriptor, run_node
-from amb_tools.reader_participant import watch_readers
+from amb_tools.reader_participant import ClosesReaderParticipant, watch_readers
 
 STAMP_SOURCES = ("receive", "header")
 
@@ -164,7 +164,7 @@ def _has_header(msg_class: type) -> bool:
     return bool(fields) and next(iter(fields.values())) == "std_msgs/Header"
 
 
-class Recorder(Node):
+class Recorder(ClosesReaderParticipant, Node):
     """Record matching topics to a rosbag2 (see the module docstring).
 
     Parameters
@@ -287,12 +287,6 @@ class Recorder(Node):
         """Measurements written so far (changes whenever one arrived)."""
         return self._bag.counts.get(self._measurements, 0)
 
-    def destroy_node(self) -> None:
-        """Close the readers' own participant, if one was made, then the node."""
-        if getattr(self, "_deaf", None) is not None:  # not made if the configuration failed
-            self._deaf.close()
-        super().destroy_node()
-
     def _discover(self) -> None:
         for topic, types in self.get_topic_names_and_types():
             if topic in self._recorded:
@@ -353,8 +347,7 @@ class Recorder(Node):
         else:
             callback, group = (lambda raw: write(raw, {})), None
         # after a renewal, a topic found later is read from the new participant too
-        deaf = getattr(self, "_deaf", None)
-        node = self if deaf is None else deaf.readers_node
+        node = self if self._deaf is None else self._deaf.readers_node
         reader = RecordedSubscription(
             node, msg_class, topic, self._qos_for(topic), callback, group, write
         )

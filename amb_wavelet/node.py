@@ -44,7 +44,7 @@ from amb_tools.cdr import MeasurementView, read_measurement
 from amb_tools.conversions import MessageError, stamp_seconds
 from amb_tools.local_bus import LocalBus, stream_publisher, stream_subscription
 from amb_tools.node_main import ConfigurationError, descriptor, run_node
-from amb_tools.reader_participant import watch_readers
+from amb_tools.reader_participant import ClosesReaderParticipant, watch_readers
 from amb_tools.streams import FRAME_CODES, QUAD_CODES, matched_subscribers, stream_qos
 from amb_tools.throttled_log import ThrottledWarnings
 from amb_tools.validation import SampleSequencer, check_measurement
@@ -56,7 +56,7 @@ from amb_wavelet.levels import check_level, revolution_level
 from amb_wavelet.messages import coefficients_bytes
 
 
-class WaveletFilterbankNode(Node):
+class WaveletFilterbankNode(ClosesReaderParticipant, Node):
     """Publish the wavelet coefficients of the measurement stream (module docstring)."""
 
     def __init__(self, bus: LocalBus | None = None) -> None:
@@ -186,12 +186,6 @@ class WaveletFilterbankNode(Node):
     def _heard(self) -> tuple[int, int, int]:
         """Changes whenever a measurement arrived (processed, rejected or sequenced away)."""
         return self.samples, self.rejected, sum(self._sequencer.counts.values())
-
-    def destroy_node(self) -> None:
-        """Close the readers' own participant, if one was made, then the node."""
-        if getattr(self, "_deaf", None) is not None:  # not made if the configuration failed
-            self._deaf.close()
-        super().destroy_node()
 
     def _on_measurement(self, raw: bytes) -> None:
         try:
