@@ -8,10 +8,11 @@ indices they report as processed on ``/diagnostics`` (:data:`DRAINED`) reach the
 sample (:func:`drain`).
 
 Recording: a drained node has published everything it will, but the recorder may not have it
-yet (a reliable message lost on the way is resent only after the writer's next heartbeat, 3 s
-with Fast DDS's defaults). Before the recorder is stopped, the messages it reports as written
-(its ``/diagnostics`` counts per topic) are therefore waited for until they reach what each
-publisher reports as published (:data:`PUBLISHED`; :func:`settle_recording`). A fixed 0.5 s
+yet (a reliable message lost on the way is resent only after the writer's next heartbeat: 3 s
+with Fast DDS's defaults, 20 ms with the nodes' profile, :mod:`amb_tools.transport_profile`).
+Before the recorder is stopped, the messages it reports as written (its ``/diagnostics``
+counts per topic) are therefore waited for until they reach what each publisher reports as
+published (:data:`PUBLISHED`; :func:`settle_recording`). A fixed 0.5 s
 grace before this lost the controller's last command in a loaded suite run (77 of 78 in the
 bag; ``test/system/test_composed.py``).
 

@@ -548,8 +548,9 @@ class PlantSimNode(ClosesReaderParticipant, Node):
         if self.done:
             return
         # the run's wall time ends with its last sample: the acknowledgements waited for below
-        # can take a reliable writer's heartbeat period (3 s with Fast DDS's defaults; it was
-        # seen in half of the 4 s runs of bench/pipeline_profile.py, halving the reported factor)
+        # can take a reliable writer's heartbeat period (3 s with Fast DDS's defaults, seen in
+        # half of the 4 s runs of bench/pipeline_profile.py, halving the reported factor; 20 ms
+        # with the nodes' profile, amb_tools.transport_profile)
         self.run_window = (self._wall0, time.monotonic())  # node_main's CPU log (bench/)
         wall = self.run_window[1] - self._wall0
         self._meas_pub.wait_for_all_acked(Duration(seconds=10.0))

@@ -52,6 +52,8 @@ from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
+from amb_tools.transport_profile import use_project_profile
+
 EXIT_CONFIGURATION_ERROR = 2
 
 
@@ -177,6 +179,7 @@ def run_nodes(
         nonlocal stop
         stop = True
 
+    use_project_profile()  # before the first participant (amb_tools.transport_profile)
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     previous = {s: signal.signal(s, _request_stop) for s in (signal.SIGINT, signal.SIGTERM)}
     nodes: list[Node] = []

@@ -41,9 +41,10 @@ COMMAND_QOS = QoSProfile(
 #: ``/amb/control/status`` (one message per control period): reliable, 256 deep. A message the
 #: transport loses (a reader's shared-memory port full while its process is descheduled) is
 #: resent only after the reader asks for it, at the writer's next heartbeat: every 3 s with
-#: Fast DDS's defaults, 30 periods at 10 periods/s and 201 at 67 Hz. A writer that kept fewer
-#: had already dropped it, and the recorder's bag missed it for good (10 deep: 75 of 78
-#: statuses in one loaded run, every command recorded).
+#: Fast DDS's defaults (30 periods at 10 periods/s, 201 at 67 Hz), every 20 ms with the nodes'
+#: profile (:mod:`amb_tools.transport_profile`). A writer that kept fewer than the periods of
+#: a 3 s wait (a bridge on the defaults) had already dropped it, and the recorder's bag missed
+#: it for good (10 deep: 75 of 78 statuses in one loaded run, every command recorded).
 STATUS_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST, depth=256, reliability=ReliabilityPolicy.RELIABLE
 )

@@ -18,6 +18,13 @@ command in one idle run of 2026-12-02, and periods 4-11 after it in one run with
 busy (2026-12-03): the resent samples came in batches below the bound and were worked through
 in order.
 
+The stop's samples that did not fit the readers' shared-memory ports (512 messages) are lost in
+the transport and resent when the readers answer the plant's heartbeat; every later sample
+waits for them. With Fast DDS's 3 s default the filterbank caught up 47-337 ms after the
+release (a CI run of 2026-12-05: periods 3 and 4 after it without their command); the nodes
+run with a 20 ms heartbeat (``amb_tools.transport_profile``; ``docs/history.md``, "Repairs
+after a stall").
+
 Reference: the plant's own ``STATUS_COMMAND_MISSING`` flag on every sample (set on every sample
 of a period that starts without its command) and the consumers' ``backlog_dropped`` counts on
 ``/diagnostics``. A period is judged by any of its samples the test's observer received (with
