@@ -43,6 +43,24 @@ class Diagnostics:
         return int(self.get(name, MATCHED_KEY + topic, "-1"))
 
 
+def missing_runs(indices, total: int, shown: int = 8) -> str:
+    """The sample indices in ``0..total-1`` not in ``indices``, as runs ``first-last (count)``.
+
+    For a failure message: where an observer lost samples (one long run: held or fed nothing
+    for a while; many short ones: a reader that fell behind over and over).
+    """
+    missing = sorted(set(range(total)) - {int(i) for i in indices})
+    runs: list[list[int]] = []
+    for k in missing:
+        if runs and k == runs[-1][1] + 1:
+            runs[-1][1] = k
+        else:
+            runs.append([k, k])
+    text = ", ".join(f"{a}-{b} ({b - a + 1})" for a, b in runs[:shown])
+    more = f", and {len(runs) - shown} more runs" if len(runs) > shown else ""
+    return f"{len(runs)} runs missing: {text}{more}" if runs else "none missing"
+
+
 def subscribed_by(node, topic: str, name: str) -> bool:
     """Whether a node called ``name`` subscribes ``topic``, in the graph ``node`` sees."""
     return name in {i.node_name for i in node.get_subscriptions_info_by_topic(topic)}

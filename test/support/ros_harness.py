@@ -6,6 +6,9 @@
 - :class:`RosTestContext` is one rclpy ``Context`` with its own executor, for in-process nodes.
 - :class:`NodeProcess` starts a node executable as a separate process, as ``ros2 run`` would,
   with ``--ros-args --params-file``, and stops it with SIGINT or SIGTERM.
+- :meth:`RosTestContext.tap` is a test's own reader of a sample-rate stream (:class:`StreamTap`):
+  it takes every queued message at each wake and moves to a new participant if the transport
+  stops feeding it, like the nodes' readers, so that an observer outside the loop keeps up.
 - :func:`spin_until` spins an executor until a condition holds or a timeout passes;
   :meth:`RosTestContext.spin_until_progress` waits as long as a progress count keeps moving
   (samples processed), so that a slow, loaded machine is waited for and a stalled node is not.
@@ -74,6 +77,20 @@ class RosTestContext:
         rclpy.init(context=self.context)
         self.executor = SingleThreadedExecutor(context=self.context)
         self.nodes: list = []
+        self.taps: list[StreamTap] = []
+
+    def tap(
+        self,
+        node,
+        msg_type: type,
+        topic: str,
+        samples_per_period: int,
+        on_message: Callable[[bytes], None] | None = None,
+    ) -> StreamTap:
+        """A :class:`StreamTap` of ``topic`` on ``node`` (one of this context's), closed with it."""
+        tap = StreamTap(node, msg_type, topic, samples_per_period, on_message)
+        self.taps.append(tap)
+        return tap
 
     def node(self, name: str, **kwargs: object):
         """Create a node in this context and add it to the executor."""
@@ -155,12 +172,93 @@ class RosTestContext:
             self.executor.spin_once(timeout_sec=0.01)
 
     def close(self) -> None:
-        """Destroy the nodes and shut the context down."""
+        """Close the taps' own participants, destroy the nodes and shut the context down."""
+        for tap in self.taps:
+            tap.close()
         for node in self.nodes:
             self.executor.remove_node(node)
             node.destroy_node()
         self.executor.shutdown()
         self.context.try_shutdown()
+
+
+class StreamTap:
+    """A test's reader of a sample-rate stream that keeps every message it is sent.
+
+    An observer outside a lock-step loop (the test process, beside the plant and the nodes on
+    two cores) must keep up with the plant, or lose the oldest samples once it is more than the
+    writer's history (1024 samples) behind. rclpy's executor hands over one message per wake, a
+    wait set per message; this reader takes every message queued at a wake
+    (:class:`amb_tools.backlog.BacklogReader` with a batch hook, none dropped) as raw CDR, into a
+    queue 65536 deep. A reader the transport stops feeding (``docs/history.md``, "A reader the
+    transport stopped feeding") moves to a participant of its own after ``renew_after`` s of
+    silence with the writer matched (:class:`amb_tools.reader_participant.DeafReaders`), as
+    the nodes' readers do.
+
+    Parameters
+    ----------
+    node : rclpy.node.Node
+        The test's node; spun by its context's executor.
+    msg_type : type
+        Message class of the topic.
+    topic : str
+        Topic name.
+    samples_per_period : int
+        Samples per control period (the stream's QoS, :func:`amb_tools.streams.stream_qos`).
+    on_message : callable, optional
+        Called with each message's CDR bytes, oldest first; default: kept in :attr:`raw`.
+    renew_after : float
+        s of silence, with the writer matched, before the reader moves (longer than a plant's
+        wait for a command, so that a plant on its watchdog does not count as silence).
+
+    Attributes
+    ----------
+    raw : list of bytes
+        The messages, when no ``on_message`` is given.
+    received : int
+        Messages received.
+    """
+
+    def __init__(
+        self,
+        node,
+        msg_type: type,
+        topic: str,
+        samples_per_period: int,
+        on_message: Callable[[bytes], None] | None = None,
+        renew_after: float = 2.0,
+    ) -> None:
+        from amb_tools.backlog import BacklogReader
+        from amb_tools.reader_participant import DeafReaders
+        from amb_tools.streams import stream_qos
+
+        self.raw: list[bytes] = []
+        self.received = 0
+        self._on_message = self.raw.append if on_message is None else on_message
+        qos = stream_qos(samples_per_period)
+        qos.depth = 1 << 16
+        self.reader = BacklogReader(
+            node, msg_type, topic, self._deliver, qos, after_batch=lambda: None
+        )
+        self.deaf = DeafReaders(node, [self.reader], lambda: self.received, renew_after)
+
+    @property
+    def subscription(self):
+        """The reader's current subscription (moved on a renewal)."""
+        return self.reader.subscription
+
+    @property
+    def renewals(self) -> int:
+        """Times the reader moved to a new participant."""
+        return self.deaf.renewals
+
+    def _deliver(self, raw: bytes) -> None:
+        self.received += 1
+        self._on_message(raw)
+
+    def close(self) -> None:
+        """Close the reader's own participant, if one was made."""
+        self.deaf.close()
 
 
 def spin_until(executor, predicate: Callable[[], bool], timeout: float, step: float = 0.02) -> bool:
