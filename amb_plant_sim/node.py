@@ -21,14 +21,15 @@ Run modes (ARCHITECTURE.md, "Time")
 ``realtime``
     Samples are produced on the wall clock (times ``time_scale``); a command is applied if it
     arrived before its period starts, else the period runs with zero force and the command is
-    counted late. This is how a rig behaves: each period is simulated when it starts (its
-    wavelet force is fixed then; the first one just before the clock starts, so that its
-    cold start is not taken from the first periods) and each of its samples is published at its
-    own instant, from a timer at the sample interval, so that the last sample of a period
-    leaves at the period's end and the command latency (``latency_summary``) is measured from
-    there. The effective control delay is reported as well (``control_summary``): the fraction
-    of the periods that could have a command which ran with one, and, for each command, its
-    arrival minus the wall time its period started (negative: in time; the lead a rig has left).
+    counted late (a command already queued at the reader when the period starts is taken then,
+    before the period is simulated, and counted as ``taken_at_start``). This is how a rig behaves:
+    each period is simulated when it starts (its wavelet force is fixed then; the first one just
+    before the clock starts, so that its cold start is not taken from the first periods) and each of
+    its samples is published at its own instant, from a timer at the sample interval, so that the
+    last sample of a period leaves at the period's end and the command latency (``latency_summary``)
+    is measured from there. The effective control delay is reported as well (``control_summary``):
+    the fraction of the periods that could have a command which ran with one, and, for each command,
+    its arrival minus the wall time its period started (negative: in time; the lead a rig has left).
 
 A command is rejected (counted, reported, never applied) if its period has already started
 (``late``), if it is malformed (:func:`amb_tools.validation.check_command`: sizes, indices,
@@ -205,6 +206,7 @@ class PlantSimNode(ClosesReaderParticipant, Node):
                 "saturated_samples",
                 "watchdog_trips",
                 "parameter_changes",
+                "taken_at_start",  # realtime: commands found queued as their period started
             ),
             0,
         )
@@ -463,6 +465,12 @@ class PlantSimNode(ClosesReaderParticipant, Node):
             self._apply_parameters()
         n0 = self._sim.sample_index
         n = min(self._N - n0 % self._N, max(self._remaining(), 1))
+        if self._mode == "realtime" and n0 % self._N == 0:
+            # a command already in the reader's queue is in time: take it before the period
+            # starts (the executor may hand this timer over before the command's callback)
+            queued = k in self._commands
+            self._cmd_reader.poll()
+            self.counts["taken_at_start"] += not queued and k in self._commands
         force = self._commands.pop(k, None)
         status = 0
         if self._mode == "realtime" and n0 % self._N == 0:
