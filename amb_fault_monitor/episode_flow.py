@@ -19,7 +19,7 @@ from amb_common.faults import FINAL, PROVISIONAL, FaultEvent, FaultType
 from amb_fault_monitor.classifier import Decision, classify
 from amb_fault_monitor.episodes import Episode
 from amb_fault_monitor.features import normalise
-from amb_fault_monitor.onset import estimate_onset, onset_sample
+from amb_fault_monitor.onset import onset_sample
 
 __all__ = ["EpisodeFlow"]
 
@@ -89,7 +89,7 @@ class EpisodeFlow:
             return
         if ep.decided is None:
             # confirmed, so it has crossings (Episode.add_crossings): the onset once per sample
-            onset = estimate_onset(ep.crossings)
+            onset = ep.onset()  # estimate_onset(ep.crossings), kept as crossings come
             provisional = cfg.provisional_revs > 0 and ep.provisional_due
             if provisional and n - onset >= cfg.provisional_revs * spr:
                 self._provisional(n, ep, onset, events)

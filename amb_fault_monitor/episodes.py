@@ -21,7 +21,8 @@ from amb_common.faults import WITHDRAWN, FaultEvent
 from amb_common.names import N_SENSORS
 from amb_fault_monitor.bursts import ContactBursts
 from amb_fault_monitor.classifier import EpisodeEvidence
-from amb_fault_monitor.onset import Crossing
+from amb_fault_monitor.errors import FaultMonitorError
+from amb_fault_monitor.onset import Crossing, onset_sample
 
 __all__ = ["Episode"]
 
@@ -60,6 +61,10 @@ class Episode:
     provisional_due : bool
         Its provisional class is still to be given (False once given, or skipped for an
         episode a control step or a coil failure explains).
+    first_strongest : Crossing or None
+        The crossing :func:`amb_fault_monitor.onset.estimate_onset` takes from ``crossings``
+        (the strongest of the earliest completed; the first added of equals), kept up to date
+        as crossings are added.
     """
 
     start: int
@@ -82,12 +87,19 @@ class Episode:
     low_peak: float = 0.0
     high_peak: float = 0.0
     contacts: ContactBursts = field(init=False)
+    first_strongest: Crossing | None = None  # estimate_onset's crossing, kept as they come
     explained: str = ""
     provisional: FaultEvent | None = None
     provisional_due: bool = True
 
     def __post_init__(self) -> None:
         self.contacts = ContactBursts(self.start)
+
+    def onset(self) -> int:
+        """The onset sample :func:`amb_fault_monitor.onset.estimate_onset` gives its crossings."""
+        if self.first_strongest is None:
+            raise FaultMonitorError("an episode without crossings has no onset")
+        return onset_sample(self.first_strongest.centre)
 
     def track(self, level: int, frame: str, ratio: np.ndarray) -> None:
         """Keep the largest plane ratios (4,) of (``level``, ``frame``)."""
@@ -124,10 +136,14 @@ class Episode:
         crossed = ratio > 1.0
         self.last_crossing = n
         for p in np.flatnonzero(crossed):
-            self.crossings.append(
-                Crossing(level, frame, int(p) + 1, s.first_sample_index, s.last_sample_index,
-                         float(ratio[p]), centre)
-            )  # fmt: skip
+            c = Crossing(level, frame, int(p) + 1, s.first_sample_index, s.last_sample_index,
+                         float(ratio[p]), centre)  # fmt: skip
+            self.crossings.append(c)
+            # estimate_onset's choice, updated per crossing instead of a scan of all of them
+            # per sample (hundreds after a control step: most of the monitor's time then)
+            best = self.first_strongest
+            if best is None or c.last < best.last or (c.last == best.last and c.ratio > best.ratio):
+                self.first_strongest = c
         key = (level, frame)
         self.keys.add(key)
         if frame == "fixed":
