@@ -190,6 +190,10 @@ class BacklogReader:
         True while the first message kept after a drop is being delivered: the readers'
         sample indices jump there by what was dropped, a gap known to be real
         (:meth:`amb_tools.validation.SampleSequencer.push`, ``gap_known``).
+    batch_size : int
+        Messages kept at the wake being delivered (1 outside a wake): more than one, and the
+        reader is behind its stream (:class:`amb_tools.local_bus.LocalBus` then serves the
+        control path first).
     """
 
     def __init__(
@@ -213,6 +217,7 @@ class BacklogReader:
         self.max_backlog = int(max_backlog)
         self.dropped = self.dropped_old = self.episodes = 0
         self.gap_before = False  # the message being delivered follows messages dropped here
+        self.batch_size = 1
         self._received = 0  # messages taken, for a middleware without sequence numbers
         self._age = MessageAge(max_backlog) if max_backlog and catch_up.by_age else None
         self._warnings = ThrottledWarnings(node.get_logger(), period=5.0)
@@ -294,6 +299,7 @@ class BacklogReader:
                     self._on_dropped(item)
             del batch[:excess]
         error: Exception | None = None
+        self.batch_size = len(batch)
         for k, item in enumerate(batch):
             self.gap_before = excess > 0 and k == 0
             try:
@@ -301,6 +307,7 @@ class BacklogReader:
             except Exception as exc:  # the rest of the wake is still delivered; raised after
                 error = error or exc
         self.gap_before = False
+        self.batch_size = 1
         if self._after_batch is not None:
             try:
                 self._after_batch()

@@ -29,9 +29,13 @@ through the urgent ones, so that the command leaves and the plant computes its n
 the other core while the monitor and the recorder work. Each reader still sees its streams in
 their order, and the relative order of the deferred readers' messages is kept (a coefficient
 message the filterbank publishes for a sample reaches the monitor before that sample's
-measurement, as before). In realtime (a reader with a catch-up bound) every reader is served at
-each message, urgent ones first: deferring there made the periods controlled at 67 Hz x 32
-worse, not better (``docs/history.md``, "The control path first").
+measurement, as before). In realtime (a reader with a catch-up bound) a wake normally brings one
+sample, and every reader is served at each message, urgent ones first: deferring each message
+made the periods controlled at 67 Hz x 32 worse, not better (``docs/history.md``, "The control
+path first"). A realtime wake that finds several samples queued (the stack is behind: a stall,
+a fault-monitor episode) defers as lock-step does, so that the command of a period leaves as
+soon as the controller has its last coefficient, not after the monitor's and the recorder's work
+on the whole backlog (``docs/history.md``, "Late commands at 67 Hz x 32 over 60 s").
 """
 
 from __future__ import annotations
@@ -174,8 +178,10 @@ class LocalBus:
 
     def _wake_deliver(self, topic: _Topic, raw: bytes) -> None:
         """A message of an outside topic, taken at a wake of its DDS reader."""
-        # deferred in lock-step only (module notes): a bounded reader is a realtime one
-        self._in_wake = not topic.dds_reader.max_backlog
+        # deferred in lock-step, and in realtime when the wake found the reader behind
+        # (module notes): a bounded reader is a realtime one
+        reader = topic.dds_reader
+        self._in_wake = not reader.max_backlog or reader.batch_size > 1
         self._deliver(topic, raw)
 
     def _end_wake(self) -> None:
@@ -208,8 +214,8 @@ class LocalBus:
         The DDS readers that defer (no catch-up bound: lock-step, where the plant publishes
         the next period as soon as the command arrives) are polled every :data:`POLL_PERIOD` s
         of this work, so that a message that arrived meanwhile reaches the urgent readers at
-        once (its deferred deliveries join the queue). A realtime reader defers nothing
-        (:meth:`_wake_deliver`) and is not polled.
+        once (its deferred deliveries join the queue). A realtime reader defers only the
+        messages of a wake that found it behind (:meth:`_wake_deliver`) and is not polled.
 
         Each message's DDS reader shows, during the call, the ``gap_before`` it had when the
         message was taken (:func:`amb_tools.backlog.gap_known`). A reader's exception leaves

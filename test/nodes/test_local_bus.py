@@ -96,13 +96,12 @@ def test_a_local_stream_reaches_a_reader_outside_from_its_match_on(ros) -> None:
     assert got == list(range(100, 300))  # everything after the writer counted it matched
 
 
-def test_urgent_readers_take_a_wake_before_the_deferred_ones(ros) -> None:
-    """A burst taken at one wake goes through the urgent readers (the control path: a
-    filterbank-like reader that publishes a coefficient message per measurement, a controller-
-    like reader of those) before the deferred ones (monitor, recorder), which still get every
-    message of both streams in their order, a sample's coefficients before its measurement."""
-    node = ros.node("amb_test_bus_urgent")
-    driver = ros.node("amb_test_bus_urgent_driver")
+def _urgent_and_deferred(ros, name: str, catch_up: CatchUp | None):
+    """A bus with a filterbank-like urgent reader that publishes a coefficient message per
+    measurement, a controller-like urgent reader of those, and monitor-like deferred readers of
+    both; returns (measurement publisher, log of (reader, sample index))."""
+    node = ros.node(f"amb_test_bus_{name}")
+    driver = ros.node(f"amb_test_bus_{name}_driver")
     qos = stream_qos(16)
     meas_pub = driver.create_publisher(Measurement, "/amb/measurement", qos)
     bus = LocalBus(local_topics=("/amb/wavelet/coefficients",))
@@ -117,7 +116,8 @@ def test_urgent_readers_take_a_wake_before_the_deferred_ones(ros) -> None:
     def reader(name: str, read):
         return lambda raw: log.append((name, read(raw).sample_index))
 
-    bus.subscribe(node, Measurement, "/amb/measurement", filterbank, qos, urgent=True)
+    bound = {} if catch_up is None else {"catch_up": catch_up}
+    bus.subscribe(node, Measurement, "/amb/measurement", filterbank, qos, urgent=True, **bound)
     bus.subscribe(node, Measurement, "/amb/measurement", reader("monitor", read_measurement), qos)
     for name, urgent in (("controller", True), ("monitor coefficients", False)):
         bus.subscribe(
@@ -125,6 +125,18 @@ def test_urgent_readers_take_a_wake_before_the_deferred_ones(ros) -> None:
             reader(name, read_coefficients), qos, urgent=urgent,
         )  # fmt: skip
     assert ros.spin_until(lambda: meas_pub.get_subscription_count() == 1, timeout=30.0)
+    return meas_pub, log
+
+
+@pytest.mark.parametrize("mode", ["lockstep", "realtime"])
+def test_urgent_readers_take_a_wake_before_the_deferred_ones(ros, mode: str) -> None:
+    """A burst taken at one wake goes through the urgent readers (the control path) before the
+    deferred ones (monitor, recorder), which still get every message of both streams in their
+    order, a sample's coefficients before its measurement: in lock-step (no catch-up bound) and
+    in realtime (bounded, here far above the burst), where a wake with several samples means the
+    stack is behind."""
+    catch_up = None if mode == "lockstep" else CatchUp(1000, False)
+    meas_pub, log = _urgent_and_deferred(ros, f"urgent_{mode}", catch_up)
     n = 10
     for k in range(n):
         meas_pub.publish(serialize_message(Measurement(sample_index=k, samples_per_rev=16)))
@@ -133,3 +145,20 @@ def test_urgent_readers_take_a_wake_before_the_deferred_ones(ros) -> None:
     urgent = [e for k in range(n) for e in (("filterbank", k), ("controller", k))]
     deferred = [e for k in range(n) for e in (("monitor coefficients", k), ("monitor", k))]
     assert log == urgent + deferred
+
+
+def test_a_realtime_wake_of_one_sample_serves_every_reader_at_once(ros) -> None:
+    """In realtime a wake normally brings one sample: every reader gets it there, urgent ones
+    first, with no deferral (its bookkeeping cost more than it gave: docs/history.md, "The
+    control path first")."""
+    meas_pub, log = _urgent_and_deferred(ros, "single", CatchUp(1000, False))
+    n = 5
+    for k in range(n):
+        meas_pub.publish(serialize_message(Measurement(sample_index=k, samples_per_rev=16)))
+        assert ros.spin_until(lambda k=k: len(log) >= 4 * (k + 1), timeout=30.0), log
+    expected = [
+        e
+        for k in range(n)
+        for e in (("filterbank", k), ("controller", k), ("monitor coefficients", k), ("monitor", k))
+    ]
+    assert log == expected
