@@ -79,16 +79,9 @@ class RosTestContext:
         self.nodes: list = []
         self.taps: list[StreamTap] = []
 
-    def tap(
-        self,
-        node,
-        msg_type: type,
-        topic: str,
-        samples_per_period: int,
-        on_message: Callable[[bytes], None] | None = None,
-    ) -> StreamTap:
-        """A :class:`StreamTap` of ``topic`` on ``node`` (one of this context's), closed with it."""
-        tap = StreamTap(node, msg_type, topic, samples_per_period, on_message)
+    def tap(self, *args, **kwargs) -> StreamTap:
+        """``StreamTap(*args, **kwargs)`` on one of this context's nodes, closed with it."""
+        tap = StreamTap(*args, **kwargs)
         self.taps.append(tap)
         return tap
 
@@ -241,11 +234,6 @@ class StreamTap:
             node, msg_type, topic, self._deliver, qos, after_batch=lambda: None
         )
         self.deaf = DeafReaders(node, [self.reader], lambda: self.received, renew_after)
-
-    @property
-    def subscription(self):
-        """The reader's current subscription (moved on a renewal)."""
-        return self.reader.subscription
 
     @property
     def renewals(self) -> int:
