@@ -85,6 +85,7 @@ from amb_common.errors import RigError
 from amb_common.names import N_AXES
 from amb_common.paths import config_file, scenario_file
 from amb_common.rig import load_rig
+from amb_plant_sim.command_book import CommandBook, CommandOffer
 from amb_plant_sim.errors import ScenarioError, SimulationError
 from amb_plant_sim.scenario import load_scenario, resolve_samples_per_rev
 from amb_plant_sim.simulator import MeasurementBlock, PlantSimulator
@@ -96,16 +97,8 @@ from amb_tools.throttled_log import ThrottledWarnings
 from amb_tools.validation import check_command
 
 MODES = ("lockstep", "realtime")
-#: Commands may target at most this many periods beyond ``next period + delay_periods``.
-COMMAND_HORIZON_PERIODS = 16
 #: Parameters settable at run time (applied at the next period boundary).
 RUNTIME_PARAMETERS = ("command_timeout", "wavelet_force_limit", "time_scale", "status_period")
-
-
-def _spread(values) -> dict[str, float]:
-    """``p50``, ``p99`` and ``max`` of a non-empty sequence of numbers."""
-    a = np.asarray(values, dtype=float)
-    return {"p50": float(np.median(a)), "p99": float(np.quantile(a, 0.99)), "max": float(a.max())}
 
 
 class PlantSimNode(ClosesReaderParticipant, Node):
@@ -188,28 +181,8 @@ class PlantSimNode(ClosesReaderParticipant, Node):
         tick = 0.002 if self._mode == "lockstep" else max(1.0 / self._sim.fs, 2.0e-4)
         self._timer = self.create_timer(tick, self._tick)
         self._outbox: deque[tuple[float, int, bytes]] = deque()  # realtime: (t, index, CDR)
-        self._commands: dict[int, np.ndarray] = {}
-        self._period_end_wall: dict[int, float] = {}
-        self._latency: deque[float] = deque(maxlen=100_000)
-        # realtime: wall time each command arrived (period -> s) and each period started;
-        # arrival - period start of each command, s (< 0: in time)
-        self._arrived: dict[int, float] = {}
-        self._period_start_wall: dict[int, float] = {}
-        self._arrival_offset: deque[float] = deque(maxlen=100_000)
-        self.counts = dict.fromkeys(
-            (
-                "applied",
-                "missing",
-                "late",
-                "rejected",
-                "clipped",
-                "saturated_samples",
-                "watchdog_trips",
-                "parameter_changes",
-                "taken_at_start",  # realtime: commands found queued as their period started
-            ),
-            0,
-        )
+        self._book = CommandBook(self._delay, self._force_limit, self._mode == "realtime")
+        self.counts = self._book.counts
         self._controller_lost = False
         self._resume_from = 0
         self._last_stamp = -1.0
@@ -286,64 +259,32 @@ class PlantSimNode(ClosesReaderParticipant, Node):
     # ------------------------------------------------------------------ commands
     def _on_command(self, msg: ControlCommand) -> None:
         self.commands_received += 1
-        k = msg.period_index
+        try:
+            force, malformed = check_command(msg, self._N), None  # (N, 4) N
+        except MessageError as exc:
+            force, malformed = None, str(exc)
+        offer = CommandOffer(
+            period_index=msg.period_index,
+            delay_periods=msg.delay_periods,
+            based_on_period=msg.based_on_period,
+            stamp=stamp_seconds(msg.header.stamp),
+            force=force,
+            malformed=malformed,
+        )
         next_period = self._sim.sample_index // self._N
-        reason = None
-        f = None
-        if k < next_period:
-            self.counts["late"] += 1
-            reason = f"command for period {k} arrived after it started (now {next_period})"
-            started = self._period_start_wall.get(k)
-            if started is not None:
-                self._arrival_offset.append(time.monotonic() - started)
-        else:
-            try:
-                f = check_command(msg, self._N)  # (N, 4) N
-            except MessageError as exc:
-                reason = str(exc)
-            if reason is None:
-                horizon = next_period + self._delay + COMMAND_HORIZON_PERIODS
-                measured = next_period - 1  # the plant publishes whole periods
-                t = stamp_seconds(msg.header.stamp)
-                if msg.delay_periods != self._delay:
-                    reason = (
-                        f"command for period {k} made with delay_periods {msg.delay_periods}, "
-                        f"the plant runs {self._delay}: controller and plant must agree"
-                    )
-                elif k in self._commands:
-                    reason = f"command for period {k} repeated: the first one is kept"
-                elif k > horizon:
-                    reason = f"command for period {k}: more than {horizon} is not plausible"
-                elif msg.based_on_period > measured:
-                    reason = (
-                        f"command for period {k} based on period {msg.based_on_period}, "
-                        f"only {measured} measured: from the future"
-                    )
-                elif t > self._last_stamp + 1e-9:
-                    reason = (
-                        f"command for period {k} stamped {t:.6f} s, after the last sample "
-                        f"({self._last_stamp:.6f} s): from the future"
-                    )
+        reason = self._book.offer(offer, next_period, self._last_stamp, time.monotonic())
         if reason is not None:
-            if k >= next_period:
-                self.counts["rejected"] += 1
             self._last_reason = reason
-            self._warnings.warning("late" if k < next_period else "rejected", reason)
+            late = msg.period_index < next_period
+            self._warnings.warning("late" if late else "rejected", reason)
             return
-        if np.any(np.abs(f) > self._force_limit):
-            self.counts["clipped"] += 1
-            f = np.clip(f, -self._force_limit, self._force_limit)
-        self._commands[k] = f
-        if self._mode == "realtime":
-            self._arrived[k] = time.monotonic()
         if self._controller_lost:
             self._controller_lost = False
-            self._resume_from = k
-            self._last_reason = f"commands resumed with period {k}: lockstep from there"
+            self._resume_from = msg.period_index
+            self._last_reason = (
+                f"commands resumed with period {msg.period_index}: lockstep from there"
+            )
             self.get_logger().info(self._last_reason)
-        sent = self._period_end_wall.get(msg.based_on_period)
-        if sent is not None:
-            self._latency.append(time.monotonic() - sent)
         if self._mode == "lockstep":
             self._tick()
 
@@ -379,7 +320,7 @@ class PlantSimNode(ClosesReaderParticipant, Node):
         if "command_timeout" in changes:
             self._timeout = changes["command_timeout"]
         if "wavelet_force_limit" in changes:
-            self._force_limit = changes["wavelet_force_limit"]
+            self._force_limit = self._book.force_limit = changes["wavelet_force_limit"]
         self.counts["parameter_changes"] += len(changes)
         if changes:
             self.get_logger().info(f"applied at sample {self._sim.sample_index}: {changes}")
@@ -425,7 +366,7 @@ class PlantSimNode(ClosesReaderParticipant, Node):
                 self._finish()
                 return
             k = self._sim.sample_index // self._N
-            if k >= max(self._delay, self._resume_from) and k not in self._commands:
+            if k >= max(self._delay, self._resume_from) and k not in self._book:
                 now = time.monotonic()
                 if self._waiting_since is None:
                     self._waiting_since = now
@@ -444,7 +385,7 @@ class PlantSimNode(ClosesReaderParticipant, Node):
                     )
                     self.get_logger().warning(self._last_reason)
                     self._publish_status()
-            elif k >= self._delay and k not in self._commands:
+            elif k >= self._delay and k not in self._book:
                 self.counts["missing"] += 1  # between the watchdog and the first new command
             self._waiting_since = None
             self._run_period(k)
@@ -465,21 +406,16 @@ class PlantSimNode(ClosesReaderParticipant, Node):
             self._apply_parameters()
         n0 = self._sim.sample_index
         n = min(self._N - n0 % self._N, max(self._remaining(), 1))
+        now = None
         if self._mode == "realtime" and n0 % self._N == 0:
             # a command already in the reader's queue is in time: take it before the period
             # starts (the executor may hand this timer over before the command's callback)
-            queued = k in self._commands
+            queued = k in self._book
             self._cmd_reader.poll()
-            self.counts["taken_at_start"] += not queued and k in self._commands
-        force = self._commands.pop(k, None)
-        status = 0
-        if self._mode == "realtime" and n0 % self._N == 0:
+            self.counts["taken_at_start"] += not queued and k in self._book
             now = time.monotonic()
-            self._period_start_wall[k] = now
-            self._period_start_wall.pop(k - 64, None)
-            arrived = self._arrived.pop(k, None)
-            if arrived is not None:
-                self._arrival_offset.append(arrived - now)
+        force = self._book.take(k, now)
+        status = 0
         if force is None:
             wf = np.zeros((n, N_AXES))
             if k >= self._delay:
@@ -493,9 +429,6 @@ class PlantSimNode(ClosesReaderParticipant, Node):
                 status |= Measurement.STATUS_WATCHDOG
         else:
             wf = force[n0 % self._N : n0 % self._N + n]
-            self.counts["applied"] += 1
-        for old in [c for c in self._commands if c < k]:
-            del self._commands[old]
         block = self._sim.advance(n, wf)
         self._publish(block, wf, status)
 
@@ -520,37 +453,21 @@ class PlantSimNode(ClosesReaderParticipant, Node):
             self._clock_pub.publish(Clock(clock=stamp(t)))
         self._last_stamp = t
         if index % self._N == self._N - 1:
-            self._period_end_wall[index // self._N] = time.monotonic()
-            self._period_end_wall.pop(index // self._N - 64, None)
+            self._book.period_sent(index // self._N, time.monotonic())
 
     def latency_summary(self) -> dict[str, float]:
-        """Wall latency from a period's last sample to the command based on it (s).
+        """Wall latency from a period's last sample to the command based on it, s.
 
-        Returns
-        -------
-        dict
-            ``p50``, ``p99``, ``max`` in s and ``n`` commands; empty before any command.
+        See :meth:`amb_plant_sim.command_book.CommandBook.latency_summary`.
         """
-        if not self._latency:
-            return {}
-        return {"n": float(len(self._latency)), **_spread(self._latency)}
+        return self._book.latency_summary()
 
     def control_summary(self) -> dict[str, float]:
         """The effective control delay: periods controlled, command arrival - period start.
 
-        Returns
-        -------
-        dict
-            ``controlled``: fraction of the periods from ``delay_periods`` on that ran with a
-            command (those before cannot have one); realtime only, when commands arrived:
-            ``arrival_p50``, ``arrival_p99``, ``arrival_max``, s, of each command's arrival
-            minus its period's start (negative: before it, applied; positive: late by that).
+        See :meth:`amb_plant_sim.command_book.CommandBook.control_summary`.
         """
-        eligible = -(-self._sim.sample_index // self._N) - self._delay
-        out = {"controlled": self.counts["applied"] / eligible if eligible > 0 else math.nan}
-        if self._arrival_offset:
-            out |= {f"arrival_{k}": v for k, v in _spread(self._arrival_offset).items()}
-        return out
+        return self._book.control_summary(-(-self._sim.sample_index // self._N))
 
     def _finish(self) -> None:
         if self.done:
