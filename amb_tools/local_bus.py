@@ -36,6 +36,15 @@ path first"). A realtime wake that finds several samples queued (the stack is be
 a fault-monitor episode) defers as lock-step does, so that the command of a period leaves as
 soon as the controller has its last coefficient, not after the monitor's and the recorder's work
 on the whole backlog (``docs/history.md``, "Late commands at 67 Hz x 32 over 60 s").
+
+The deferred work is done in slices. In lock-step the plant answers each command at once, so
+the flush's polls always find the next period queued and its work never runs dry while the plant
+runs: as one callback, it kept the executor from everything else in the process until the run
+ended (the composed recorder's and a composed node's DDS readers of the controller's commands and
+statuses, the controller's of the fault events, the nodes' timers and parameter services; a
+recorder then held only the first ``queue_depth`` commands of a long run). After
+:data:`FLUSH_SLICE` of work a flush returns, and a timer resumes it once the executor has
+served what else is ready; the urgent readers are still served at every wake and poll.
 """
 
 from __future__ import annotations
@@ -57,6 +66,9 @@ RawCallback = Callable[[bytes], None]
 #: s of deferred work between two polls of the DDS readers (:meth:`LocalBus.flush`): at
 #: 67 Hz x 32 a sample comes every 0.47 ms.
 POLL_PERIOD = 0.0005
+#: s of deferred work after which :meth:`LocalBus.flush` gives the executor a turn and resumes
+#: from a timer: the process's other callbacks wait at most this long (module notes).
+FLUSH_SLICE = 0.005
 
 
 @dataclass
@@ -90,6 +102,7 @@ class LocalBus:
         self._pending: deque[tuple[RawCallback, bytes, BacklogReader | None, bool]] = deque()
         self._in_wake = False  # a DDS reader's wake is delivering: defer until its end
         self._flushing = False
+        self._resume = None  # timer (cancelled until a flush stops at its slice): flush again
 
     def _declared_local(self, node: Node, resolved: str) -> bool:
         """Whether ``resolved`` is one of the local topics (their names resolved by ``node``)."""
@@ -155,6 +168,9 @@ class LocalBus:
         if lossless:
             topic.lossless.append(callback)
         if not topic.local and topic.dds_reader is None:
+            if self._resume is None:  # deferred work comes only from DDS readers' wakes
+                self._resume = node.create_timer(0.0, self._resume_flush)
+                self._resume.cancel()
             topic.dds_reader = BacklogReader(
                 node, msg_type, resolved, lambda raw, t=topic: self._wake_deliver(t, raw), qos,
                 catch_up, lambda raw, t=topic: self._deliver_dropped(t, raw), self._end_wake,
@@ -192,7 +208,7 @@ class LocalBus:
     def _deliver(self, topic: _Topic, raw: bytes) -> None:
         for reader in topic.urgent:
             reader(raw)
-        if not self._in_wake:
+        if not self._in_wake and not self._pending:  # (older messages still owed: after them)
             for reader in topic.deferred:
                 reader(raw)
         elif topic.deferred:
@@ -205,8 +221,16 @@ class LocalBus:
             self._pending.extend((reader, raw, None, False) for reader in topic.lossless)
             return
         self.flush()  # anything still deferred is older
+        if self._pending:  # the flush stopped at its slice: after what it left
+            self._pending.extend((reader, raw, None, False) for reader in topic.lossless)
+            return
         for reader in topic.lossless:
             reader(raw)
+
+    def _resume_flush(self) -> None:
+        """The executor's turn after a flush's slice is over: go on with the deferred work."""
+        self._resume.cancel()
+        self.flush()
 
     def flush(self) -> None:
         """Hand the deferred readers what they are owed, in order (module notes).
@@ -216,6 +240,9 @@ class LocalBus:
         of this work, so that a message that arrived meanwhile reaches the urgent readers at
         once (its deferred deliveries join the queue). A realtime reader defers only the
         messages of a wake that found it behind (:meth:`_wake_deliver`) and is not polled.
+
+        After :data:`FLUSH_SLICE` s of work the call returns with the rest still owed, and a
+        timer calls it again once the executor has served what else is ready (module notes).
 
         Each message's DDS reader shows, during the call, the ``gap_before`` it had when the
         message was taken (:func:`amb_tools.backlog.gap_known`). A reader's exception leaves
@@ -232,7 +259,9 @@ class LocalBus:
         ]
         clock = time.perf_counter
         try:
-            next_poll = clock() + POLL_PERIOD
+            now = clock()
+            next_poll = now + POLL_PERIOD
+            slice_end = now + FLUSH_SLICE
             while pending:
                 reader, raw, source, gap = pending.popleft()
                 if source is None:
@@ -243,7 +272,11 @@ class LocalBus:
                         reader(raw)
                     finally:
                         source.gap_before = False
-                if sources and clock() > next_poll:
+                now = clock()
+                if pending and now > slice_end and self._resume is not None:
+                    self._resume.reset()  # the rest after the executor's turn
+                    break
+                if sources and now > next_poll:
                     for src in sources:
                         src.poll()
                     next_poll = clock() + POLL_PERIOD

@@ -12,6 +12,7 @@ reaches its composed readers whole and an outside DDS reader from its match on.
 
 from __future__ import annotations
 
+import threading
 import time
 
 import pytest
@@ -162,3 +163,45 @@ def test_a_realtime_wake_of_one_sample_serves_every_reader_at_once(ros) -> None:
         for e in (("filterbank", k), ("controller", k), ("monitor coefficients", k), ("monitor", k))
     ]
     assert log == expected
+
+
+def test_a_lockstep_flush_that_never_runs_dry_still_lets_the_executor_run(ros) -> None:
+    """In lock-step the flush polls the DDS reader between deferred deliveries, and a plant that
+    answers each command at once always has the next period queued: the deferred work never ran
+    dry while the plant ran, and as one callback it kept the executor from the process's other
+    callbacks until the end (a long composed run's recorder held only its first ``queue_depth``
+    commands). Here a deferred reader needs 2 ms a message while a thread publishes one every
+    0.5 ms: a timer on the same executor must still run while that backlog is worked off."""
+    node = ros.node("amb_test_bus_slices")
+    driver = ros.node("amb_test_bus_slices_driver")
+    qos = stream_qos(16)
+    pub = driver.create_publisher(Measurement, "/amb/measurement", qos)
+    bus = LocalBus()
+    n = 800
+    done: list[int] = []
+
+    def deferred(raw: bytes) -> None:  # the monitor's work on one sample, made slow
+        done.append(read_measurement(raw).sample_index)
+        time.sleep(0.002)
+
+    bus.subscribe(node, Measurement, "/amb/measurement", lambda raw: None, qos, urgent=True)
+    bus.subscribe(node, Measurement, "/amb/measurement", deferred, qos)
+    ticks: list[int] = []  # how far the deferred reader was at each timer call
+    node.create_timer(0.02, lambda: ticks.append(len(done)))
+    assert ros.spin_until(lambda: pub.get_subscription_count() == 1, timeout=30.0)
+
+    def produce() -> None:
+        for k in range(n):
+            pub.publish(serialize_message(Measurement(sample_index=k, samples_per_rev=16)))
+            time.sleep(0.0005)
+
+    thread = threading.Thread(target=produce)
+    thread.start()
+    try:
+        assert ros.spin_until_progress(lambda: len(done) >= n, lambda: len(done), stall=30.0)
+    finally:
+        thread.join()
+    assert done == list(range(n))  # every message, in order
+    during = [t for t in ticks if 0 < t < n]
+    # 1.6 s of deferred work: about 80 timer periods; without the slices none ran during it
+    assert len(during) >= 10, f"timer calls while the backlog was worked off: {during}"
