@@ -43,8 +43,10 @@ runs: as one callback, it kept the executor from everything else in the process 
 ended (the composed recorder's and a composed node's DDS readers of the controller's commands and
 statuses, the controller's of the fault events, the nodes' timers and parameter services; a
 recorder then held only the first ``queue_depth`` commands of a long run). After
-:data:`FLUSH_SLICE` of work a flush returns, and a timer resumes it once the executor has
-served what else is ready; the urgent readers are still served at every wake and poll.
+:data:`FLUSH_SLICE` of work a flush returns, and a task on the executor resumes it once the
+executor has served what else is ready (a task, not a timer: rclpy's ``EventsExecutor`` ran
+other due timers several times per period when a timer was reset that often); the urgent
+readers are still served at every wake and poll.
 """
 
 from __future__ import annotations
@@ -67,7 +69,7 @@ RawCallback = Callable[[bytes], None]
 #: 67 Hz x 32 a sample comes every 0.47 ms.
 POLL_PERIOD = 0.0005
 #: s of deferred work after which :meth:`LocalBus.flush` gives the executor a turn and resumes
-#: from a timer: the process's other callbacks wait at most this long (module notes).
+#: from a task: the process's other callbacks wait at most this long (module notes).
 FLUSH_SLICE = 0.005
 
 
@@ -102,7 +104,8 @@ class LocalBus:
         self._pending: deque[tuple[RawCallback, bytes, BacklogReader | None, bool]] = deque()
         self._in_wake = False  # a DDS reader's wake is delivering: defer until its end
         self._flushing = False
-        self._resume = None  # timer (cancelled until a flush stops at its slice): flush again
+        self._resume_node: Node | None = None  # its executor resumes a flush stopped at its slice
+        self._resume_due = False  # a task to resume is on that executor
 
     def _declared_local(self, node: Node, resolved: str) -> bool:
         """Whether ``resolved`` is one of the local topics (their names resolved by ``node``)."""
@@ -168,9 +171,8 @@ class LocalBus:
         if lossless:
             topic.lossless.append(callback)
         if not topic.local and topic.dds_reader is None:
-            if self._resume is None:  # deferred work comes only from DDS readers' wakes
-                self._resume = node.create_timer(0.0, self._resume_flush)
-                self._resume.cancel()
+            if self._resume_node is None:  # deferred work comes only from DDS readers' wakes
+                self._resume_node = node
             topic.dds_reader = BacklogReader(
                 node, msg_type, resolved, lambda raw, t=topic: self._wake_deliver(t, raw), qos,
                 catch_up, lambda raw, t=topic: self._deliver_dropped(t, raw), self._end_wake,
@@ -227,9 +229,19 @@ class LocalBus:
         for reader in topic.lossless:
             reader(raw)
 
+    def _resume_later(self) -> bool:
+        """Have the executor go on with the flush after what else is ready (False: no executor)."""
+        if not self._resume_due:
+            executor = self._resume_node.executor if self._resume_node is not None else None
+            if executor is None:
+                return False
+            executor.create_task(self._resume_flush)
+            self._resume_due = True
+        return True
+
     def _resume_flush(self) -> None:
         """The executor's turn after a flush's slice is over: go on with the deferred work."""
-        self._resume.cancel()
+        self._resume_due = False
         self.flush()
 
     def flush(self) -> None:
@@ -242,7 +254,7 @@ class LocalBus:
         messages of a wake that found it behind (:meth:`_wake_deliver`) and is not polled.
 
         After :data:`FLUSH_SLICE` s of work the call returns with the rest still owed, and a
-        timer calls it again once the executor has served what else is ready (module notes).
+        task calls it again once the executor has served what else is ready (module notes).
 
         Each message's DDS reader shows, during the call, the ``gap_before`` it had when the
         message was taken (:func:`amb_tools.backlog.gap_known`). A reader's exception leaves
@@ -273,9 +285,8 @@ class LocalBus:
                     finally:
                         source.gap_before = False
                 now = clock()
-                if pending and now > slice_end and self._resume is not None:
-                    self._resume.reset()  # the rest after the executor's turn
-                    break
+                if pending and now > slice_end and self._resume_later():
+                    break  # the rest after the executor's turn
                 if sources and now > next_poll:
                     for src in sources:
                         src.poll()
