@@ -5,8 +5,10 @@ The same nodes as ``wavelet_filterbank``, ``fault_monitor``, ``wavelet_controlle
 ``recorder`` (same names, parameters, topics, services and diagnostics; a params file's sections
 for each apply unchanged), created in one process on one executor and sharing a
 :class:`~amb_tools.local_bus.LocalBus`: the measurement stream is taken from DDS once for all,
-and the filterbank's coefficients go to the controller, the monitor and the recorder in the
-publisher's call, while still being published on DDS for any outside reader. The recorder writes
+and what a composed node publishes for the others (the filterbank's coefficients; the
+controller's commands and statuses; the monitor's fault events, which the controller acts on)
+goes to them in the publisher's call, while still being published on DDS for any outside reader
+(the plant, another recorder). The recorder writes
 from a thread of its own (:class:`~amb_tools.bag_writer.QueuedBagWriter`): the control path only
 queues, and a slow disk does not stall it.
 Each DDS take or publish from rclpy costs a fixed Python and middleware overhead per message
@@ -29,8 +31,7 @@ from collections.abc import Sequence
 
 from rclpy.utilities import remove_ros_args
 
-from amb_apps.system import COMPOSED
-from amb_common import topics
+from amb_apps.system import COMPOSED, PUBLISHERS
 from amb_controller.node import WaveletControllerNode
 from amb_fault_monitor.node import FaultMonitorNode
 from amb_tools.local_bus import LocalBus
@@ -72,8 +73,11 @@ def main(args: Sequence[str] | None = None) -> int:
     """Entry point of the ``wavelet_stack`` executable."""
     argv = list(sys.argv if args is None else args)
     own = build_parser().parse_args(remove_ros_args(argv)[1:])
-    bus = LocalBus(local_topics=(topics.COEFFICIENTS,))
     composed = [n for n in COMPOSED if n not in own.without]
+    # what a composed node publishes reaches the others in process (no DDS reader of their own:
+    # in lock-step one never got the stack's own messages until the stream stopped,
+    # docs/history.md, "A composed lock-step run: the stack's own publications")
+    bus = LocalBus(local_topics=tuple(t for t, node in PUBLISHERS.items() if node in composed))
     return run_nodes(
         [lambda cls=FACTORIES[n]: cls(bus) for n in composed],
         argv,

@@ -170,19 +170,20 @@ def stream_readers(names, hosted: tuple[str, ...] = ()) -> dict[str, int]:
         The nodes started (of :data:`NODES`).
     hosted : tuple of str
         Those composed in ``wavelet_stack`` (the filterbank among them): they share one DDS
-        reader of the measurements and read the coefficients in process
-        (:mod:`amb_tools.local_bus`); a node started apart reads both over DDS.
+        reader of the measurements and read what the others composed with them publish in
+        process (:mod:`amb_tools.local_bus`); a node started apart reads over DDS.
 
     Returns
     -------
     dict
         Topic -> readers, for the streams whose publisher is started; the recorder subscribes
-        every stream at start (``topic_types``), so it counts on each (composed, not on the two
+        every stream at start (``topic_types``), so it counts on each (composed, not on those
         it takes in process).
     """
     has = set(names)
     recorder = int("recorder" in has)
-    in_process = (topics.MEASUREMENT, topics.COEFFICIENTS) if "recorder" in hosted else ()
+    stack_published = {t for t, node in PUBLISHERS.items() if node in hosted}
+    in_process = {topics.MEASUREMENT} | stack_published if "recorder" in hosted else set()
     consumers = {
         topics.MEASUREMENT: {"wavelet_filterbank", "fault_monitor", "wavelet_controller"},
         topics.COEFFICIENTS: {"fault_monitor", "wavelet_controller"},
@@ -192,7 +193,8 @@ def stream_readers(names, hosted: tuple[str, ...] = ()) -> dict[str, int]:
     }
     if hosted:
         consumers[topics.MEASUREMENT] = (consumers[topics.MEASUREMENT] - set(hosted)) | {STACK}
-        consumers[topics.COEFFICIENTS] -= set(hosted)
+        for topic in stack_published:
+            consumers[topic] -= set(hosted)
         has.add(STACK)
     return {
         topic: len(nodes & has) + (recorder if topic not in in_process else 0)

@@ -107,6 +107,8 @@ from amb_msgs.srv import SetControllerMode, StartIdentification
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
+from rclpy.qos import QoSProfile
+from rclpy.serialization import deserialize_message, serialize_message
 
 from amb_common import topics
 from amb_common.config_fields import default_of, parameter_fields
@@ -139,7 +141,7 @@ from amb_tools.conversions import (
     controller_status_msg,
     stamp_seconds,
 )
-from amb_tools.local_bus import LocalBus, stream_subscription
+from amb_tools.local_bus import LocalBus, stream_publisher, stream_subscription
 from amb_tools.node_main import ConfigurationError, run_node
 from amb_tools.reader_participant import ClosesReaderParticipant, watch_readers
 from amb_tools.streams import (
@@ -174,8 +176,9 @@ class WaveletControllerNode(ClosesReaderParticipant, Node):
                 self.declare_parameter(f.name, default, parameter_descriptor(f))
         self._configure()
         qos = stream_qos(self._pipe.samples_per_period)
-        self._cmd_pub = self.create_publisher(ControlCommand, topics.COMMAND, COMMAND_QOS)
-        self._status_pub = self.create_publisher(ControllerStatus, topics.STATUS, STATUS_QOS)
+        # composed: handed to the stack's own readers (the recorder) in process as well
+        self._cmd_pub = stream_publisher(self, bus, ControlCommand, topics.COMMAND, COMMAND_QOS)
+        self._status_pub = stream_publisher(self, bus, ControllerStatus, topics.STATUS, STATUS_QOS)
         backlog = declare_catch_up(self)
         self._max_backlog = backlog.max_backlog
         self._readers = (
@@ -188,7 +191,12 @@ class WaveletControllerNode(ClosesReaderParticipant, Node):
                 backlog.per_message(topics.SAMPLES_PER_COEFFICIENT_MESSAGE), urgent=True,
             ),
         )  # fmt: skip
-        self.create_subscription(FaultEvent, topics.FAULT_EVENTS, self._on_fault, 10)
+        # composed with the fault monitor: its events in process, at once (urgent)
+        self._fault_reader = stream_subscription(
+            self, bus, FaultEvent, topics.FAULT_EVENTS,
+            lambda raw: self._on_fault(deserialize_message(raw, FaultEvent)), QoSProfile(depth=10),
+            urgent=True,
+        )  # fmt: skip
         self.create_service(SetControllerMode, topics.SET_MODE, self._on_set_mode)
         self.create_service(StartIdentification, topics.START_IDENTIFICATION, self._on_identify)
         self._diag_pub = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS, 10)
@@ -528,10 +536,11 @@ class WaveletControllerNode(ClosesReaderParticipant, Node):
                 hold=True,
             )
             out = command_msg(zero, header, labels, n, cfg.delay_periods, control_waveform(cfg))
-        self._cmd_pub.publish(out)
+        self._cmd_pub.publish(serialize_message(out))
         self.commands_published += 1
         try:
-            self._status_pub.publish(controller_status_msg(self._pipe.status(), header))
+            status = controller_status_msg(self._pipe.status(), header)
+            self._status_pub.publish(serialize_message(status))
             self.statuses_published += 1
         except MessageError as exc:
             self._last_reason = f"status not published: {exc}"

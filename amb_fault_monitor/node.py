@@ -90,6 +90,7 @@ from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.serialization import serialize_message
 
 from amb_common import topics
 from amb_common.errors import RigError
@@ -131,7 +132,7 @@ from amb_tools.conversions import (
     stamp,
     stamp_seconds,
 )
-from amb_tools.local_bus import LocalBus, stream_subscription
+from amb_tools.local_bus import LocalBus, stream_publisher, stream_subscription
 from amb_tools.node_main import ConfigurationError, run_node
 from amb_tools.reader_participant import ClosesReaderParticipant, watch_readers
 from amb_tools.streams import matched_subscribers, stream_qos
@@ -205,7 +206,10 @@ class FaultMonitorNode(ClosesReaderParticipant, Node):
         self.add_post_set_parameters_callback(self._after_set)
         qos = stream_qos(self._spr)
         qos.depth = max(qos.depth, QUEUE_REVS * self._spr)  # not in the loop: may lag, not lose
-        self._pub = self.create_publisher(
+        # composed: handed to the stack's own readers (controller, recorder) in process as well
+        self._pub = stream_publisher(
+            self,
+            bus,
             FaultEventMsg,
             topics.FAULT_EVENTS,
             QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE),
@@ -521,7 +525,7 @@ class FaultMonitorNode(ClosesReaderParticipant, Node):
         )
         out.header.stamp = now
         out.header.frame_id = "rotor"
-        self._pub.publish(out)
+        self._pub.publish(serialize_message(out))
         self.events_published += 1
         self.get_logger().warning(f"{ev.fault_type.name}: {ev.description}")
 

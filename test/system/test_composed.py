@@ -6,8 +6,11 @@ handed over in process): the fault events in the two bags carry the same type, p
 indices (onset, first crossing, decision), and every node reported the plant's last sample
 (amb-run's drain). A third run composes the filterbank and controller with the monitor apart
 (``--apart fault_monitor``: it reads the stack's coefficients over DDS): the same events. The
-recorder composed in the stack (taking the two streams in process) writes as many messages of
-each stream topic as the recorder in its own process. The
+recorder composed in the stack (taking the streams and what the stack publishes in process)
+writes as many messages of each stream topic as the recorder in its own process, with a queue
+of 16 messages per topic: a DDS reader in the stack of the stack's own commands got nothing
+until the lock-step stream stopped, then its queue's worth (here the first 16 commands; of a
+long run, the first 5000). The
 controller and filterbank of the composed process are compared with amb-sim bit for bit in
 ``test_lockstep_determinism``.
 """
@@ -66,7 +69,8 @@ def test_composed_fault_monitor_gives_the_same_events(tmp_path, ros_domain_id) -
     scenario = tmp_path / "scenario.yaml"
     scenario.write_text(yaml.safe_dump(SCENARIO))
     _run(scenario, tmp_path / "processes")
-    stdout = _run(scenario, tmp_path / "composed", "--composed")
+    depth = ("--set", "recorder.queue_depth:=16")
+    stdout = _run(scenario, tmp_path / "composed", "--composed", *depth)
     last = int(re.search(r"processed the plant's last sample (\d+)", stdout).group(1))
     assert (tmp_path / "composed" / "logs" / "wavelet_stack.log").is_file()
     _run(scenario, tmp_path / "apart", "--composed", "--apart", "fault_monitor")

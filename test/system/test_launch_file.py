@@ -160,10 +160,16 @@ def test_stream_readers_count_a_composed_stack_once_and_a_node_apart_on_its_own(
     assert (composed[measurements], composed[coefficients]) == (2, 1)  # stack, recorder
     apart = stream_readers(NODES, ("wavelet_filterbank", "wavelet_controller"))
     assert (apart[measurements], apart[coefficients]) == (3, 2)  # + the monitor's own readers
-    # the recorder composed too: the two streams in process, the commands over DDS
+    assert composed[topics.FAULT_EVENTS] == 1  # the recorder's: the controller's in process
+    assert alone[topics.FAULT_EVENTS] == 2  # the controller's and the recorder's
+    # the recorder composed too: the streams and what the stack publishes in process
     recording = stream_readers(NODES, (*stack, "recorder"))
     assert (recording[measurements], recording[coefficients]) == (1, 0)
-    assert recording[topics.COMMAND] == alone[topics.COMMAND] == 1
+    assert recording[topics.COMMAND] == recording[topics.FAULT_EVENTS] == 0
+    assert alone[topics.COMMAND] == composed[topics.COMMAND] == 1  # the recorder's
+    # the controller apart: it reads the stack's fault events over DDS, the stack its commands
+    split = stream_readers(NODES, ("wavelet_filterbank", "fault_monitor", "recorder"))
+    assert split[topics.FAULT_EVENTS] == 1 and split[topics.COMMAND] == 1
     path = scenario_file("contact_misalignment_second_bending.yaml")
     for hosted, counts in (
         (stack, composed),
