@@ -183,7 +183,12 @@ def stream_readers(names, hosted: tuple[str, ...] = ()) -> dict[str, int]:
     has = set(names)
     recorder = int("recorder" in has)
     stack_published = {t for t, node in PUBLISHERS.items() if node in hosted}
-    in_process = {topics.MEASUREMENT} | stack_published if "recorder" in hosted else set()
+    # read from outside through the stack's one DDS reader (the recorder joins it in process)
+    shared = {topics.MEASUREMENT}
+    if "wavelet_controller" in hosted:
+        shared.add(topics.FAULT_EVENTS)
+    shared -= stack_published
+    in_process = shared | stack_published if "recorder" in hosted else set()
     consumers = {
         topics.MEASUREMENT: {"wavelet_filterbank", "fault_monitor", "wavelet_controller"},
         topics.COEFFICIENTS: {"fault_monitor", "wavelet_controller"},
@@ -192,7 +197,8 @@ def stream_readers(names, hosted: tuple[str, ...] = ()) -> dict[str, int]:
         topics.FAULT_EVENTS: {"wavelet_controller"},
     }
     if hosted:
-        consumers[topics.MEASUREMENT] = (consumers[topics.MEASUREMENT] - set(hosted)) | {STACK}
+        for topic in shared:
+            consumers[topic] = (consumers[topic] - set(hosted)) | {STACK}
         for topic in stack_published:
             consumers[topic] -= set(hosted)
         has.add(STACK)

@@ -170,6 +170,10 @@ def test_stream_readers_count_a_composed_stack_once_and_a_node_apart_on_its_own(
     # the controller apart: it reads the stack's fault events over DDS, the stack its commands
     split = stream_readers(NODES, ("wavelet_filterbank", "fault_monitor", "recorder"))
     assert split[topics.FAULT_EVENTS] == 1 and split[topics.COMMAND] == 1
+    # the monitor apart: the stack reads its events through one DDS reader, the recorder with it
+    watched = stream_readers(NODES, ("wavelet_filterbank", "wavelet_controller", "recorder"))
+    assert watched[topics.FAULT_EVENTS] == 1 and watched[topics.COMMAND] == 0
+    assert apart[topics.FAULT_EVENTS] == 2  # the stack's reader and the recorder's own
     path = scenario_file("contact_misalignment_second_bending.yaml")
     for hosted, counts in (
         (stack, composed),
