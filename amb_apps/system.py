@@ -182,13 +182,6 @@ def stream_readers(names, hosted: tuple[str, ...] = ()) -> dict[str, int]:
     """
     has = set(names)
     recorder = int("recorder" in has)
-    stack_published = {t for t, node in PUBLISHERS.items() if node in hosted}
-    # read from outside through the stack's one DDS reader (the recorder joins it in process)
-    shared = {topics.MEASUREMENT}
-    if "wavelet_controller" in hosted:
-        shared.add(topics.FAULT_EVENTS)
-    shared -= stack_published
-    in_process = shared | stack_published if "recorder" in hosted else set()
     consumers = {
         topics.MEASUREMENT: {"wavelet_filterbank", "fault_monitor", "wavelet_controller"},
         topics.COEFFICIENTS: {"fault_monitor", "wavelet_controller"},
@@ -196,6 +189,11 @@ def stream_readers(names, hosted: tuple[str, ...] = ()) -> dict[str, int]:
         topics.STATUS: set(),
         topics.FAULT_EVENTS: {"wavelet_controller"},
     }
+    stack_published = {t for t, node in PUBLISHERS.items() if node in hosted}
+    # read from outside by a composed node: through the stack's one DDS reader, which a
+    # composed recorder joins in process
+    shared = {t for t, nodes in consumers.items() if nodes & set(hosted)} - stack_published
+    in_process = shared | stack_published if "recorder" in hosted else set()
     if hosted:
         for topic in shared:
             consumers[topic] = (consumers[topic] - set(hosted)) | {STACK}

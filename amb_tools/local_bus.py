@@ -40,13 +40,13 @@ on the whole backlog (``docs/history.md``, "Late commands at 67 Hz x 32 over 60 
 The deferred work is done in slices. In lock-step the plant answers each command at once, so
 the flush's polls always find the next period queued and its work never runs dry while the plant
 runs: as one callback, it kept the executor from everything else in the process until the run
-ended (the composed recorder's and a composed node's DDS readers of the controller's commands and
-statuses, the controller's of the fault events, the nodes' timers and parameter services; a
-recorder then held only the first ``queue_depth`` commands of a long run). After
+ended (timers, parameter services, DDS readers). After
 :data:`FLUSH_SLICE` of work a flush returns, and a task on the executor resumes it once the
 executor has served what else is ready (a task, not a timer: rclpy's ``EventsExecutor`` ran
 other due timers several times per period when a timer was reset that often); the urgent
-readers are still served at every wake and poll.
+readers are still served at every wake and poll. With the ``EventsExecutor`` the process's
+timers still wait until a lock-step stream stops (``docs/history.md``, "A composed lock-step
+run"): what the composed nodes publish for each other goes through the bus, not DDS.
 """
 
 from __future__ import annotations
@@ -219,11 +219,10 @@ class LocalBus:
             self._pending.extend((reader, raw, source, gap) for reader in topic.deferred)
 
     def _deliver_dropped(self, topic: _Topic, raw: bytes) -> None:
-        if self._flushing:  # polled within a flush: after the older messages still deferred
-            self._pending.extend((reader, raw, None, False) for reader in topic.lossless)
-            return
-        self.flush()  # anything still deferred is older
-        if self._pending:  # the flush stopped at its slice: after what it left
+        if not self._flushing:
+            self.flush()  # anything still deferred is older
+        # polled within a flush, or a flush stopped at its slice: after the messages still owed
+        if self._flushing or self._pending:
             self._pending.extend((reader, raw, None, False) for reader in topic.lossless)
             return
         for reader in topic.lossless:
