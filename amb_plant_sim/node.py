@@ -193,6 +193,7 @@ class PlantSimNode(ClosesReaderParticipant, Node):
         self._started = False
         self._startup_deadline = time.monotonic() + self.get_parameter("startup_timeout").value
         self._waiting_since: float | None = None
+        self._polling = False  # the command reader is being polled: _on_command steps nothing
         self._wall0 = 0.0
         self.run_window: tuple[float, float] | None = None  # (first, last sample), monotonic s
         self.done = False
@@ -285,8 +286,21 @@ class PlantSimNode(ClosesReaderParticipant, Node):
                 f"commands resumed with period {msg.period_index}: lockstep from there"
             )
             self.get_logger().info(self._last_reason)
-        if self._mode == "lockstep":
+        if self._mode == "lockstep" and not self._polling:
             self._tick()
+
+    def _poll_commands(self) -> None:
+        """Take the commands queued in the reader now, before the executor hands them over.
+
+        The executor hands over one command per new-message event of the middleware; a command
+        queued with no event standing for it would wait there until the next one's, a period
+        late, and so would every later command (docs/history.md).
+        """
+        self._polling = True
+        try:
+            self._cmd_reader.poll()
+        finally:
+            self._polling = False
 
     # ------------------------------------------------------------------ run-time parameters
     def _on_set_parameters(self, params) -> SetParametersResult:
@@ -367,6 +381,9 @@ class PlantSimNode(ClosesReaderParticipant, Node):
                 return
             k = self._sim.sample_index // self._N
             if k >= max(self._delay, self._resume_from) and k not in self._book:
+                self._poll_commands()
+                if k in self._book:
+                    continue
                 now = time.monotonic()
                 if self._waiting_since is None:
                     self._waiting_since = now
@@ -411,7 +428,7 @@ class PlantSimNode(ClosesReaderParticipant, Node):
             # a command already in the reader's queue is in time: take it before the period
             # starts (the executor may hand this timer over before the command's callback)
             queued = k in self._book
-            self._cmd_reader.poll()
+            self._poll_commands()
             self.counts["taken_at_start"] += not queued and k in self._book
             now = time.monotonic()
         force = self._book.take(k, now)

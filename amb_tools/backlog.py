@@ -35,7 +35,13 @@ the stream may end with it (a reader that dropped it would never process the las
 run, and ``amb-run``'s drain would wait for it).
 
 ``max_backlog = 0`` (the default) keeps every sample: ``lockstep`` needs all of them and is
-never behind by more than the periods the plant waits for. Every node that reads the
+never behind by more than the periods the plant waits for. Every wake takes all that is queued,
+also then: rclpy's executors take one message per new-message event the middleware counts
+(the ``EventsExecutor`` exactly as many as the count), so a reader whose queue ever holds a
+message no event stands for would stay that many messages behind for the rest of the run, a
+steady lag no spare CPU works off (a lock-step controller after a starvation: every command
+eight periods late until the end, ``docs/history.md``). An event whose message a drain took
+already finds nothing and calls nothing. Every node that reads the
 measurement stream declares the parameters (:func:`declare_catch_up`) and bounds with them
 its DDS readers of both streams: ``max_backlog`` samples' worth of each, so the coefficient
 readers of the controller and the monitor keep half as many messages
@@ -169,14 +175,13 @@ class BacklogReader:
         QoS of the subscription.
     catch_up : CatchUp
         Messages a reader may be behind, queued or (``by_age``) by age (module docstring);
-        ``max_backlog`` 0: every message is delivered, one per wake.
+        ``max_backlog`` 0: every message is delivered.
     on_dropped : callable, optional
         Called with the CDR bytes of each message dropped, oldest first, before the kept ones
         are delivered (a reader that must lose nothing: a composed recorder).
     after_batch : callable, optional
         Called after the messages of a wake are delivered (the composed readers that were
-        deferred until then, :class:`amb_tools.local_bus.LocalBus`); given, every wake takes
-        all queued messages, also with ``max_backlog`` 0 (none dropped then).
+        deferred until then, :class:`amb_tools.local_bus.LocalBus`).
 
     Attributes
     ----------
@@ -221,13 +226,11 @@ class BacklogReader:
         self._received = 0  # messages taken, for a middleware without sequence numbers
         self._age = MessageAge(max_backlog) if max_backlog and catch_up.by_age else None
         self._warnings = ThrottledWarnings(node.get_logger(), period=5.0)
-        # without a bound or a batch hook each message goes straight to ``deliver``: no extra
-        # call per message
-        batched = self.max_backlog or after_batch is not None
-        self._callback = self._on_message if batched else deliver
         self._qos = qos
         self._node = node
-        self.subscription = node.create_subscription(msg_type, name, self._callback, qos, raw=True)
+        self.subscription = node.create_subscription(
+            msg_type, name, self._on_message, qos, raw=True
+        )
 
     def move_to(self, node: Node) -> None:
         """Subscribe the same topic from ``node`` and destroy the subscription held until now.
@@ -241,7 +244,7 @@ class BacklogReader:
         self._node.destroy_subscription(self.subscription)
         self._node = node
         self.subscription = node.create_subscription(
-            self._msg_type, topic, self._callback, self._qos, raw=True
+            self._msg_type, topic, self._on_message, self._qos, raw=True
         )
 
     def poll(self) -> None:

@@ -110,7 +110,9 @@ def test_a_starved_controller_does_not_wind_up(ros, node_process, tmp_path) -> N
                 f"participant did not help (renewed {report.get('readers_renewed', '?')} times; "
                 f"stale at sample {report.get('last_sample', '?')} of {len(samples)})"
             )
-    assert last_missing < len(samples) - 10 * SPR, "lock step resumed before the end\n" + log
+    assert last_missing < len(samples) - 10 * SPR, (
+        f"lock step resumed before the end\ncontroller's /diagnostics: {report}\n{log}"
+    )
     assert any(np.any(m.wavelet_force) for m in samples[last_missing + 1 :]), controller.log()
 
     rig = load_rig()

@@ -182,7 +182,7 @@ class StreamTap:
     two cores) must keep up with the plant, or lose the oldest samples once it is more than the
     writer's history (1024 samples) behind. rclpy's executor hands over one message per wake, a
     wait set per message; this reader takes every message queued at a wake
-    (:class:`amb_tools.backlog.BacklogReader` with a batch hook, none dropped) as raw CDR, into a
+    (:class:`amb_tools.backlog.BacklogReader` without a catch-up bound) as raw CDR, into a
     queue 65536 deep. A reader the transport stops feeding (``docs/history.md``, "A reader the
     transport stopped feeding") moves to a participant of its own after ``renew_after`` s of
     silence with the writer matched (:class:`amb_tools.reader_participant.DeafReaders`), as
@@ -230,9 +230,7 @@ class StreamTap:
         self._on_message = self.raw.append if on_message is None else on_message
         qos = stream_qos(samples_per_period)
         qos.depth = 1 << 16
-        self.reader = BacklogReader(
-            node, msg_type, topic, self._deliver, qos, after_batch=lambda: None
-        )
+        self.reader = BacklogReader(node, msg_type, topic, self._deliver, qos)
         self.deaf = DeafReaders(node, [self.reader], lambda: self.received, renew_after)
 
     @property
