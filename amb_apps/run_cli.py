@@ -30,7 +30,15 @@ it then lags, and the end of the run waits for it to drain; with ``--composed`` 
 in ``wavelet_stack`` and a thread of it writes the bag), so that when the CPU is short the
 plant, filterbank and controller, whose chain sets the lock-step pace and the command latency,
 are served first; the others catch up from their queues (reliable, thousands of messages
-deep). ``bench/pipeline.py`` measures that pace and latency.
+deep). ``bench/pipeline.py`` measures that pace and latency. On a computer shared with other
+work, ``--rt-priority PROCESS=P`` starts a process (``plant_sim``, ``wavelet_stack``, a node)
+under the kernel's real-time ``SCHED_FIFO`` policy at priority P (1-99), as a rig's control
+loop is run (ros2_control's controller manager does the same for its thread): it and every
+thread it makes (its DDS transport's too) then run before any ordinary process whenever they are
+ready, so that a CPU-bound job beside them takes only the time they leave. It needs the right
+to (root, ``CAP_SYS_NICE``, or an ``rtprio`` limit of at least P in
+``/etc/security/limits.conf``); amb-run checks it before it starts anything and refuses with the
+reason. The nodes log the policy they run under.
 
 Examples
 --------
@@ -93,6 +101,8 @@ class NodeRun:
     proc: subprocess.Popen | None = None
     extra: dict = field(default_factory=dict)
     nice: int = 0
+    #: ``SCHED_FIFO`` priority of the process (1-99); 0: the ordinary policy.
+    rt_priority: int = 0
     #: The nodes the process hosts (``wavelet_stack``: several; default: the one named).
     hosts: tuple[str, ...] = ()
 
@@ -100,15 +110,26 @@ class NodeRun:
         self.hosts = self.hosts or (self.name,)
 
     def start(self, env: dict) -> None:
-        """Start the process (``nice`` added to its niceness), output to its log file."""
+        """Start the process, output to its log file.
+
+        ``nice`` is added to its niceness; ``rt_priority``, if given, puts it under
+        ``SCHED_FIFO`` (module notes).
+        """
         self._log = open(self.log_path, "w")
-        nice = self.nice
+        nice, rt = self.nice, self.rt_priority
+
+        def scheduling() -> None:  # in the child, before exec: every thread it makes inherits
+            if nice:
+                os.nice(nice)
+            if rt:
+                os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(rt))
+
         self.proc = subprocess.Popen(
             self.cmd,
             stdout=self._log,
             stderr=subprocess.STDOUT,
             env=env,
-            preexec_fn=(lambda: os.nice(nice)) if nice else None,
+            preexec_fn=scheduling if nice or rt else None,
         )
 
     def stop(self, timeout: float = 20.0) -> int:
@@ -191,6 +212,14 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="NODE=N",
         help=f"niceness added to a node's process (repeatable; default {NICENESS})",
     )
+    p.add_argument(
+        "--rt-priority",
+        action="append",
+        default=[],
+        metavar="PROCESS=P",
+        help="run a process (a node, or wavelet_stack) under SCHED_FIFO at priority P, 1-99 "
+        "(repeatable; needs root, CAP_SYS_NICE or an rtprio limit: checked before the start)",
+    )
     p.add_argument("--timeout", type=float, default=3600.0, help="wall s before the run is aborted")
     p.add_argument(
         "--drain-timeout",
@@ -201,6 +230,47 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     return p
+
+
+def rt_priorities(items: list[str]) -> dict[str, int]:
+    """Parse ``--rt-priority PROCESS=P`` and check that this user may set it (module notes).
+
+    Returns
+    -------
+    dict
+        ``SCHED_FIFO`` priority by process name.
+
+    Raises
+    ------
+    SystemExit
+        A malformed item, an unknown process, P outside 1-99, or no right to the policy: the
+        reason, before any process starts (a ``preexec_fn`` that failed would only say that
+        one did).
+    """
+    out: dict[str, int] = {}
+    for item in items:
+        name, _, value = item.partition("=")
+        if name not in (*NODES, STACK) or not value.isdigit() or not 1 <= int(value) <= 99:
+            raise SystemExit(
+                f"amb-run: --rt-priority {item!r}: expected PROCESS=P with P in 1-99 and "
+                f"PROCESS in {(*NODES, STACK)}"
+            )
+        out[name] = int(value)
+    if out:
+        top = max(out.values())
+        probe = subprocess.run(
+            [sys.executable, "-c", f"import os; os.sched_setscheduler(0, os.SCHED_FIFO, "
+             f"os.sched_param({top}))"],
+            capture_output=True, text=True,
+        )  # fmt: skip
+        if probe.returncode != 0:
+            reason = probe.stderr.strip().splitlines()[-1] if probe.stderr.strip() else "?"
+            raise SystemExit(
+                f"amb-run: --rt-priority: this user may not run a process under SCHED_FIFO at "
+                f"priority {top} ({reason}); it needs root, CAP_SYS_NICE, or an rtprio limit "
+                "of at least that priority (/etc/security/limits.conf)"
+            )
+    return out
 
 
 def _set_overrides(args: argparse.Namespace) -> dict[str, dict[str, object]]:
@@ -311,6 +381,7 @@ class _Progress:
 
 def run(args: argparse.Namespace) -> int:
     """Start the nodes, wait for the scenario to end, stop them; return the exit status."""
+    rt = rt_priorities(args.rt_priority)  # before anything is made: a refusal leaves no trace
     try:
         scenario = scenario_file(args.scenario)
     except FileNotFoundError as exc:
@@ -376,6 +447,7 @@ def run(args: argparse.Namespace) -> int:
             [*executable(n), "--ros-args", *ros_args],
             out / "logs" / f"{n}.log",
             nice=nice.get(n, 0),
+            rt_priority=rt.get(n, 0),
         )
         for n in names
         if n not in hosted
@@ -389,6 +461,7 @@ def run(args: argparse.Namespace) -> int:
                 [*executable(STACK), *without, "--ros-args", *ros_args],
                 out / "logs" / f"{STACK}.log",
                 hosts=tuple(hosted),
+                rt_priority=rt.get(STACK, 0),
             ),
         )
     env = dict(os.environ)

@@ -193,6 +193,12 @@ def run_nodes(
             # descriptor (range, type); its message names the value, the reason and the name.
             print(f"[ERROR] configuration: {exc}", file=sys.stderr, flush=True)
             return EXIT_CONFIGURATION_ERROR
+        policy = os.sched_getscheduler(0)
+        if policy != os.SCHED_OTHER:  # started real-time (amb-run --rt-priority, chrt): say so
+            label = {os.SCHED_FIFO: "SCHED_FIFO", os.SCHED_RR: "SCHED_RR"}.get(policy, policy)
+            nodes[0].get_logger().info(
+                f"scheduling: {label}, priority {os.sched_getparam(0).sched_priority}"
+            )
         spinner = make_executor(executor)
         for node in nodes:
             spinner.add_node(node)

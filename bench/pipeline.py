@@ -32,7 +32,8 @@ depend on whatever else the machine is doing: read them as ratios to the target,
 runs made under the same load.
 
     python bench/pipeline.py [--duration 8] [--cases 11:64,67:32] [--repeat 3]
-        [--composed [--apart fault_monitor]] [--nice NODE=N] [--hog START:SECONDS]
+        [--composed [--apart fault_monitor]] [--nice NODE=N] [--rt-priority PROCESS=P]
+        [--hog START:SECONDS]
         [--set NODE.PARAM:=VALUE ...] [--keep DIR]
 """
 
@@ -345,6 +346,9 @@ def main() -> None:
     )
     ap.add_argument("--nice", action="append", default=[], help="amb-run --nice NODE=N")
     ap.add_argument(
+        "--rt-priority", action="append", default=[], help="amb-run --rt-priority PROCESS=P"
+    )
+    ap.add_argument(
         "--set", action="append", default=[], help="amb-run --set NODE.PARAM:=VALUE (repeatable)"
     )
     ap.add_argument(
@@ -364,8 +368,10 @@ def main() -> None:
     run_args = ["--composed"] if args.composed else []
     run_args += [a for n in args.apart for a in ("--apart", n)]
     run_args += [a for n in args.nice for a in ("--nice", n)]
+    run_args += [a for n in args.rt_priority for a in ("--rt-priority", n)]
     apart = f", {', '.join(args.apart)} apart" if args.apart else ""
     apart += f", nice {' '.join(args.nice)}" if args.nice else ""
+    apart += f", SCHED_FIFO {' '.join(args.rt_priority)}" if args.rt_priority else ""
     apart += f", set {' '.join(args.set)}" if args.set else ""
     print(f"deployment: {'composed (wavelet_stack)' if args.composed else 'one process per node'}"
           f"{apart}")  # fmt: skip
