@@ -334,7 +334,7 @@ class PlantSimNode(ClosesReaderParticipant, Node):
         if "command_timeout" in changes:
             self._timeout = changes["command_timeout"]
         if "wavelet_force_limit" in changes:
-            self._force_limit = self._book.force_limit = changes["wavelet_force_limit"]
+            self._book.force_limit = changes["wavelet_force_limit"]
         self.counts["parameter_changes"] += len(changes)
         if changes:
             self.get_logger().info(f"applied at sample {self._sim.sample_index}: {changes}")
