@@ -60,6 +60,7 @@ import signal
 import subprocess
 import sys
 import time
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -232,6 +233,32 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def per_process(
+    option: str,
+    items: list[str],
+    names: Sequence[str],
+    form: str,
+    signed: bool = False,
+    valid: Callable[[int], bool] = lambda value: True,
+) -> dict[str, int]:
+    """Parse the ``NAME=N`` items of a repeatable option (``--nice``, ``--rt-priority``).
+
+    Raises
+    ------
+    SystemExit
+        An item whose NAME is not in ``names``, whose N is not an integer (no sign unless
+        ``signed``) or not ``valid``: ``amb-run: OPTION ITEM: expected FORM``.
+    """
+    out: dict[str, int] = {}
+    for item in items:
+        name, _, value = item.partition("=")
+        digits = value[1:] if signed and value.startswith("-") else value
+        if name not in names or not digits.isdigit() or not valid(int(value)):
+            raise SystemExit(f"amb-run: {option} {item!r}: expected {form}")
+        out[name] = int(value)
+    return out
+
+
 def rt_priorities(items: list[str]) -> dict[str, int]:
     """Parse ``--rt-priority PROCESS=P`` and check that this user may set it (module notes).
 
@@ -247,15 +274,9 @@ def rt_priorities(items: list[str]) -> dict[str, int]:
         reason, before any process starts (a ``preexec_fn`` that failed would only say that
         one did).
     """
-    out: dict[str, int] = {}
-    for item in items:
-        name, _, value = item.partition("=")
-        if name not in (*NODES, STACK) or not value.isdigit() or not 1 <= int(value) <= 99:
-            raise SystemExit(
-                f"amb-run: --rt-priority {item!r}: expected PROCESS=P with P in 1-99 and "
-                f"PROCESS in {(*NODES, STACK)}"
-            )
-        out[name] = int(value)
+    processes = (*NODES, STACK)
+    form = f"PROCESS=P with P in 1-99 and PROCESS in {processes}"
+    out = per_process("--rt-priority", items, processes, form, valid=lambda p: 1 <= p <= 99)
     if out:
         top = max(out.values())
         probe = subprocess.run(
@@ -381,7 +402,11 @@ class _Progress:
 
 def run(args: argparse.Namespace) -> int:
     """Start the nodes, wait for the scenario to end, stop them; return the exit status."""
-    rt = rt_priorities(args.rt_priority)  # before anything is made: a refusal leaves no trace
+    # before anything is made: a refusal leaves no trace
+    nice = NICENESS | per_process(
+        "--nice", args.nice, NODES, f"NODE=N with NODE in {NODES}", signed=True
+    )
+    rt = rt_priorities(args.rt_priority)
     try:
         scenario = scenario_file(args.scenario)
     except FileNotFoundError as exc:
@@ -435,12 +460,6 @@ def run(args: argparse.Namespace) -> int:
     ros_args = ["--params-file", str(params), "--params-file", str(run_params_file)]
     if namespace != topics.ROOT_NAMESPACE:
         ros_args = ["-r", f"__ns:={namespace}", *ros_args]
-    nice = dict(NICENESS)
-    for item in args.nice:
-        node, _, value = item.partition("=")
-        if node not in NODES or not value.lstrip("-").isdigit():
-            raise SystemExit(f"amb-run: --nice {item!r}: expected NODE=N with NODE in {NODES}")
-        nice[node] = int(value)
     runs = [
         NodeRun(
             n,

@@ -2,8 +2,9 @@
 
 The policy is set in the child before it runs anything, so every thread it makes (a node's DDS
 transport threads) inherits it; the kernel reports it per thread. A malformed item, an unknown
-process or a priority outside 1-99 is refused with the reason before the run's folder is made;
-so is a user without the right to the policy (the check runs in a child, as the nodes would).
+process or a priority outside 1-99 is refused with the reason before the run's folder is made
+(as a bad ``--nice`` item is, by the same parser); so is a user without the right to the policy
+(the check runs in a child, as the nodes would).
 """
 
 from __future__ import annotations
@@ -38,6 +39,18 @@ def test_a_bad_item_is_refused_before_anything_is_made(tmp_path, item: str) -> N
     with pytest.raises(SystemExit) as refused:
         run(args)
     assert "expected PROCESS=P with P in 1-99" in str(refused.value)
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("item", ["fault_monitor=x", "fault_monitor=--5", "plant=3"])
+def test_a_bad_nice_item_is_refused_before_anything_is_made(tmp_path, item: str) -> None:
+    out = tmp_path / "run"
+    args = build_parser().parse_args(
+        ["--scenario", "mass_loss_first_critical.yaml", "--out", str(out), "--nice", item]
+    )
+    with pytest.raises(SystemExit) as refused:
+        run(args)
+    assert "expected NODE=N with NODE in" in str(refused.value)
     assert not out.exists()
 
 
