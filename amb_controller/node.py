@@ -390,6 +390,11 @@ class WaveletControllerNode(ClosesReaderParticipant, Node):
         n = int(msg.sample_index)
         horizon = COEFFICIENT_HORIZON_PERIODS * self._pipe.samples_per_period
         newest = self._pending[-1][0].sample_index if self._pending else self._last_processed
+        if newest is not None and n > newest + horizon and self._readers[0] is not None:
+            # each reader takes its whole queue at a wake: the measurements of these
+            # coefficients may be queued still, behind this wake (amb_tools.backlog)
+            self._readers[0].poll()
+            newest = self._pending[-1][0].sample_index if self._pending else self._last_processed
         reason = None
         if msg.wavelet != cfg.wavelet or msg.samples_per_rev != cfg.samples_per_rev:
             reason = (
