@@ -324,7 +324,12 @@ class HarmonicPipeline:
         # one (open loop per window, eq. B.1: no realisation to close)
         self.supervisor.set_controller(controller, own_model_radius(model.markov, controller))
         self._buffer = np.zeros((n, N_SENSORS))
-        self._stats = {"commands_sent": 0, "commands_late": 0, "inputs_rejected": 0}
+        self._stats = {
+            "commands_sent": 0,
+            "commands_late": 0,
+            "commands_partial": 0,
+            "inputs_rejected": 0,
+        }
         self._compute_time = 0.0
         self.reset()
 
@@ -373,6 +378,8 @@ class HarmonicPipeline:
         self._expected = n + 1
         if command_missing and self.supervisor.command_missing(m):
             self._stats["commands_late"] += 1
+        elif pos and not command_missing and self.supervisor.command_resumed(m, pos):
+            self._stats["commands_partial"] += 1  # applied from sample pos (partial_commands)
         x = np.asarray(displacement, dtype=float)
         if x.shape != (N_SENSORS,) or not np.all(np.isfinite(x)):
             self._stats["inputs_rejected"] += 1

@@ -574,6 +574,7 @@ class WaveletControllerNode(ClosesReaderParticipant, Node):
             "commands_published": self.commands_published,
             "statuses_published": self.statuses_published,
             "commands_late": status["commands_late"],
+            "commands_partial": status["commands_partial"],  # of those, applied from a sample on
             "callback_errors": getattr(self, "callback_errors", 0),
             "inputs_rejected": status["inputs_rejected"],
             **self.counts,

@@ -162,7 +162,12 @@ class ControllerPipeline:
         self._model: WaveletModel | None = None
         self._model_file = ""
         self._omega = 0.0
-        self._stats = {"commands_sent": 0, "commands_late": 0, "inputs_rejected": 0}
+        self._stats = {
+            "commands_sent": 0,
+            "commands_late": 0,
+            "commands_partial": 0,
+            "inputs_rejected": 0,
+        }
         self._compute_time = 0.0
         self._last_command: Command | None = None
         self._last_period = -1
@@ -448,6 +453,8 @@ class ControllerPipeline:
         self._expected = n + 1
         if command_missing and self.supervisor.command_missing(m):
             self._stats["commands_late"] += 1
+        elif pos and not command_missing and self.supervisor.command_resumed(m, pos):
+            self._stats["commands_partial"] += 1  # applied from sample pos (partial_commands)
         if command_missing and self.early is not None:
             self.early.command_missing(m)
         if displacement is not None:
@@ -595,7 +602,8 @@ class ControllerPipeline:
 
         Keys: mode, controller, period_index, delay_periods, compute_time (s),
         peak_wavelet_force (4 N), saturated, guard_tripped, identification_progress,
-        commands_sent, commands_late, inputs_rejected, model_file, message.
+        commands_sent, commands_late, commands_partial (of the late, those the plant applied from
+        a later sample on), inputs_rejected, model_file, message.
         """
         return status_fields(self, float(self.supervisor.identification_progress), self._model_file)
 

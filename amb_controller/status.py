@@ -48,6 +48,7 @@ def status_fields(pipeline, identification_progress: float, model_file: str) -> 
         "identification_progress": float(identification_progress),
         "commands_sent": int(stats["commands_sent"]),
         "commands_late": int(stats["commands_late"]),
+        "commands_partial": int(stats["commands_partial"]),
         "inputs_rejected": int(stats["inputs_rejected"]),
         "model_file": model_file,
         "message": (cmd.message if cmd is not None and cmd.message else sup.message),

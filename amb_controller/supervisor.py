@@ -98,7 +98,7 @@ from amb_controller.errors import ControllerValueError, NotIdentifiedError
 from amb_controller.guard import DivergenceGuard
 from amb_controller.identification import IdentificationResult, MarkovIdentifier, StepExperiment
 from amb_controller.stability import MAX_MODEL_RADIUS
-from amb_controller.synthesis import ForceLimiter
+from amb_controller.synthesis import ForceLimiter, synthesize
 
 
 class Mode(IntEnum):
@@ -243,6 +243,7 @@ class WaveletControlSupervisor:
                 raise ControllerValueError(f"fault action must be hold/off/ignore, got {action!r}")
         self._steps: dict[int, _Step] = {}  # target period -> the step that made its command
         self._missing_reported: int | None = None
+        self._undone: tuple[int, np.ndarray | None] | None = None  # command_missing's last
         self.controller = None
         self._provisional_hold = False  # the HOLD was entered on a provisional fault class
         self.mode = Mode.OFF
@@ -482,6 +483,7 @@ class WaveletControlSupervisor:
             return False
         self._missing_reported = p
         sent = p in self._sent
+        self._undone = (p, self._sent.get(p))  # command_resumed: what it had said
         self._sent[p] = np.zeros(self.limiter.basis.n_coefficients)
         step = self._steps.pop(p, None)
         if step is None or self.controller is None:
@@ -499,6 +501,47 @@ class WaveletControlSupervisor:
             else:
                 self.controller.step(later.period, later.measured)
         return sent
+
+    def command_resumed(self, period_index: int, position: int) -> bool:
+        """
+        Report that period ``period_index``, flagged missing, ran with its command from a sample on.
+
+        A realtime plant with partial commands (``plant_sim``'s ``partial_commands``) applies a
+        command that arrives during its period to the samples still ahead: the period's samples
+        carry ``STATUS_COMMAND_MISSING`` up to ``position`` and none from there. What the period
+        applied is then the command's force with its first ``position`` samples zeroed; its
+        coefficients, projected on the control basis (least squares), replace the zeros that
+        :meth:`command_missing` recorded (:meth:`applied`, the identification's input, and a
+        controller that tracks the applied inputs). The step :meth:`command_missing` undid stays
+        undone: the force that did act is measured in the following periods' coefficients.
+
+        Parameters
+        ----------
+        period_index : int
+            The period, reported by :meth:`command_missing` at its first sample.
+        position : int
+            Its first sample without the flag, ``0 < position < N``.
+
+        Returns
+        -------
+        bool
+            True if this supervisor had sent a command for the period and this is the first
+            such report; else nothing is changed.
+        """
+        p = int(period_index)
+        undone = self._undone
+        if undone is None or undone[0] != p or undone[1] is None or p != self._missing_reported:
+            return False
+        self._undone = None
+        basis = self.limiter.basis
+        force = synthesize(undone[1], basis)  # (axes, N), N
+        force[:, : max(0, int(position) - basis.offset)] = 0.0  # columns from basis.offset
+        W = basis.weights.reshape(basis.n_coefficients, -1)
+        applied = np.linalg.lstsq(W.T, force.ravel(), rcond=None)[0]
+        self._sent[p] = applied
+        if self.controller is not None and self.tracks_applied:
+            self.controller.record_applied(p, applied)
+        return True
 
     def record_zero(self, target_period: int) -> None:
         """Record a zero-force command for ``target_period`` sent outside :meth:`step`.

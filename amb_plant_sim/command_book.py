@@ -9,6 +9,14 @@ what it says as a :class:`CommandOffer`; :meth:`CommandBook.offer` admits it or 
 :meth:`CommandBook.take` hands a period its force when the period starts. In ``realtime`` the
 book also keeps the wall times a rig is judged by: the latency from a period's last sample to
 the command based on it, and each command's arrival minus its period's start.
+
+Partial commands (``realtime``, ``partial=True``): a period that starts without its command
+stays *open*; its command, if it arrives before the period ends, is still late (counted
+``late``, its arrival offset kept) but is kept, and :meth:`CommandBook.take_rest` hands the
+plant its force for the samples still ahead (counted ``partial``). The samples before it ran
+with zero wavelet force, as a missing period's do. What this buys: a command a fraction of a
+period late (a stall of the transport or a busy core) acts on the rest of its period instead of
+leaving the whole period on PID, with a force step of the command's size at both its ends.
 """
 
 from __future__ import annotations
@@ -33,6 +41,7 @@ COUNTS = (
     "watchdog_trips",
     "parameter_changes",
     "taken_at_start",  # realtime: commands found queued as their period started
+    "partial",  # realtime: late commands applied to the rest of their period
 )
 #: Wall times kept per period (start, end of publication), periods back.
 WALL_HISTORY = 64
@@ -88,12 +97,21 @@ class CommandBook:
         N per axis; an admitted force beyond it is clipped (counted ``clipped``).
     realtime : bool
         Keep the wall times of periods and arrivals (``realtime`` mode).
+    partial : bool
+        Realtime: keep a command that arrives while its period runs, for the samples still
+        ahead (module docstring). Ignored in lock-step, where a period waits for its command.
     """
 
-    def __init__(self, delay_periods: int, force_limit: float, realtime: bool) -> None:
+    def __init__(
+        self, delay_periods: int, force_limit: float, realtime: bool, partial: bool = False
+    ) -> None:
         self.delay = int(delay_periods)
         self.force_limit = float(force_limit)
         self.realtime = bool(realtime)
+        self.partial = bool(partial) and self.realtime
+        self.open_period: int | None = None  # partial: the running period with no command yet
+        self._late_force: tuple[int, NDArray[np.float64]] | None = None  # its command, arrived
+        self._partial_share = 0.0  # sum over partial periods of the share of samples commanded
         self.counts = dict.fromkeys(COUNTS, 0)
         self._commands: dict[int, NDArray[np.float64]] = {}
         self._arrived: dict[int, float] = {}  # realtime: wall time each command arrived
@@ -127,7 +145,8 @@ class CommandBook:
         str or None
             None if admitted; else the reason, counted ``late`` (its period has started) or
             ``rejected`` (malformed, made for another ``i``, a repeat, beyond the horizon of
-            :data:`COMMAND_HORIZON_PERIODS`, or from the future).
+            :data:`COMMAND_HORIZON_PERIODS`, or from the future). A late command for the
+            open period (``partial``) is kept for :meth:`take_rest`; its reason says so.
         """
         k = offer.period_index
         if k < next_period:
@@ -135,22 +154,29 @@ class CommandBook:
             started = self._start_wall.get(k)
             if started is not None:
                 self._arrival_offset.append(now - started)
-            return f"command for period {k} arrived after it started (now {next_period})"
+            reason = f"command for period {k} arrived after it started (now {next_period})"
+            usable = offer.malformed is None and offer.delay_periods == self.delay
+            if k == self.open_period and self._late_force is None and usable:
+                self._late_force = (k, self._clipped(offer.force))
+                return reason + ": applied to the rest of its period"
+            return reason
         reason = offer.malformed or self._refusal(offer, next_period, last_stamp)
         if reason is not None:
             self.counts["rejected"] += 1
             return reason
-        f = offer.force
-        if np.any(np.abs(f) > self.force_limit):
-            self.counts["clipped"] += 1
-            f = np.clip(f, -self.force_limit, self.force_limit)
-        self._commands[k] = f
+        self._commands[k] = self._clipped(offer.force)
         if self.realtime:
             self._arrived[k] = now
         sent = self._end_wall.get(offer.based_on_period)
         if sent is not None:
             self._latency.append(now - sent)
         return None
+
+    def _clipped(self, f: NDArray[np.float64]) -> NDArray[np.float64]:
+        if np.any(np.abs(f) > self.force_limit):
+            self.counts["clipped"] += 1
+            return np.clip(f, -self.force_limit, self.force_limit)
+        return f
 
     def _refusal(self, offer: CommandOffer, next_period: int, last_stamp: float) -> str | None:
         k = offer.period_index
@@ -182,10 +208,14 @@ class CommandBook:
         The force of a period that starts now (None: none admitted), forgetting older ones.
 
         Counts the period ``applied`` when it has a command. In realtime (``now`` given) the
-        period's start is kept and, for a command, its arrival minus that start.
+        period's start is kept and, for a command, its arrival minus that start. With
+        ``partial``, a period from ``delay_periods`` on that starts without a command becomes
+        the open one (:meth:`take_rest`).
         """
         k = int(period)
         force = self._commands.pop(k, None)
+        self._late_force = None
+        self.open_period = k if self.partial and force is None and k >= self.delay else None
         if now is not None:
             self._start_wall[k] = now
             self._start_wall.pop(k - WALL_HISTORY, None)
@@ -197,6 +227,32 @@ class CommandBook:
         for old in [c for c in self._commands if c < k]:
             del self._commands[old]
         return force
+
+    def take_rest(self, period: int, position: int) -> NDArray[np.float64] | None:
+        """
+        The force for the rest of the open period, if its command has arrived (else None).
+
+        Parameters
+        ----------
+        period : int
+            The period running without its command (:attr:`open_period`).
+        position : int
+            Its next sample, ``0 < position < N``.
+
+        Returns
+        -------
+        ndarray (N - position, 4) or None
+            The command's force from ``position`` on, N; counted ``partial`` and the period
+            closed. None if no command for it has arrived (or ``period`` is not the open one).
+        """
+        if self._late_force is None or self._late_force[0] != period:
+            return None
+        force = self._late_force[1]
+        self._late_force = None
+        self.open_period = None
+        self.counts["partial"] += 1
+        self._partial_share += (len(force) - position) / len(force)
+        return force[position:]
 
     def period_sent(self, period: int, now: float) -> None:
         """The last sample of ``period`` left the plant at wall time ``now`` (s)."""
@@ -227,12 +283,21 @@ class CommandBook:
         -------
         dict
             ``controlled``: fraction of the periods from ``delay_periods`` on that ran with a
-            command (those before cannot have one); realtime only, when commands arrived:
+            command (those before cannot have one); ``controlled_samples``: the same in
+            samples, partial periods counted by the share of their samples that ran with their
+            command (equal to ``controlled`` without partial commands); realtime only, when
+            commands arrived:
             ``arrival_p50``, ``arrival_p99``, ``arrival_max``, s, of each command's arrival
             minus its period's start (negative: before it, applied; positive: late by that).
         """
         eligible = periods - self.delay
-        out = {"controlled": self.counts["applied"] / eligible if eligible > 0 else math.nan}
+        applied = self.counts["applied"]
+        out = {
+            "controlled": applied / eligible if eligible > 0 else math.nan,
+            "controlled_samples": (
+                (applied + self._partial_share) / eligible if eligible > 0 else math.nan
+            ),
+        }
         if self._arrival_offset:
             out |= {f"arrival_{k}": v for k, v in spread(self._arrival_offset).items()}
         return out

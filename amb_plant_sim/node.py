@@ -22,7 +22,12 @@ Run modes (ARCHITECTURE.md, "Time")
     Samples are produced on the wall clock (times ``time_scale``); a command is applied if it
     arrived before its period starts, else the period runs with zero force and the command is
     counted late (a command already queued at the reader when the period starts is taken then,
-    before the period is simulated, and counted as ``taken_at_start``). This is how a rig behaves:
+    before the period is simulated, and counted as ``taken_at_start``). With ``partial_commands``
+    (default) a period that starts without its command is simulated a sample at a time as its
+    samples fall due, and a command that arrives before the period ends is applied to the samples
+    still ahead (counted ``partial`` as well as ``late``; the samples before it carry
+    ``STATUS_COMMAND_MISSING``): a command a fraction of a period late acts on the rest of its
+    period instead of leaving all of it on PID. This is how a rig behaves:
     each period is simulated when it starts (its wavelet force is fixed then; the first one just
     before the clock starts, so that its cold start is not taken from the first periods) and each of
     its samples is published at its own instant, from a timer at the sample interval, so that the
@@ -30,6 +35,9 @@ Run modes (ARCHITECTURE.md, "Time")
     is measured from there. The effective control delay is reported as well (``control_summary``):
     the fraction of the periods that could have a command which ran with one, and, for each command,
     its arrival minus the wall time its period started (negative: in time; the lead a rig has left).
+    So is the plant's own punctuality: at each wake that publishes, how long after its instant the
+    oldest sample left (``sample publication lag``, p99 and max): a late command after a plant
+    stall is the plant's, not the nodes'.
 
 A command is rejected (counted, reported, never applied) if its period has already started
 (``late``), if it is malformed (:func:`amb_tools.validation.check_command`: sizes, indices,
@@ -85,7 +93,7 @@ from amb_common.errors import RigError
 from amb_common.names import N_AXES
 from amb_common.paths import config_file, scenario_file
 from amb_common.rig import load_rig
-from amb_plant_sim.command_book import CommandBook, CommandOffer
+from amb_plant_sim.command_book import SPREAD_HISTORY, CommandBook, CommandOffer, spread
 from amb_plant_sim.errors import ScenarioError, SimulationError
 from amb_plant_sim.scenario import load_scenario, resolve_samples_per_rev
 from amb_plant_sim.simulator import MeasurementBlock, PlantSimulator
@@ -152,6 +160,14 @@ class PlantSimNode(ClosesReaderParticipant, Node):
                 "N per axis (0 = the rig's bearing capacity)", read_only=False, floats=(0.0, 1.0e5)
             ),
         )
+        d(
+            "partial_commands",
+            True,
+            descriptor(
+                "realtime: apply a command that arrives during its period to the samples still "
+                "ahead (counted partial and late)"
+            ),
+        )
         d("seed", 0, descriptor("noise seed", ints=(0, 2**31 - 1)))
         d("exit_at_end", True, descriptor("exit when the scenario duration is reached"))
         d("clock_every", 8, descriptor("publish /clock every this many samples", ints=(1, 65536)))
@@ -181,7 +197,15 @@ class PlantSimNode(ClosesReaderParticipant, Node):
         tick = 0.002 if self._mode == "lockstep" else max(1.0 / self._sim.fs, 2.0e-4)
         self._timer = self.create_timer(tick, self._tick)
         self._outbox: deque[tuple[float, int, bytes]] = deque()  # realtime: (t, index, CDR)
-        self._book = CommandBook(self._delay, self._force_limit, self._mode == "realtime")
+        # realtime: at each wake that publishes, how far behind its instant the oldest sample
+        # left (simulated s): the plant's (a bridge's) own stalls, apart from the nodes'
+        self._publication_lag: deque[float] = deque(maxlen=SPREAD_HISTORY)
+        self._book = CommandBook(
+            self._delay,
+            self._force_limit,
+            self._mode == "realtime",
+            partial=self.get_parameter("partial_commands").value,
+        )
         self.counts = self._book.counts
         self._controller_lost = False
         self._resume_from = 0
@@ -272,7 +296,9 @@ class PlantSimNode(ClosesReaderParticipant, Node):
             force=force,
             malformed=malformed,
         )
-        next_period = self._sim.sample_index // self._N
+        n = self._sim.sample_index
+        # a period running without its command (partial_commands) has started: count from the next
+        next_period = -(-n // self._N) if self._book.open_period is not None else n // self._N
         reason = self._book.offer(offer, next_period, self._last_stamp, time.monotonic())
         if reason is not None:
             self._last_reason = reason
@@ -409,16 +435,23 @@ class PlantSimNode(ClosesReaderParticipant, Node):
 
     def _tick_realtime(self) -> None:
         due = (time.monotonic() - self._wall0) * self.get_parameter("time_scale").value
+        if self._outbox and self._outbox[0][0] <= due:  # the oldest due sample: how late it goes
+            self._publication_lag.append(due - self._outbox[0][0])
         while True:
             while self._outbox and self._outbox[0][0] <= due:
                 self._release(*self._outbox.popleft())
             if self._outbox or self._remaining() <= 0 or self._sim.time > due:
                 break
-            self._run_period(self._sim.sample_index // self._N)  # the period starts: simulate it
+            n0 = self._sim.sample_index
+            if n0 % self._N and self._book.open_period == n0 // self._N:
+                self._run_open(n0 // self._N, due)  # its samples due now, or its late command
+            else:
+                self._run_period(n0 // self._N, due)  # the period starts: simulate it
         if self._remaining() <= 0 and not self._outbox:
             self._finish()
 
-    def _run_period(self, k: int) -> None:
+    def _run_period(self, k: int, due: float | None = None) -> None:
+        """Simulate period ``k`` from its next sample (realtime: ``due``, simulated s, is now)."""
         if self._pending_parameters and self._sim.sample_index % self._N == 0:
             self._apply_parameters()
         n0 = self._sim.sample_index
@@ -444,8 +477,45 @@ class PlantSimNode(ClosesReaderParticipant, Node):
                         self.counts["watchdog_trips"] += 1
             if self._controller_lost:
                 status |= Measurement.STATUS_WATCHDOG
+            if self._book.open_period == k and due is not None:
+                n = self._due_samples(n, due)  # the rest as it falls due (_run_open)
+                wf = wf[:n]
         else:
             wf = force[n0 % self._N : n0 % self._N + n]
+        block = self._sim.advance(n, wf)
+        self._publish(block, wf, status)
+
+    def _due_samples(self, n: int, due: float) -> int:
+        """How many of the next ``n`` samples are due at simulated time ``due`` (at least 1)."""
+        behind = math.floor((due - self._sim.time) * self._sim.fs + 1e-9) + 1
+        return max(1, min(n, behind))
+
+    def _run_open(self, k: int, due: float) -> None:
+        """Go on with period ``k``, started without its command: the rest with it if it came.
+
+        The samples before the command ran with zero wavelet force and carry
+        ``STATUS_COMMAND_MISSING``; from the command on they carry no flag (the module
+        docstring, ``partial_commands``).
+        """
+        n0 = self._sim.sample_index
+        position = n0 % self._N
+        n = min(self._N - position, max(self._remaining(), 1))
+        self._poll_commands()
+        force = self._book.take_rest(k, position)
+        if force is not None:
+            wf, status = force[:n], 0
+            if self._controller_lost:
+                self._controller_lost = False
+                self._last_reason = (
+                    f"commands resumed with period {k} (applied from its sample {position})"
+                )
+                self.get_logger().info(self._last_reason)
+        else:
+            n = self._due_samples(n, due)
+            wf = np.zeros((n, N_AXES))
+            status = Measurement.STATUS_COMMAND_MISSING
+            if self._controller_lost:
+                status |= Measurement.STATUS_WATCHDOG
         block = self._sim.advance(n, wf)
         self._publish(block, wf, status)
 
@@ -513,6 +583,14 @@ class PlantSimNode(ClosesReaderParticipant, Node):
             control += (
                 f", command arrival - period start p50 {ctl['arrival_p50'] * 1e3:+.2f} ms, "
                 f"p99 {ctl['arrival_p99'] * 1e3:+.2f} ms, max {ctl['arrival_max'] * 1e3:+.2f} ms"
+            )
+        if self.counts["partial"]:  # late commands applied to the rest of their period
+            control += f"; samples controlled {ctl['controlled_samples']:.1%}"
+        if self._publication_lag:  # realtime
+            lag = spread(self._publication_lag)
+            control += (
+                f"; sample publication lag p99 {lag['p99'] * 1e3:.2f} ms, "
+                f"max {lag['max'] * 1e3:.2f} ms"
             )
         self.get_logger().info(
             f"scenario {self._scenario.name} complete at t = {self._sim.time:.4f} s "

@@ -12,12 +12,15 @@ For each case (running speed, samples per revolution): a wavelet model from the 
    command, the wall time from the last sample of the period it is based on to its arrival
    (median, p99, as a fraction of the control period), the fraction of the periods that ran
    with a command and the p99 of each command's arrival minus its period's start (negative: in
-   time).
+   time); ``partial``: late commands the plant applied to the rest of their period
+   (``partial_commands``), the share of the samples that ran with their command, and the
+   plant's largest sample publication lag (``pub max``: its own stall, apart from the nodes').
 3. with ``--hog START:SECONDS``: during each realtime run a CPU hog (``python -c 'while True:
    pass'``, one core busy) starts START wall s after ``amb-run`` is launched (its start-up
    takes a few seconds: the window actually hit is printed in run time) and runs SECONDS;
    from the bag's ``Measurement.status`` (``STATUS_COMMAND_MISSING``) the fraction of periods
-   controlled before, during and after the hog (from 2 periods after it), how many periods
+   controlled (every sample with its command) before, during and after the hog (from 2 periods
+   after it), the share of the samples during it that ran with their command, how many periods
    after the hog the last uncontrolled one came, and the samples missing from the bag.
 4. per run and mode, the CPU of each node other than the plant (``AMB_CPU_LOG``, between the
    plant's first and last sample) per sample the filterbank processed (two per coefficient
@@ -42,6 +45,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
+import math
 import os
 import re
 import statistics
@@ -63,6 +67,9 @@ COMPLETE = re.compile(
     r"in (?P<wall>[\d.]+) s wall, real-time factor (?P<rtf>[\d.]+)"
     r"(?:; command latency p50 (?P<p50>[\d.]+) ms, p99 (?P<p99>[\d.]+) ms \((?P<frac>[\d.]+)%)?"
 )
+PARTIAL = re.compile(r"partial (?P<partial>\d+)")
+SAMPLES = re.compile(r"samples controlled (?P<samples>[\d.]+)%")
+PUBLICATION = re.compile(r"sample publication lag p99 [\d.]+ ms, max (?P<pub_max>[\d.]+) ms")
 CONTROL = re.compile(
     r"periods controlled (?P<controlled>[\d.]+)%"
     r"(?:, command arrival - period start p50 (?P<arr50>[-+\d.]+) ms, p99 (?P<arr99>[-+\d.]+) ms)?"
@@ -183,7 +190,7 @@ def _cpu_line(mode: str, r: dict, fs: float) -> str:
     total = sum(nodes.values()) / processed * 1e6
     return (
         f"{'':>16} {mode}: us of CPU per processed sample ({processed} of "
-        f"{r.get('samples', 0)}): {cells}; node set {total:.0f} of the {1e6 / fs:.0f} budget "
+        f"{r.get('produced', 0)}): {cells}; node set {total:.0f} of the {1e6 / fs:.0f} budget "
         f"({total * fs / 1e6:.0%})"
     )
 
@@ -241,18 +248,21 @@ def hog_windows(out: Path, cpu_log: Path, hog: Hog, spr: int, total: int) -> dic
     flagged = (meas.status[: len(k)] & Measurement.STATUS_COMMAND_MISSING) > 0
     missing = np.bincount(k, weights=flagged, minlength=n_periods)
     controlled = (present == spr) & (missing == 0)
+    commanded = np.clip(present - missing, 0, None) / spr  # share of each period's samples
     start = np.arange(n_periods) * period
     settled = start >= 4 * period  # the first delay_periods have no command by design
 
     def frac(mask):
         return float(controlled[mask].mean()) if np.any(mask) else float("nan")
 
+    during = settled & (start >= on) & (start + period <= off)
     later = np.flatnonzero(~controlled & (start >= off))
     return {
         "hog_on": on,
         "hog_off": off,
         "before": frac(settled & (start < on - period)),
-        "during": frac(settled & (start >= on) & (start + period <= off)),
+        "during": frac(during),
+        "during_samples": float(commanded[during].mean()) if np.any(during) else float("nan"),
         "after": frac(start >= off + 2 * period),
         "recover": float((start[later[-1]] + period - off) / period) if later.size else 0.0,
         # run s of each period without a command from 2 periods after the hog
@@ -299,13 +309,21 @@ def case(
                 )
             result[mode]["cpu"] = node_cpu(cpu_log, result[mode]["wall"])
             result[mode]["processed"] = processed_samples(out / "bag")
-            result[mode]["samples"] = round(hz * spr * duration)
+            result[mode]["produced"] = round(hz * spr * duration)
             counts = COUNTS.search(log)
             result[mode].update(
                 {k: int(v) for k, v in counts.groupdict().items()} if counts else {}
             )
+            partial, samples = PARTIAL.search(log), SAMPLES.search(log)
+            result[mode]["partial"] = int(partial.group(1)) if partial else 0
+            publication = PUBLICATION.search(log)
+            if publication is not None:
+                result[mode]["pub_max"] = float(publication.group(1))
+            result[mode]["commanded"] = (  # without partial periods, the periods controlled
+                float(samples.group(1)) if samples else result[mode].get("controlled", math.nan)
+            )
             if hogged is not None:
-                result["hog"] = hog_windows(out, cpu_log, hogged, spr, result[mode]["samples"])
+                result["hog"] = hog_windows(out, cpu_log, hogged, spr, result[mode]["produced"])
         result["load"] = os.getloadavg()[0]
         runs.append(result)
     return runs
@@ -317,7 +335,9 @@ def _row(label: str, r: dict) -> str:
         f"{label:>16} {r['lockstep']['rtf']:>13.2f} {rt.get('p50', nan):>10.2f} "
         f"{rt.get('p99', nan):>8.2f} {rt.get('frac', nan) / 100:>11.1%} "
         f"{rt.get('controlled', nan) / 100:>11.1%} {rt.get('arr99', nan):>+11.2f} "
-        f"{rt.get('missing', -1):>8d} {rt.get('late', -1):>5d} {r['load']:>6.1f}"
+        f"{rt.get('missing', -1):>8d} {rt.get('late', -1):>5d} {rt.get('partial', -1):>8d} "
+        f"{rt.get('commanded', nan) / 100:>12.1%} {rt.get('pub_max', nan):>11.2f} "
+        f"{r['load']:>6.1f}"
     ) + _hog_cells(r.get("hog"))
 
 
@@ -327,7 +347,8 @@ def _hog_cells(h: dict | None) -> str:
     nan = float("nan")
     return (
         f" {h.get('hog_on', nan):>5.1f}-{h.get('hog_off', nan):<5.1f} {h.get('before', nan):>7.1%}"
-        f" {h.get('during', nan):>7.1%} {h.get('after', nan):>7.1%} "
+        f" {h.get('during', nan):>7.1%} {h.get('during_samples', nan):>8.1%}"
+        f" {h.get('after', nan):>7.1%} "
         f"{h.get('recover', nan):>8.1f} {h['lost']:>5d}"
     )
 
@@ -378,8 +399,9 @@ def main() -> None:
     cases = [tuple(c.split(":")) for c in args.cases.split(",")]
     print(f"{'case / run':>16} {'lockstep RTF':>13} {'rt p50 ms':>10} {'p99 ms':>8} "
           f"{'p99/period':>11} {'controlled':>11} {'arr p99 ms':>11} {'missing':>8} "
-          f"{'late':>5} {'load':>6}"
-          + (f" {'hog s (run)':>11} {'before':>7} {'during':>7} {'after':>7} {'recover':>8} "
+          f"{'late':>5} {'partial':>8} {'samples ctl':>12} {'pub max ms':>11} {'load':>6}"
+          + (f" {'hog s (run)':>11} {'before':>7} {'during':>7} {'(samples)':>8} {'after':>7} "
+             f"{'recover':>8} "
              f"{'lost':>5}" if hog else ""))  # fmt: skip
     if args.keep:
         Path(args.keep).mkdir(parents=True, exist_ok=True)
@@ -403,22 +425,39 @@ def main() -> None:
                     "lockstep": {"rtf": statistics.median(r["lockstep"]["rtf"] for r in runs)},
                     "realtime": {
                         k: statistics.median(r["realtime"].get(k, float("nan")) for r in runs)
-                        for k in ("p50", "p99", "frac", "controlled", "arr99")
+                        for k in (
+                            "p50",
+                            "p99",
+                            "frac",
+                            "controlled",
+                            "arr99",
+                            "commanded",
+                            "pub_max",
+                        )
                     },
                     "load": statistics.median(r["load"] for r in runs),
                 }
                 if hog:
                     med["hog"] = {
                         k: statistics.median(r["hog"].get(k, float("nan")) for r in runs)
-                        for k in ("hog_on", "hog_off", "before", "during", "after", "recover")
+                        for k in (
+                            "hog_on",
+                            "hog_off",
+                            "before",
+                            "during",
+                            "during_samples",
+                            "after",
+                            "recover",
+                        )
                     }
                     med["hog"]["lost"] = round(statistics.median(r["hog"]["lost"] for r in runs))
                 med["realtime"]["missing"] = round(
                     statistics.median(r["realtime"].get("missing", -1) for r in runs)
                 )
-                med["realtime"]["late"] = round(
-                    statistics.median(r["realtime"].get("late", -1) for r in runs)
-                )
+                for k in ("late", "partial"):
+                    med["realtime"][k] = round(
+                        statistics.median(r["realtime"].get(k, -1) for r in runs)
+                    )
                 print(_row(f"{hz} Hz x {spr} median", med), flush=True)
     print(
         "targets (#17): lock-step RTF >= 2 at 67 Hz x 32, >= 3 at 11 Hz x 64; realtime: 0 missing, "

@@ -8,6 +8,7 @@ from amb_controller.config import ConfigError, ControllerConfig
 from amb_controller.model_file import WaveletModel
 from amb_controller.pipeline import ControllerPipeline
 from amb_controller.supervisor import Mode
+from amb_controller.synthesis import synthesize
 from amb_wavelet.analysis import AnalysisFilterbank
 from amb_wavelet.frontend import ChannelFrontEnd
 
@@ -127,3 +128,39 @@ def test_identification_request_must_excite_every_control_coefficient():
     assert not ok and "every one must be stepped" in message
     ok, message = pipe.start_identification()
     assert ok and pipe.supervisor.mode == Mode.IDENTIFYING
+
+
+def test_a_period_flagged_missing_up_to_a_sample_is_reported_as_partial():
+    # a realtime plant with partial_commands: period 5's command acted from its sample 10 on
+    cfg = ControllerConfig(samples_per_rev=N, controller="proportional", gain=0.3)
+    pipe = ControllerPipeline(cfg, CAPACITY)
+    pipe.set_model(_toy_model(cfg, pipe))
+    assert pipe.set_mode(Mode.ACTIVE) == (True, "active")
+    x, th = _signal(8 * N)
+    front = ChannelFrontEnd(N)
+    bank = AnalysisFilterbank(cfg.wavelet, 6, front.n_channels)
+    sent = {}
+    for n in range(x.shape[0]):
+        k, position = divmod(n, N)
+        if position == 0 and k == 5:
+            sent = pipe.supervisor.applied(5).copy()  # commanded by period 3's step
+        flagged = k == 5 and position < 10
+        command = pipe.on_sample(
+            n, bank.step(front.step(x[n], th[n]), n), x[n], command_missing=flagged
+        )
+        if command is not None and command.based_on_period == 5:
+            applied = pipe.supervisor.applied(5)
+    status = pipe.status()
+    assert status["commands_late"] == 1 and status["commands_partial"] == 1
+    assert np.any(sent != 0)
+    # what is recorded as applied is the orthogonal projection, on the control basis, of the
+    # force that acted (the sent force from sample 10 on): its residual is orthogonal to every
+    # basis waveform (the normal equations), and it is not nothing
+    basis = pipe.supervisor.limiter.basis
+    acted = synthesize(sent, basis)
+    acted[:, :10] = 0.0
+    residual = acted - synthesize(applied, basis)
+    W = basis.weights.reshape(basis.n_coefficients, -1)
+    scale = np.abs(W).max() * np.abs(acted).sum()
+    np.testing.assert_allclose(W @ residual.ravel(), 0.0, atol=1e-12 * scale)
+    assert 0 < np.linalg.norm(synthesize(applied, basis)) <= np.linalg.norm(acted) * (1 + 1e-12)

@@ -293,3 +293,28 @@ def test_model_file_round_trip(tmp_path):
         loaded.check_compatible("haar", 64, 2 * np.pi * 18)
     with pytest.raises(ValueError, match="cannot read"):
         WaveletModel.load(tmp_path / "missing.npz")
+
+
+@pytest.mark.parametrize("position", [1, 8, 16, 31])
+def test_a_command_applied_from_a_later_sample_is_recorded_as_its_share(position):
+    # Haar at 1 x running speed: the even waveform is +-1/sqrt(N) on every sample, so the
+    # command's force with its first `position` samples zeroed projects back on it as
+    # c (N - position) / N (closed form: sum of w_n^2 over the samples that ran)
+    _, limiter, markov = _one_axis_setup()
+    inverse = pseudo_inverse_series(markov, order=5)
+    alpha = PrescribedResponse.exponential(0.75, 0.75)
+    sup = WaveletControlSupervisor(
+        limiter, delay=2, controller=TransientController(inverse, alpha, 2)
+    )
+    sup.set_mode(Mode.ACTIVE)
+    disturbance = np.full((20, 1), 50.0)
+    _supervised_loop(markov, sup, 10, disturbance)
+    target = 10 + 1  # commanded by the step of period 9, not yet applied
+    sent = sup.applied(target).copy()
+    assert abs(sent[0]) > 1.0
+    assert not sup.command_resumed(target, position)  # not reported missing: nothing to do
+    assert sup.command_missing(target)
+    assert not sup.applied(target).any()
+    assert sup.command_resumed(target, position)
+    np.testing.assert_allclose(sup.applied(target), sent * (N - position) / N, rtol=1e-12)
+    assert not sup.command_resumed(target, position + 1 if position < N - 1 else 1)  # once

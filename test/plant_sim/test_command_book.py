@@ -110,3 +110,57 @@ def test_control_summary_counts_the_periods_that_could_have_a_command() -> None:
     summary = book.control_summary(periods=DELAY + 8)
     assert summary["controlled"] == 0.5
     assert summary["arrival_p50"] == pytest.approx(-0.005, abs=1e-9)
+
+
+def test_a_command_that_arrives_during_its_period_acts_on_the_samples_still_ahead() -> None:
+    book = CommandBook(DELAY, LIMIT, realtime=True, partial=True)
+    assert book.take(5, now=50.0) is None  # period 5 starts without its command: open
+    assert book.open_period == 5
+    assert book.take_rest(5, 3) is None  # nothing arrived yet
+    made = offer(5, value=2.0)
+    made.force[:] = np.arange(N)[:, None] + np.arange(4)[None, :]  # a distinct value per sample
+    reason = book.offer(made, next_period=6, last_stamp=1.0, now=50.002)
+    assert "arrived after it started" in reason and "rest of its period" in reason
+    assert book.counts["late"] == 1 and book.counts["partial"] == 0
+    rest = book.take_rest(5, 3)
+    np.testing.assert_array_equal(rest, made.force[3:])  # samples 3 .. N-1 of the command
+    assert book.counts["partial"] == 1 and book.open_period is None
+    assert book.take_rest(5, 4) is None  # taken once
+    # a second copy of the command finds the period closed: late, not kept
+    assert "rest of its period" not in book.offer(offer(5), 6, 1.0, 50.003)
+    assert book.counts["late"] == 2 and book.counts["partial"] == 1
+    # of the eligible periods DELAY .. 5 (4), none ran whole with a command; 5 ran (N - 3) / N
+    summary = book.control_summary(periods=6)
+    assert summary["controlled"] == 0.0
+    assert summary["controlled_samples"] == pytest.approx((N - 3) / N / 4, rel=1e-12)
+    assert summary["arrival_max"] == pytest.approx(0.003, abs=1e-9)
+
+
+@pytest.mark.parametrize(
+    "made",
+    [
+        offer(5, malformed="force has 3 values, expected 32"),
+        offer(5, delay=1),
+        offer(4),  # a period that is not the open one
+    ],
+)
+def test_a_late_command_that_is_malformed_or_not_for_the_open_period_is_not_kept(made) -> None:
+    book = CommandBook(DELAY, LIMIT, realtime=True, partial=True)
+    book.take(5, now=50.0)
+    assert "rest of its period" not in book.offer(made, 6, 1.0, 50.001)
+    assert book.counts["late"] == 1
+    assert book.take_rest(5, 2) is None and book.counts["partial"] == 0
+
+
+def test_without_partial_or_in_lockstep_no_period_stays_open() -> None:
+    for book in (
+        CommandBook(DELAY, LIMIT, realtime=True, partial=False),
+        CommandBook(DELAY, LIMIT, realtime=False, partial=True),
+    ):
+        book.take(5, now=50.0 if book.realtime else None)
+        assert book.open_period is None
+        assert "rest of its period" not in book.offer(offer(5), 6, 1.0, 50.001)
+        assert book.take_rest(5, 2) is None
+    book = CommandBook(DELAY, LIMIT, realtime=True, partial=True)
+    book.take(DELAY - 1, now=1.0)  # before delay_periods no command can exist: not open
+    assert book.open_period is None
