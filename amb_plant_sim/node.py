@@ -509,7 +509,8 @@ class PlantSimNode(ClosesReaderParticipant, Node):
                 self._last_reason = (
                     f"commands resumed with period {k} (applied from its sample {position})"
                 )
-                self.get_logger().info(self._last_reason)
+                # one per late command under a sustained overload: throttled as the warnings
+                self.get_logger().info(self._last_reason, throttle_duration_sec=2.0)
         else:
             n = self._due_samples(n, due)
             wf = np.zeros((n, N_AXES))

@@ -55,6 +55,8 @@ from rclpy.signals import SignalHandlerOptions
 from amb_tools.transport_profile import use_project_profile
 
 EXIT_CONFIGURATION_ERROR = 2
+#: Garbage collections longer than this (s) are listed in the CPU log (``AMB_CPU_LOG``).
+GC_REPORTED_S = 0.002
 
 
 class ConfigurationError(ValueError):
@@ -251,8 +253,24 @@ def _raised_in(nodes: Sequence[Node], exc: BaseException) -> Node:
     return found
 
 
+def _run_queue_wait() -> float:
+    """Seconds the main thread has waited on a run queue (``/proc/self/schedstat``; 0 if none)."""
+    try:
+        with open("/proc/self/schedstat") as f:
+            return int(f.read().split()[1]) * 1e-9
+    except (OSError, IndexError, ValueError):
+        return 0.0
+
+
 class _Profiler:
-    """CPU times of the spin loop, optionally under cProfile (``AMB_CPU_LOG``, ``AMB_PROFILE``)."""
+    """CPU times of the spin loop, optionally under cProfile (``AMB_CPU_LOG``, ``AMB_PROFILE``).
+
+    Besides the CPU timeline (every 0.1 s), what can hold the loop up without CPU of its own:
+    the main thread's run-queue wait (the kernel's ``schedstat``: another process had the
+    core) on the same instants, and every garbage collection longer than
+    :data:`GC_REPORTED_S` (the collector holds the GIL), so that a stall found in a run can be
+    put on one of them, or on neither.
+    """
 
     def __init__(self, folder: Path, cprofile: bool) -> None:
         self.folder = folder
@@ -270,20 +288,37 @@ class _Profiler:
         self._cpu0 = os.times()
         self._wall0 = time.monotonic()
         self._timeline: list[tuple[float, float]] = []
+        self._run_queue: list[tuple[float, float]] = []
+        self._gc_started = 0.0
+        self._gc_count = 0
+        self._gc_long: list[tuple[float, float, int]] = []  # (start, seconds, generation)
+        gc.callbacks.append(self._on_gc)
         self._stop = threading.Event()
         threading.Thread(target=self._sample, daemon=True).start()
         if self.profile is not None:
             self.profile.enable()
 
+    def _on_gc(self, phase: str, info: dict) -> None:
+        now = time.monotonic()
+        if phase == "start":
+            self._gc_started = now
+            return
+        self._gc_count += 1
+        if now - self._gc_started > GC_REPORTED_S:
+            self._gc_long.append((self._gc_started, now - self._gc_started, info["generation"]))
+
     def _sample(self) -> None:
         while not self._stop.wait(0.1):
             cpu = os.times()
-            self._timeline.append((time.monotonic(), cpu.user + cpu.system))
+            now = time.monotonic()
+            self._timeline.append((now, cpu.user + cpu.system))
+            self._run_queue.append((now, _run_queue_wait()))
 
     def dump(self, name: str, run_window: tuple[float, float] | None = None) -> None:
         if self.profile is not None:
             self.profile.disable()
         self._stop.set()
+        gc.callbacks.remove(self._on_gc)
         cpu = os.times()
         self.folder.mkdir(parents=True, exist_ok=True)
         if self.profile is not None:
@@ -294,6 +329,12 @@ class _Profiler:
             "wall_s": time.monotonic() - self._wall0,
             "end_monotonic_s": time.monotonic(),
             "timeline": self._timeline,
+            "run_queue_wait": self._run_queue,  # (monotonic s, main thread's total wait s)
+            "gc": {
+                "collections": self._gc_count,
+                "longer_than_s": GC_REPORTED_S,
+                "long": self._gc_long,
+            },
         }
         if run_window is not None:  # a node's own (first, last) sample, monotonic s
             usage["run_window"] = list(run_window)

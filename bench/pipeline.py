@@ -28,6 +28,9 @@ For each case (running speed, samples per revolution): a wavelet model from the 
    work per plant sample), their sum, and the budget of issue 17: one core, ``1e6 / fs`` us
    per sample (the other core is the bridge's and the operating system's). The transport's
    CPU is inside each node's (Fast DDS's threads run in the node's process).
+5. per realtime run and process, what can hold a loop up without CPU of its own: its longest
+   garbage collection and the largest run-queue wait of its main thread within 0.1 s
+   (``AMB_CPU_LOG``; beside ``pub max``, the plant's largest publication lag).
 Each case is run ``--repeat`` times (the model is made once); every run is printed with the
 plant's command counts (``missing``: no command by the period's start; ``late``: arrived after)
 and the machine's 1-minute load average at its end, then the median over the runs. Numbers
@@ -180,6 +183,33 @@ def node_cpu(cpu_log: Path, wall: float) -> dict[str, float]:
     }
 
 
+def holdups(cpu_log: Path) -> dict[str, tuple[float, float]]:
+    """What held each process up between the plant's first and last sample.
+
+    Per process (its CPU log): the longest garbage collection (ms; those longer than the log's
+    ``longer_than_s`` are listed) and the largest run-queue wait of its main thread within one
+    0.1 s sample of the log (ms: another process had its core). Missing fields give NaN.
+    """
+    plant = json.loads((cpu_log / "plant_sim.cpu.json").read_text())
+    t0, t1 = plant.get("run_window") or (-math.inf, math.inf)
+    out = {}
+    for f in sorted(cpu_log.glob("*.cpu.json")):
+        usage = json.loads(f.read_text())
+        long = [d for t, d, _ in usage.get("gc", {}).get("long", []) if t0 <= t <= t1]
+        wait = np.asarray(usage.get("run_queue_wait", []), dtype=float).reshape(-1, 2)
+        wait = wait[(wait[:, 0] >= t0) & (wait[:, 0] <= t1)]
+        step = np.diff(wait[:, 1]).max() if len(wait) > 1 else math.nan
+        gc_ms = max(long) * 1e3 if long else (0.0 if "gc" in usage else math.nan)
+        out[f.name.split(".")[0]] = (gc_ms, float(step) * 1e3)
+    return out
+
+
+def _holdup_line(mode: str, r: dict) -> str:
+    held = r.get("holdups") or {}
+    cells = ", ".join(f"{n} {g:.1f} / {w:.1f}" for n, (g, w) in held.items())
+    return f"{'':>16} {mode}: longest gc / largest run-queue wait per 0.1 s, ms: {cells}"
+
+
 def _cpu_line(mode: str, r: dict, fs: float) -> str:
     """Per-node CPU per processed sample of one run and mode, the plant excepted (item 4)."""
     cpu, processed = r.get("cpu"), r.get("processed", 0)
@@ -308,6 +338,7 @@ def case(
                     {k: float(v) for k, v in control.groupdict().items() if v is not None}
                 )
             result[mode]["cpu"] = node_cpu(cpu_log, result[mode]["wall"])
+            result[mode]["holdups"] = holdups(cpu_log)
             result[mode]["processed"] = processed_samples(out / "bag")
             result[mode]["produced"] = round(hz * spr * duration)
             counts = COUNTS.search(log)
@@ -415,6 +446,7 @@ def main() -> None:
                 print(_row(f"{hz} Hz x {spr} #{i + 1}", r), flush=True)
                 for mode in ("lockstep", "realtime"):
                     print(_cpu_line(mode, r[mode], r["fs"]), flush=True)
+                print(_holdup_line("realtime", r["realtime"]), flush=True)
                 late = r.get("hog", {}).get("uncontrolled_after")
                 if late:
                     shown = ", ".join(f"{t:.2f}" for t in late[:12])
