@@ -19,7 +19,10 @@ as zeros, to keep the lock-step loop alive). Modes follow ``ControllerStatus``:
 * A command the plant did not apply (the period ran with zero wavelet force and its samples
   carry ``STATUS_COMMAND_MISSING``: lost, late, or the plant's watchdog) is reported with
   :meth:`WaveletControlSupervisor.command_missing`. The controller's step that computed it
-  is undone (anti-windup, see "Commands the plant did not apply" below).
+  is undone (anti-windup, see "Commands the plant did not apply" below). A command a realtime
+  plant applied from a later sample on (its samples flagged up to there) is then reported with
+  :meth:`WaveletControlSupervisor.command_resumed`: the share that acted is recorded, and the
+  step counts as made or undone, whichever is nearer what acted.
 * ``HOLD``: no new correction; the controller state is frozen (fault reconfiguration,
   e.g. auxiliary-bearing contact). With ``hold_ramp_periods = 0`` the last command is
   repeated (hold-last); with ``hold_ramp_periods = n > 0`` the last command is scaled
@@ -174,6 +177,17 @@ class _Step:
 
 
 @dataclass
+class _Undone:
+    """What :meth:`WaveletControlSupervisor.command_missing` changed, for ``command_resumed``."""
+
+    period: int
+    controller: object  # the controller it concerned (replaced or reset: nothing to take back)
+    sent: np.ndarray | None  # the command's coefficients (None: none was sent)
+    state: object  # the controller's state before the undo (None: nothing was replayed)
+    steps: dict | None  # target -> (step, its state_before) before the undo
+
+
+@dataclass
 class _Identification:
     experiment: StepExperiment
     identifier: MarkovIdentifier
@@ -243,7 +257,7 @@ class WaveletControlSupervisor:
                 raise ControllerValueError(f"fault action must be hold/off/ignore, got {action!r}")
         self._steps: dict[int, _Step] = {}  # target period -> the step that made its command
         self._missing_reported: int | None = None
-        self._undone: tuple[int, np.ndarray | None] | None = None  # command_missing's last
+        self._undone: _Undone | None = None  # command_missing's last report
         self.controller = None
         self._provisional_hold = False  # the HOLD was entered on a provisional fault class
         self.mode = Mode.OFF
@@ -452,6 +466,7 @@ class WaveletControlSupervisor:
         """Reset the controller's state (integrators and history to zero)."""
         self.controller.reset()
         self._steps.clear()
+        self._undone = None  # nothing of before the reset is taken back
 
     def command_missing(self, period_index: int) -> bool:
         """
@@ -483,9 +498,18 @@ class WaveletControlSupervisor:
             return False
         self._missing_reported = p
         sent = p in self._sent
-        self._undone = (p, self._sent.get(p))  # command_resumed: what it had said
+        step = self._steps.get(p)
+        replayed = step is not None and self.controller is not None and not self.tracks_applied
+        # command_resumed: what the command said and, for a replay, how to take it back
+        self._undone = _Undone(
+            p,
+            self.controller,
+            self._sent.get(p),
+            self.controller.get_state() if replayed else None,
+            {t: (s, s.state_before) for t, s in self._steps.items()} if replayed else None,
+        )
         self._sent[p] = np.zeros(self.limiter.basis.n_coefficients)
-        step = self._steps.pop(p, None)
+        self._steps.pop(p, None)
         if step is None or self.controller is None:
             return sent
         if self.tracks_applied:  # its estimate uses the applied inputs: tell it, no replay
@@ -512,8 +536,11 @@ class WaveletControlSupervisor:
         applied is then the command's force with its first ``position`` samples zeroed; its
         coefficients, projected on the control basis (least squares), replace the zeros that
         :meth:`command_missing` recorded (:meth:`applied`, the identification's input, and a
-        controller that tracks the applied inputs). The step :meth:`command_missing` undid stays
-        undone: the force that did act is measured in the following periods' coefficients.
+        controller that tracks the applied inputs). A controller replayed by
+        :meth:`command_missing` (not tracking the applied inputs) knows a step as made or not:
+        the undo is taken back (its state and later steps as before the report) when the
+        command acted on at least half of the period's samples, and kept otherwise, whichever
+        is nearer what acted; the rest shows in the following periods' coefficients.
 
         Parameters
         ----------
@@ -530,17 +557,27 @@ class WaveletControlSupervisor:
         """
         p = int(period_index)
         undone = self._undone
-        if undone is None or undone[0] != p or undone[1] is None or p != self._missing_reported:
+        if undone is None or undone.period != p or undone.sent is None:
             return False
         self._undone = None
         basis = self.limiter.basis
-        force = synthesize(undone[1], basis)  # (axes, N), N
-        force[:, : max(0, int(position) - basis.offset)] = 0.0  # columns from basis.offset
+        force = synthesize(undone.sent, basis)  # (axes, N), N
+        length = force.shape[1]
+        acted = length - min(length, max(0, int(position) - basis.offset))
+        force[:, : length - acted] = 0.0  # columns from basis.offset
         W = basis.weights.reshape(basis.n_coefficients, -1)
         applied = np.linalg.lstsq(W.T, force.ravel(), rcond=None)[0]
         self._sent[p] = applied
         if self.controller is not None and self.tracks_applied:
             self.controller.record_applied(p, applied)
+        elif (
+            undone.state is not None and undone.controller is self.controller
+            and 2 * acted >= length  # mostly applied: as if whole
+        ):  # fmt: skip
+            self.controller.set_state(undone.state)
+            self._steps = {t: s for t, (s, _) in undone.steps.items()}
+            for s, before in undone.steps.values():
+                s.state_before = before
         return True
 
     def record_zero(self, target_period: int) -> None:

@@ -318,3 +318,39 @@ def test_a_command_applied_from_a_later_sample_is_recorded_as_its_share(position
     assert sup.command_resumed(target, position)
     np.testing.assert_allclose(sup.applied(target), sent * (N - position) / N, rtol=1e-12)
     assert not sup.command_resumed(target, position + 1 if position < N - 1 else 1)  # once
+
+
+@pytest.mark.parametrize(("position", "as_if"), [(8, "applied"), (16, "applied"), (17, "lost")])
+def test_a_partly_applied_command_counts_as_applied_or_lost_whichever_is_nearer(position, as_if):
+    # eq. 8.10's controller knows a step as made or undone: a command that acted on at least
+    # half of its period is taken as applied (the undo is taken back), else as lost
+    _, limiter, markov = _one_axis_setup()
+    inverse = pseudo_inverse_series(markov, order=5)
+    alpha = PrescribedResponse.exponential(0.75, 0.75)
+    q = _supervised_loop(
+        markov,
+        WaveletControlSupervisor(
+            limiter, delay=2, controller=TransientController(inverse, alpha, 2)
+        ),
+        30,
+        np.full((40, 1), 50.0),
+    )[0]
+    lost, states = 14, {}
+    for case in ("partial", "applied", "lost"):
+        sup = WaveletControlSupervisor(
+            limiter, delay=2, controller=TransientController(inverse, alpha, 2)
+        )
+        sup.set_mode(Mode.ACTIVE)
+        for k in range(30):
+            if k == lost and case != "applied":
+                assert sup.command_missing(k)
+                if case == "partial":
+                    assert sup.command_resumed(k, position)
+            sup.step(k, q[k])
+        states[case] = sup.controller.get_state()
+    np.testing.assert_allclose(states["partial"].zi, states[as_if].zi, rtol=1e-12, atol=0.0)
+    np.testing.assert_allclose(
+        states["partial"].history, states[as_if].history, rtol=1e-12, atol=0.0
+    )
+    other = "lost" if as_if == "applied" else "applied"
+    assert not np.allclose(states["partial"].zi, states[other].zi, rtol=1e-6, atol=0.0)
