@@ -198,6 +198,7 @@ class FaultMonitorNode(ClosesReaderParticipant, Node):
         # indices of the last measurement and coefficient message processed: on /diagnostics,
         # so that amb-run stops the monitor only once it has caught up with the plant
         self.last_sample: int | None = None
+        self._own_readers = bus is None  # composed, the stack's bus orders the two streams
         self.last_coefficient_sample: int | None = None
         self.counts = dict.fromkeys(("measurements_rejected", "coefficients_rejected"), 0)
         self._last_reason = ""
@@ -449,8 +450,14 @@ class FaultMonitorNode(ClosesReaderParticipant, Node):
                 f"coefficients of sample {msg.sample_index}: {exc}; dropped",
             )
             return
+        n = int(msg.sample_index)
+        if self._own_readers and (self.last_sample is None or n > self.last_sample):
+            # each reader takes its whole queue at a wake (amb_tools.backlog): the measurements
+            # up to this sample may wait behind this wake, and a sample's control force should
+            # come before the coefficients it completes (FaultMonitor.control_force)
+            self._readers[1].poll()
         omega = self._omega if self._omega > 0 else UNKNOWN_OMEGA
-        index = int(msg.sample_index) // 2
+        index = n // 2
         last = self._coef_seq.last_index
         for reset, (m, r) in self._sequence(
             "coefficients", self._coef_seq, index, (msg, raw), omega, self._readers[0],

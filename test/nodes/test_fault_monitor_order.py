@@ -1,0 +1,91 @@
+"""A fault monitor in its own process reads a sample's measurement before its coefficients.
+
+The monitor compares each sample's control force with the revolution before to tell a control
+step from a fault (``FaultMonitor.control_force``): the force of a sample should be known when
+the coefficients it completes are processed. Each stream reader takes its whole queue at a wake
+(``amb_tools.backlog``), so a wake of the coefficient reader can find coefficients whose
+measurements still wait in the other reader's queue. Here both queues are filled before the
+monitor runs (a real filterbank node makes the coefficients from the same measurements, over
+DDS), and the coefficient reader is woken first: every coefficient message must find its
+sample's measurement processed.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+
+import pytest
+
+pytestmark = pytest.mark.ros
+
+SPR = 16
+SAMPLES = 4 * SPR
+SCRIPT = f"""
+import json, math, time
+import numpy as np
+import rclpy
+from rclpy.duration import Duration
+from rclpy.executors import SingleThreadedExecutor
+from amb_msgs.msg import Measurement, WaveletCoefficients
+from amb_fault_monitor.node import FaultMonitorNode
+from amb_tools.streams import stream_qos
+from amb_wavelet.node import WaveletFilterbankNode
+
+rclpy.init(args=["--ros-args", "-p", "samples_per_rev:={SPR}"])
+driver = rclpy.create_node("amb_test_order_driver")
+fb, fm = WaveletFilterbankNode(), FaultMonitorNode()
+pub = driver.create_publisher(Measurement, "/amb/measurement", stream_qos({SPR}))
+made = []
+driver.create_subscription(
+    WaveletCoefficients, "/amb/wavelet/coefficients", made.append, stream_qos({SPR})
+)
+front = SingleThreadedExecutor()  # the filterbank and the driver; the monitor is not spun
+front.add_node(driver)
+front.add_node(fb)
+
+def spin(until, timeout):
+    deadline = time.monotonic() + timeout
+    while not until() and time.monotonic() < deadline:
+        front.spin_once(timeout_sec=0.05)
+    return until()
+
+assert spin(lambda: pub.get_subscription_count() >= 2, 30.0), "readers not matched"
+time.sleep(0.5)
+omega = 2 * math.pi * 20.0
+for i in range({SAMPLES}):
+    m = Measurement(sample_index=i, samples_per_rev={SPR})
+    m.rotor_speed = omega
+    m.rotor_angle = float((2 * math.pi * i / {SPR}) % (2 * math.pi))
+    m.displacement = list(1e-5 * np.cos(2 * math.pi * i / {SPR} + np.arange(8)))
+    m.wavelet_force = [float(i)] * 4
+    t = i / ({SPR} * 20.0)
+    m.header.stamp.sec, m.header.stamp.nanosec = int(t), int(round((t % 1.0) * 1e9))
+    pub.publish(m)
+assert pub.wait_for_all_acked(Duration(seconds=30.0)), "measurements not acknowledged"
+assert spin(lambda: len(made) == {SAMPLES} // 2, 30.0), f"{{len(made)}} coefficient messages"
+assert fb._pub.wait_for_all_acked(Duration(seconds=30.0)), "coefficients not acknowledged"
+seen = []  # (coefficient message's sample, the monitor's last measurement then)
+processed = fm._coefficients
+def watched(msg, raw, reset):
+    seen.append((int(msg.sample_index), fm.last_sample))
+    processed(msg, raw, reset)
+fm._coefficients = watched
+fm._readers[0].poll()  # the coefficient reader's wake comes first
+print(json.dumps({{"seen": seen, "last_sample": fm.last_sample}}), flush=True)
+"""
+
+
+def test_coefficients_find_their_measurements_processed(ros_domain_id, tmp_path) -> None:
+    env = dict(os.environ, ROS_DOMAIN_ID=str(ros_domain_id))
+    out = subprocess.run(
+        [sys.executable, "-c", SCRIPT], capture_output=True, text=True, env=env, timeout=180
+    )
+    assert out.returncode == 0, out.stdout + out.stderr
+    result = json.loads(out.stdout.strip().splitlines()[-1])
+    seen = result["seen"]
+    assert [n for n, _ in seen] == list(range(1, SAMPLES, 2)), out.stdout  # all, in order
+    late = [(n, last) for n, last in seen if last is None or last < n]
+    assert not late, late  # (coefficient sample, last measurement) pairs out of order
