@@ -253,13 +253,17 @@ def _raised_in(nodes: Sequence[Node], exc: BaseException) -> Node:
     return found
 
 
-def _run_queue_wait() -> float:
-    """Seconds the main thread has waited on a run queue (``/proc/self/schedstat``; 0 if none)."""
+def _run_queue_wait() -> tuple[float, int]:
+    """The main thread's run-queue wait so far (s) and its times on a CPU (``schedstat``).
+
+    (0.0, 0) where the kernel does not say (no ``/proc/self/schedstat``).
+    """
     try:
         with open("/proc/self/schedstat") as f:
-            return int(f.read().split()[1]) * 1e-9
+            fields = f.read().split()
+        return int(fields[1]) * 1e-9, int(fields[2])
     except (OSError, IndexError, ValueError):
-        return 0.0
+        return 0.0, 0
 
 
 class _Profiler:
@@ -288,7 +292,7 @@ class _Profiler:
         self._cpu0 = os.times()
         self._wall0 = time.monotonic()
         self._timeline: list[tuple[float, float]] = []
-        self._run_queue: list[tuple[float, float]] = []
+        self._run_queue: list[tuple[float, float, int]] = []
         self._gc_started = 0.0
         self._gc_count = 0
         self._gc_long: list[tuple[float, float, int]] = []  # (start, seconds, generation)
@@ -312,7 +316,7 @@ class _Profiler:
             cpu = os.times()
             now = time.monotonic()
             self._timeline.append((now, cpu.user + cpu.system))
-            self._run_queue.append((now, _run_queue_wait()))
+            self._run_queue.append((now, *_run_queue_wait()))
 
     def dump(self, name: str, run_window: tuple[float, float] | None = None) -> None:
         if self.profile is not None:
@@ -329,7 +333,8 @@ class _Profiler:
             "wall_s": time.monotonic() - self._wall0,
             "end_monotonic_s": time.monotonic(),
             "timeline": self._timeline,
-            "run_queue_wait": self._run_queue,  # (monotonic s, main thread's total wait s)
+            # (monotonic s, the main thread's total run-queue wait s, its times on a CPU)
+            "run_queue_wait": self._run_queue,
             "gc": {
                 "collections": self._gc_count,
                 "longer_than_s": GC_REPORTED_S,

@@ -183,12 +183,14 @@ def node_cpu(cpu_log: Path, wall: float) -> dict[str, float]:
     }
 
 
-def holdups(cpu_log: Path) -> dict[str, tuple[float, float]]:
+def holdups(cpu_log: Path) -> dict[str, tuple[float, float, float, float]]:
     """What held each process up between the plant's first and last sample.
 
     Per process (its CPU log): the longest garbage collection (ms; those longer than the log's
-    ``longer_than_s`` are listed) and the largest run-queue wait of its main thread within one
-    0.1 s sample of the log (ms: another process had its core). Missing fields give NaN.
+    ``longer_than_s`` are listed), and the median and largest run-queue wait of its main thread
+    within one 0.1 s sample of the log (ms: runnable, not running; on a virtual machine also
+    the wake-up of an idle virtual CPU), and that wait per time it got a CPU (us: what each
+    wake-up costs it on average). Missing fields give NaN.
     """
     plant = json.loads((cpu_log / "plant_sim.cpu.json").read_text())
     t0, t1 = plant.get("run_window") or (-math.inf, math.inf)
@@ -196,18 +198,27 @@ def holdups(cpu_log: Path) -> dict[str, tuple[float, float]]:
     for f in sorted(cpu_log.glob("*.cpu.json")):
         usage = json.loads(f.read_text())
         long = [d for t, d, _ in usage.get("gc", {}).get("long", []) if t0 <= t <= t1]
-        wait = np.asarray(usage.get("run_queue_wait", []), dtype=float).reshape(-1, 2)
+        wait = np.asarray(usage.get("run_queue_wait", []), dtype=float).reshape(-1, 3)
         wait = wait[(wait[:, 0] >= t0) & (wait[:, 0] <= t1)]
-        step = np.diff(wait[:, 1]).max() if len(wait) > 1 else math.nan
+        steps = np.diff(wait[:, 1]) * 1e3 if len(wait) > 1 else np.array([math.nan])
         gc_ms = max(long) * 1e3 if long else (0.0 if "gc" in usage else math.nan)
-        out[f.name.split(".")[0]] = (gc_ms, float(step) * 1e3)
+        total = wait[-1, 1:] - wait[0, 1:] if len(wait) > 1 else np.zeros(2)
+        per_wake = total[0] / total[1] * 1e6 if total[1] else math.nan  # us per time on a CPU
+        out[f.name.split(".")[0]] = (
+            gc_ms, float(np.median(steps)), float(steps.max()), float(per_wake)
+        )  # fmt: skip
     return out
 
 
 def _holdup_line(mode: str, r: dict) -> str:
     held = r.get("holdups") or {}
-    cells = ", ".join(f"{n} {g:.1f} / {w:.1f}" for n, (g, w) in held.items())
-    return f"{'':>16} {mode}: longest gc / largest run-queue wait per 0.1 s, ms: {cells}"
+    cells = ", ".join(
+        f"{n} {g:.1f} / {w50:.1f} / {w:.1f} / {u:.0f}" for n, (g, w50, w, u) in held.items()
+    )
+    return (
+        f"{'':>16} {mode}: longest gc ms / run-queue wait per 0.1 s median, max ms / per wake-up"
+        f" us: {cells}"
+    )
 
 
 def _cpu_line(mode: str, r: dict, fs: float) -> str:
