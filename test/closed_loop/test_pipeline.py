@@ -101,11 +101,17 @@ def _toy_model(cfg, pipe):
     return WaveletModel(markov, np.zeros((1, n_u, n_y)), cfg.wavelet, N, 60.0, cfg.levels)
 
 
-def test_gap_gives_a_zero_hold_command_and_never_mixes_periods():
+def _active_toy() -> ControllerPipeline:
+    """A proportional controller ACTIVE on the toy model."""
     cfg = ControllerConfig(samples_per_rev=N, controller="proportional", gain=0.3)
     pipe = ControllerPipeline(cfg, CAPACITY)
     pipe.set_model(_toy_model(cfg, pipe))
     assert pipe.set_mode(Mode.ACTIVE) == (True, "active")
+    return pipe
+
+
+def test_gap_gives_a_zero_hold_command_and_never_mixes_periods():
+    pipe = _active_toy()
     x, th = _signal(8 * N)
     measured, commands = _run(pipe, x, th, skip={3 * N + 5})
     by_period = {c.based_on_period: c for c in commands}
@@ -132,13 +138,10 @@ def test_identification_request_must_excite_every_control_coefficient():
 
 def test_a_period_flagged_missing_up_to_a_sample_is_reported_as_partial():
     # a realtime plant with partial_commands: period 5's command acted from its sample 10 on
-    cfg = ControllerConfig(samples_per_rev=N, controller="proportional", gain=0.3)
-    pipe = ControllerPipeline(cfg, CAPACITY)
-    pipe.set_model(_toy_model(cfg, pipe))
-    assert pipe.set_mode(Mode.ACTIVE) == (True, "active")
+    pipe = _active_toy()
     x, th = _signal(8 * N)
     front = ChannelFrontEnd(N)
-    bank = AnalysisFilterbank(cfg.wavelet, 6, front.n_channels)
+    bank = AnalysisFilterbank(pipe.config.wavelet, 6, front.n_channels)
     sent = {}
     for n in range(x.shape[0]):
         k, position = divmod(n, N)
