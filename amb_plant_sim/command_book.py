@@ -301,3 +301,38 @@ class CommandBook:
         if self._arrival_offset:
             out |= {f"arrival_{k}": v for k, v in spread(self._arrival_offset).items()}
         return out
+
+    def report(self, periods: int, period_s: float) -> str:
+        """The latency and control summaries as the plant's final log line words them.
+
+        Parameters
+        ----------
+        periods : int
+            Periods started so far.
+        period_s : float
+            The control period, s.
+
+        Returns
+        -------
+        str
+            ``"; command latency ... ; periods controlled ..."`` (the latency part only once
+            commands came; the arrival part in realtime; the samples controlled only with
+            partial commands), times in ms.
+        """
+        lat = self.latency_summary()
+        text = (
+            f"; command latency p50 {lat['p50'] * 1e3:.2f} ms, p99 {lat['p99'] * 1e3:.2f} ms "
+            f"({lat['p99'] / period_s:.1%} of the {period_s * 1e3:.1f} ms period)"
+            if lat
+            else ""
+        )
+        ctl = self.control_summary(periods)
+        text += f"; periods controlled {ctl['controlled']:.1%}"
+        if "arrival_p50" in ctl:
+            text += (
+                f", command arrival - period start p50 {ctl['arrival_p50'] * 1e3:+.2f} ms, "
+                f"p99 {ctl['arrival_p99'] * 1e3:+.2f} ms, max {ctl['arrival_max'] * 1e3:+.2f} ms"
+            )
+        if self.counts["partial"]:  # late commands applied to the rest of their period
+            text += f"; samples controlled {ctl['controlled_samples']:.1%}"
+        return text

@@ -570,23 +570,7 @@ class PlantSimNode(ClosesReaderParticipant, Node):
         self._publish_status()
         # the last report (done, sample_index) tells amb-run how far the consumers must get
         self._diag_pub.wait_for_all_acked(Duration(seconds=2.0))
-        lat = self.latency_summary()
-        period = self._N / self._sim.fs
-        latency = (
-            f"; command latency p50 {lat['p50'] * 1e3:.2f} ms, p99 {lat['p99'] * 1e3:.2f} ms "
-            f"({lat['p99'] / period:.1%} of the {period * 1e3:.1f} ms period)"
-            if lat
-            else ""
-        )
-        ctl = self.control_summary()
-        control = f"; periods controlled {ctl['controlled']:.1%}"
-        if "arrival_p50" in ctl:
-            control += (
-                f", command arrival - period start p50 {ctl['arrival_p50'] * 1e3:+.2f} ms, "
-                f"p99 {ctl['arrival_p99'] * 1e3:+.2f} ms, max {ctl['arrival_max'] * 1e3:+.2f} ms"
-            )
-        if self.counts["partial"]:  # late commands applied to the rest of their period
-            control += f"; samples controlled {ctl['controlled_samples']:.1%}"
+        control = self._book.report(-(-self._sim.sample_index // self._N), self._N / self._sim.fs)
         if self._publication_lag:  # realtime
             lag = spread(self._publication_lag)
             control += (
@@ -596,7 +580,7 @@ class PlantSimNode(ClosesReaderParticipant, Node):
         self.get_logger().info(
             f"scenario {self._scenario.name} complete at t = {self._sim.time:.4f} s "
             f"({self._sim.sample_index} samples) in {wall:.2f} s wall, real-time factor "
-            f"{self._sim.time / wall:.2f}{latency}{control}; commands: "
+            f"{self._sim.time / wall:.2f}{control}; commands: "
             + ", ".join(f"{k} {v}" for k, v in self.counts.items())
         )
         if self.get_parameter("exit_at_end").value:

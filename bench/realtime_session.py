@@ -12,7 +12,8 @@ stream. Each run is two ``amb-run`` calls with ``plant_sim.mode:=realtime`` and 
    controller ACTIVE with that model.
 
 Printed per phase and run: the plant's command counts (``missing``: no command by the period's
-start; ``late``: arrived after), the periods controlled, and the fault monitor's lag: at each of
+start; ``late``: arrived after; ``partial``: of those, applied to the rest of their period), the
+periods controlled, and the fault monitor's lag: at each of
 its ``/diagnostics`` reports (every ``--status-period`` s), the last sample the plant had
 released by the report's stamp less the monitor's ``last_sample``, in periods (largest and
 median over the run; :func:`monitor_lag`); then the 1-minute load.
@@ -33,7 +34,7 @@ import numpy as np
 import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from pipeline import CONTROL, COUNTS, ROOT, run_checked
+from pipeline import CONTROL, COUNTS, PARTIAL, ROOT, run_checked
 
 sys.path.insert(0, str(ROOT))
 
@@ -101,10 +102,12 @@ def monitor_lag(bag: Path, spr: int) -> np.ndarray:
 def phase_numbers(log: str, bag: Path, spr: int) -> dict:
     """Command counts, periods controlled and the monitor's lag of one ``amb-run``."""
     counts = COUNTS.search(log)
+    partial = PARTIAL.search(log)
     controlled = CONTROL.search(log)
     lag = monitor_lag(bag, spr)
     return {
         **({k: int(v) for k, v in counts.groupdict().items()} if counts else {}),
+        "partial": int(partial["partial"]) if partial else 0,
         "controlled": float(controlled["controlled"]) if controlled else float("nan"),
         "lag_max": float(lag.max()) if lag.size else float("nan"),
         "lag_median": float(np.median(lag)) if lag.size else float("nan"),
@@ -146,7 +149,8 @@ def main(argv: list[str] | None = None) -> int:
     deployment = "separate processes" if args.separate else "composed (wavelet_stack)"
     load = os.getloadavg()[0]
     print(f"realtime session at {args.hz:g} Hz x {args.spr}, {deployment}, load {load:.2f}")
-    header = (f"{'phase / run':>20} {'applied':>8} {'missing':>8} {'late':>5} {'controlled':>11} "
+    header = (f"{'phase / run':>20} {'applied':>8} {'missing':>8} {'late':>5} {'partial':>8} "
+              f"{'controlled':>11} "
               f"{'lag max':>8} {'lag p50':>8} {'reports':>8} {'load':>5}")  # fmt: skip
     print(header + "   (lag: periods the fault monitor was behind the plant's stream)")
     rows: dict[str, list[dict]] = {"identification": [], "transient": []}
@@ -171,7 +175,8 @@ def _line(label: str, r: dict, load: float) -> str:
     nan = float("nan")
     return (
         f"{label:>20} {r.get('applied', -1):>8.0f} {r.get('missing', -1):>8.0f} "
-        f"{r.get('late', -1):>5.0f} {r.get('controlled', nan) / 100:>11.1%} "
+        f"{r.get('late', -1):>5.0f} {r.get('partial', -1):>8.0f} "
+        f"{r.get('controlled', nan) / 100:>11.1%} "
         f"{r.get('lag_max', nan):>8.2f} {r.get('lag_median', nan):>8.2f} "
         f"{r.get('reports', 0):>8.0f} {load:>5.2f}"
     )
