@@ -16,7 +16,8 @@ stays *open*; its command, if it arrives before the period ends, is still late (
 plant its force for the samples still ahead (counted ``partial``). The samples before it ran
 with zero wavelet force, as a missing period's do. What this buys: a command a fraction of a
 period late (a stall of the transport or a busy core) acts on the rest of its period instead of
-leaving the whole period on PID, with a force step of the command's size at both its ends.
+leaving the whole period on PID (a force step of the command's size at both its ends, which
+the rotor and the fault monitor then see: ``docs/history.md``, "Partial commands").
 """
 
 from __future__ import annotations

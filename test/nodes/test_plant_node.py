@@ -191,6 +191,10 @@ def test_realtime_publishes_each_sample_at_its_instant(ros, node_process, tmp_pa
     assert control is not None, plant.log()
     assert float(control.group(1)) == pytest.approx(100 * applied / (10 - DELAY), abs=0.05)
     assert applied == 0 or control.group(2) is not None  # each applied command was timed
+    # the plant's own punctuality: how late its oldest due sample left at each wake, never early
+    lag = re.search(r"sample publication lag p99 ([\d.]+) ms, max ([\d.]+) ms", plant.log())
+    assert lag is not None, plant.log()
+    assert 0.0 <= float(lag.group(1)) <= float(lag.group(2)), lag.group(0)
     # each period is simulated at its start and published sample by sample: the last sample
     # published trails the simulated time by 1 sample to 1 period (bench/realtime_session.py
     # places the samples in wall time with it)
