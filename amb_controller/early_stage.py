@@ -84,7 +84,7 @@ class EarlyStage:
         self._omega = np.zeros(N)
         self._seen = np.zeros(N, dtype=bool)
         self._sent: dict[int, np.ndarray] = {}
-        self._missing: set[int] = set()
+        self._missing: dict[int, int] = {}  # period -> its first sample run with the command
         self._built: OrderedDict[int, EarlyAction] = OrderedDict()
         self._index: int | None = None
         self.early: EarlyAction | None = None
@@ -123,7 +123,17 @@ class EarlyStage:
 
     def command_missing(self, period: int) -> None:
         """Period ``period`` ran without its command (zero wavelet force applied)."""
-        self._missing.add(int(period))
+        self._missing[int(period)] = self.N
+
+    def command_resumed(self, period: int, position: int) -> None:
+        """Period ``period``, reported missing, ran with its command from sample ``position`` on.
+
+        A realtime plant's partial command (``plant_sim``'s ``partial_commands``): the period's
+        test then takes the command's force with its first ``position`` samples at zero, what
+        the rotor felt; taken as zero, the rest would look like a change of the rotor.
+        """
+        if int(period) in self._missing:
+            self._missing[int(period)] = int(position)
 
     def end_period(
         self,
@@ -176,9 +186,12 @@ class EarlyStage:
         N = self.N
         limit = np.broadcast_to(np.asarray(force_limit, dtype=float), (4,))
         applied = self._sent.pop(period, None)
-        if applied is None or period in self._missing:
+        start = self._missing.pop(period, 0)  # the first sample that ran with the command
+        if applied is None or start >= N:
             applied = np.zeros((4, N))
-        self._missing.discard(period)
+        elif start:
+            applied = applied.copy()
+            applied[:, :start] = 0.0
         for old in [p for p in self._sent if p < period]:
             del self._sent[old]
         if self._seen.any():

@@ -169,6 +169,7 @@ class ControllerPipeline:
             "inputs_rejected": 0,
         }
         self._compute_time = 0.0
+        self._flagged: int | None = None  # the period whose samples carry COMMAND_MISSING
         self._last_command: Command | None = None
         self._last_period = -1
         self._period_message = ""
@@ -451,12 +452,18 @@ class ControllerPipeline:
         if self._expected is not None and n != self._expected:
             self._invalidate(f"sample {n} after {self._expected - 1}: gap")
         self._expected = n + 1
-        if command_missing and self.supervisor.command_missing(m):
-            self._stats["commands_late"] += 1
-        elif pos and not command_missing and self.supervisor.command_resumed(m, pos):
-            self._stats["commands_partial"] += 1  # applied from sample pos (partial_commands)
-        if command_missing and self.early is not None:
-            self.early.command_missing(m)
+        if command_missing:
+            if self.supervisor.command_missing(m):
+                self._stats["commands_late"] += 1
+            if self.early is not None:
+                self.early.command_missing(m)
+            self._flagged = m
+        elif pos and self._flagged == m:  # applied from sample pos on (partial_commands)
+            self._flagged = None
+            if self.supervisor.command_resumed(m, pos):
+                self._stats["commands_partial"] += 1
+            if self.early is not None:
+                self.early.command_resumed(m, pos)
         if displacement is not None:
             d = np.asarray(displacement, dtype=float)
             if self.early is not None:

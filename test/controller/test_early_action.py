@@ -406,3 +406,33 @@ def test_the_operator_is_told_which_model_is_in_use_and_when_none_is():
     assert ok and f"at most {limit:.0f} N per sample" in text
     ok, text = period(110.0)
     assert not ok and "no model within 0.5%" in text and "testing nothing" in text
+
+
+def test_a_partial_period_is_tested_with_the_force_that_acted():
+    # a realtime plant applied period 1's command from its sample 5 on (partial_commands): the
+    # model's test of period 1 must take that force, zeros before sample 5; of a period reported
+    # missing, zeros throughout; of a period run whole, the command itself
+    stage = EarlyStage(_synthetic_model(), EarlyActionConfig(), delay=1)
+    taken = []
+    test_period = stage.early.end_period
+
+    def spy(period, y, applied):
+        taken.append((period, np.array(applied)))
+        return test_period(period, y, applied)
+
+    stage.early.end_period = spy
+    command = np.arange(4 * N, dtype=float).reshape(4, N) + 1.0  # N per axis and sample
+    limit = np.full(4, 1e4)
+    for m, report in enumerate(("whole", "partial", "missing", "whole")):
+        if report != "whole":
+            stage.command_missing(m)
+        if report == "partial":
+            stage.command_resumed(m, 5)
+        for k in range(N):
+            stage.sample(k, np.zeros(8), 100.0)
+        stage.end_period(m, m + 1, command, True, True, limit)
+    expected = {1: command.copy(), 2: np.zeros((4, N)), 3: command}
+    expected[1][:, :5] = 0.0
+    for period, applied in taken[1:]:
+        np.testing.assert_array_equal(applied.T, expected[period])
+    assert [p for p, _ in taken] == [0, 1, 2, 3]
