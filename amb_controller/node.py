@@ -177,9 +177,14 @@ class WaveletControllerNode(ClosesReaderParticipant, Node):
         self._configure()
         qos = stream_qos(self._pipe.samples_per_period)
         # composed: handed to the stack's own readers (the recorder) in process as well
-        self._cmd_pub = stream_publisher(self, bus, ControlCommand, topics.COMMAND, COMMAND_QOS)
-        self._status_pub = stream_publisher(self, bus, ControllerStatus, topics.STATUS, STATUS_QOS)
         backlog = declare_catch_up(self)
+        lossless = backlog.keeps_every_message  # lockstep: the recorder gets every one
+        self._cmd_pub = stream_publisher(
+            self, bus, ControlCommand, topics.COMMAND, COMMAND_QOS, lossless
+        )
+        self._status_pub = stream_publisher(
+            self, bus, ControllerStatus, topics.STATUS, STATUS_QOS, lossless
+        )
         self._max_backlog = backlog.max_backlog
         self._readers = (
             stream_subscription(

@@ -208,15 +208,16 @@ class FaultMonitorNode(ClosesReaderParticipant, Node):
         qos = stream_qos(self._spr)
         qos.depth = max(qos.depth, QUEUE_REVS * self._spr)  # not in the loop: may lag, not lose
         # composed: handed to the stack's own readers (controller, recorder) in process as well
+        backlog = declare_catch_up(self)
         self._pub = stream_publisher(
             self,
             bus,
             FaultEventMsg,
             topics.FAULT_EVENTS,
             QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE),
+            lossless=backlog.keeps_every_message,
         )
         self._diag = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS, 10)
-        backlog = declare_catch_up(self)
         self._readers = (
             stream_subscription(
                 self, bus, WaveletCoefficients, topics.COEFFICIENTS, self._on_coefficients, qos,

@@ -97,6 +97,7 @@ from amb_plant_sim.command_book import SPREAD_HISTORY, CommandBook, CommandOffer
 from amb_plant_sim.errors import ScenarioError, SimulationError
 from amb_plant_sim.scenario import load_scenario, resolve_samples_per_rev
 from amb_plant_sim.simulator import MeasurementBlock, PlantSimulator
+from amb_tools import lossless
 from amb_tools.conversions import MessageError, measurement_bytes, stamp, stamp_seconds
 from amb_tools.node_main import ConfigurationError, descriptor, run_node
 from amb_tools.reader_participant import ClosesReaderParticipant, MovableSubscription, watch_readers
@@ -179,7 +180,10 @@ class PlantSimNode(ClosesReaderParticipant, Node):
             ),
         )
         self._configure()
-        self._meas_pub = self.create_publisher(Measurement, topics.MEASUREMENT, stream_qos(self._N))
+        # lockstep: every sample reaches every reader, a slow one (the recorder) pacing the loop
+        self._meas_pub = lossless.publisher(
+            self, Measurement, topics.MEASUREMENT, stream_qos(self._N), self._mode == "lockstep"
+        )
         self._clock_pub = self.create_publisher(Clock, topics.CLOCK, 10)
         self._diag_pub = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS, 10)
         self._cmd_reader = MovableSubscription(
@@ -576,6 +580,12 @@ class PlantSimNode(ClosesReaderParticipant, Node):
             control += (
                 f"; sample publication lag p99 {lag['p99'] * 1e3:.2f} ms, "
                 f"max {lag['max'] * 1e3:.2f} ms"
+            )
+        waits = getattr(self._meas_pub, "waits", 0)  # lockstep (amb_tools.lossless)
+        if waits:
+            control += (
+                f"; measurements held {self._meas_pub.waited_s:.2f} s in {waits} waits for a "
+                "reader behind by the writer's history"
             )
         self.get_logger().info(
             f"scenario {self._scenario.name} complete at t = {self._sim.time:.4f} s "

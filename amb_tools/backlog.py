@@ -99,6 +99,15 @@ class CatchUp(NamedTuple):
     max_backlog: int = 0
     by_age: bool = True
 
+    @property
+    def keeps_every_message(self) -> bool:
+        """No bound (``max_backlog`` 0, lockstep): its own streams lose nothing either.
+
+        The node's stream writers then keep every message until each reader has it
+        (:mod:`amb_tools.lossless`).
+        """
+        return not self.max_backlog
+
     def per_message(self, samples: int) -> CatchUp:
         """
         The bound for a stream of one message per ``samples`` samples: as long behind in time.
@@ -139,7 +148,9 @@ def declare_catch_up(node: Node) -> CatchUp:
             "realtime catch-up, in samples: measurements queued behind more than this many, or "
             "published more than this many sample intervals ago, are dropped (a counted gap; "
             "the newest of each take stays), coefficient messages (one per two samples) beyond "
-            "half as many; 0 = keep every message (lockstep)",
+            "half as many; 0 = keep every message (lockstep), and publish this node's streams "
+            "keeping every message until each reader has it (a publication waits for a reader "
+            "far behind; amb_tools.lossless)",
             ints=(0, 1 << 20),
         ),
     )

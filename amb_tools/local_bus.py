@@ -60,6 +60,7 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile
 
 from amb_tools.backlog import NO_CATCH_UP, BacklogReader, CatchUp
+from amb_tools.lossless import publisher as lossless_publisher
 
 __all__ = ["LocalBus", "StreamPublisher", "stream_publisher", "stream_subscription"]
 
@@ -184,15 +185,21 @@ class LocalBus:
         resolved = node.resolve_topic_name(name)
         return resolved in self._topics or self._declared_local(node, resolved)
 
-    def publisher(self, node: Node, msg_type: type, name: str, qos: QoSProfile) -> StreamPublisher:
-        """A publisher of ``name`` that also hands each message to the composed readers."""
+    def publisher(
+        self, node: Node, msg_type: type, name: str, qos: QoSProfile, lossless: bool = False
+    ) -> StreamPublisher:
+        """A publisher of ``name`` that also hands each message to the composed readers.
+
+        ``lossless``: its DDS side waits for a slow outside reader (:mod:`amb_tools.lossless`).
+        """
         resolved, topic = self._topic(node, msg_type, name)
         if not topic.local:
             raise ValueError(
                 f"{resolved} is not one of the bus's local topics {self._local_names}: declare "
                 "it, or readers composed before this publisher took it from DDS as well"
             )
-        return StreamPublisher(node.create_publisher(msg_type, resolved, qos), topic, self)
+        dds = lossless_publisher(node, msg_type, resolved, qos, lossless)
+        return StreamPublisher(dds, topic, self)
 
     def _wake_deliver(self, topic: _Topic, raw: bytes) -> None:
         """A message of an outside topic, taken at a wake of its DDS reader."""
@@ -334,8 +341,19 @@ def stream_subscription(
     return bus.subscribe(node, msg_type, name, callback, qos, catch_up, urgent=urgent)
 
 
-def stream_publisher(node: Node, bus: LocalBus | None, msg_type: type, name: str, qos: QoSProfile):
-    """A publisher of a stream (``publish(raw_bytes)``): bus-aware if composed."""
+def stream_publisher(
+    node: Node,
+    bus: LocalBus | None,
+    msg_type: type,
+    name: str,
+    qos: QoSProfile,
+    lossless: bool = False,
+):
+    """A publisher of a stream (``publish(raw_bytes)``): bus-aware if composed.
+
+    ``lossless``: keep every message until each reader has it, a publication waiting while the
+    writer's history is full (lockstep; :mod:`amb_tools.lossless`).
+    """
     if bus is None:
-        return node.create_publisher(msg_type, name, qos)
-    return bus.publisher(node, msg_type, name, qos)
+        return lossless_publisher(node, msg_type, name, qos, lossless)
+    return bus.publisher(node, msg_type, name, qos, lossless)

@@ -17,6 +17,8 @@ from typing import Any
 from amb_msgs.msg import CoefficientSet
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
+from amb_tools.lossless import WAITED_KEY, WaitingPublisher
+
 __all__ = [
     "COMMAND_QOS",
     "FRAME_CODES",
@@ -62,7 +64,8 @@ def stream_qos(samples_per_period: int) -> QoSProfile:
     Returns
     -------
     rclpy.qos.QoSProfile
-        The lock-step loop needs every sample: none is dropped while a reader is slower.
+        The lock-step loop needs every sample: none is dropped while a reader is slower. (In
+        lock-step the writers make it KEEP_ALL: :mod:`amb_tools.lossless`.)
     """
     return QoSProfile(
         history=HistoryPolicy.KEEP_LAST,
@@ -75,7 +78,7 @@ def stream_qos(samples_per_period: int) -> QoSProfile:
 MATCHED_KEY = "subscribers "
 
 
-def matched_subscribers(*publishers: Any) -> dict[str, int]:
+def matched_subscribers(*publishers: Any) -> dict[str, int | float]:
     """
     Subscriptions each publisher has matched, keyed ``MATCHED_KEY + topic`` for diagnostics.
 
@@ -89,10 +92,14 @@ def matched_subscribers(*publishers: Any) -> dict[str, int]:
     Parameters
     ----------
     *publishers
-        ``rclpy`` publishers, or :class:`amb_tools.local_bus.StreamPublisher` (its DDS side).
+        ``rclpy`` publishers, :class:`amb_tools.lossless.WaitingPublisher` (their wall time
+        spent waiting for a slow reader as well, ``WAITED_KEY + topic``, s) or
+        :class:`amb_tools.local_bus.StreamPublisher` (its DDS side).
     """
-    out = {}
+    out: dict[str, int | float] = {}
     for pub in publishers:
         dds = getattr(pub, "dds", pub)
         out[MATCHED_KEY + dds.topic_name] = dds.get_subscription_count()
+        if isinstance(dds, WaitingPublisher):  # lockstep: how long a slow reader held it
+            out[WAITED_KEY + dds.topic_name] = round(dds.waited_s, 3)
     return out

@@ -94,11 +94,15 @@ class WaveletFilterbankNode(ClosesReaderParticipant, Node):
         )
         self._configure()
         qos = stream_qos(self._samples_per_period)
-        self._pub = stream_publisher(self, bus, WaveletCoefficients, topics.COEFFICIENTS, qos)
+        catch_up = declare_catch_up(self)
+        self._pub = stream_publisher(
+            self, bus, WaveletCoefficients, topics.COEFFICIENTS, qos,
+            lossless=catch_up.keeps_every_message,
+        )  # fmt: skip
         self._diag = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS, 10)
         self._meas_reader = stream_subscription(
             self, bus, Measurement, topics.MEASUREMENT, self._on_measurement, qos,
-            declare_catch_up(self), urgent=True,  # the controller waits for the coefficients
+            catch_up, urgent=True,  # the controller waits for the coefficients
         )  # fmt: skip
         self._status_timer = self.create_timer(
             self.get_parameter("status_period").value, self._publish_status

@@ -67,3 +67,81 @@ def test_bag_holds_every_message_after_a_crash_and_a_stop(
     assert applied == n_samples // SPR - 2
     written = re.search(r"messages written: (.*)", recorder.log()).group(1)
     assert f"/amb/measurement: {n_samples}" in written
+
+
+#: Lock-step run for a stopped recorder: long enough that the plant, left to run on, publishes
+#: more than a writer's history (Fast DDS keeps 5000 of a KEEP_ALL writer's messages) past it.
+HELD = {**SCENARIO, "name": "recorder_held", "duration": 40.0}
+
+
+def test_a_stopped_recorder_holds_the_lockstep_plant_and_loses_nothing(
+    ros, node_process, tmp_path
+) -> None:
+    """The demo's recorder, niced on two cores, once lost 240 of 18688 measurements: in
+    lock-step the writers keep every message until each reader has it (amb_tools.lossless), so
+    a recorder stopped mid-run holds the plant instead of missing what was overwritten."""
+    from amb_msgs.msg import Measurement
+    from diagnostic_msgs.msg import DiagnosticArray
+    from rclpy.serialization import deserialize_message
+
+    from amb_tools.lossless import WAITED_KEY
+
+    scenario = tmp_path / "scenario.yaml"
+    scenario.write_text(yaml.safe_dump(HELD))
+    total = round(HELD["duration"] * HELD["speed"]["hz"]) * SPR
+    bag = tmp_path / "bag"
+    streams = ["/amb/measurement", "/amb/wavelet/coefficients", "/amb/control/command"]
+    recorder = node_process(
+        "recorder",
+        params={"output": str(bag), "topics": [*streams, "/amb/control/status", "/diagnostics"]},
+    )
+    filterbank = node_process("wavelet_filterbank", params={"samples_per_rev": SPR})
+    controller = node_process(
+        "wavelet_controller", params={"samples_per_rev": SPR, "controller": "none"}
+    )
+    node = ros.node("amb_test_held_observer")
+    tap = ros.tap(node, Measurement, "/amb/measurement", SPR, on_message=lambda raw: None)
+    assert ros.spin_until(lambda: node.count_subscribers("/amb/control/command") >= 1, 30.0)
+    plant = node_process(
+        "plant_sim",
+        params={"scenario_file": str(scenario), "samples_per_rev": SPR,
+                "wait_for_subscribers": 4, "command_timeout": 5.0},
+    )  # fmt: skip
+    assert ros.spin_until(lambda: tap.received > 0, 60.0), plant.log()
+    recorder.proc.send_signal(signal.SIGSTOP)
+    try:
+        at_stop = tap.received
+        # the plant runs on until the writer's history is full of messages the recorder has not
+        # acknowledged, then waits: no progress, and no end, while the recorder is stopped
+        ended = ros.spin_until_progress(
+            lambda: plant.returncode is not None, lambda: tap.received, stall=2.0, limit=120.0
+        )
+        held_at = tap.received
+    finally:
+        recorder.proc.send_signal(signal.SIGCONT)
+    assert not ended and held_at < total, (at_stop, held_at, total, plant.log()[-2000:])
+    assert ros.spin_until_progress(
+        lambda: plant.returncode is not None, lambda: tap.received, stall=30.0
+    ), plant.log()[-2000:]
+    assert plant.returncode == 0, plant.log()
+    assert tap.received == total
+    ros.spin_for(0.5)
+    assert recorder.stop() == 0, recorder.log()
+    controller.stop()
+    filterbank.stop()
+
+    counts: dict[str, int] = {}
+    key = WAITED_KEY + "/amb/measurement"
+    waited: list[float] = []
+    with Reader(bag) as reader:
+        for conn, _t, raw in reader.messages():
+            counts[conn.topic] = counts.get(conn.topic, 0) + 1
+            if conn.topic == "/diagnostics":
+                for status in deserialize_message(raw, DiagnosticArray).status:
+                    waited += [float(v.value) for v in status.values if v.key == key]
+    assert counts["/amb/measurement"] == total, counts
+    assert counts["/amb/wavelet/coefficients"] == total // 2, counts  # one per two samples
+    assert counts["/amb/control/command"] == total // SPR, counts  # one per measured period
+    assert counts["/amb/control/status"] == total // SPR, counts
+    assert "measurements held" in plant.log(), plant.log()[-1500:]
+    assert waited and waited[-1] > 0.0, waited  # the plant's last report

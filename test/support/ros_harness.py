@@ -179,14 +179,14 @@ class StreamTap:
     """A test's reader of a sample-rate stream that keeps every message it is sent.
 
     An observer outside a lock-step loop (the test process, beside the plant and the nodes on
-    two cores) must keep up with the plant, or lose the oldest samples once it is more than the
-    writer's history (1024 samples) behind. rclpy's executor hands over one message per wake, a
-    wait set per message; this reader takes every message queued at a wake
-    (:class:`amb_tools.backlog.BacklogReader` without a catch-up bound) as raw CDR, into a
-    queue 65536 deep. A reader the transport stops feeding (``docs/history.md``, "A reader the
-    transport stopped feeding") moves to a participant of its own after ``renew_after`` s of
-    silence with the writer matched (:class:`amb_tools.reader_participant.DeafReaders`), as
-    the nodes' readers do.
+    two cores) should keep up with the plant, or hold it once the writer's history is full of
+    samples it has not acknowledged (lock-step writers keep every message, amb_tools.lossless).
+    rclpy's executor hands over one message per wake, a wait set per message; this reader takes
+    every message queued at a wake (:class:`amb_tools.backlog.BacklogReader` without a catch-up
+    bound) as raw CDR, into a queue 65536 deep. A reader the transport stops feeding
+    (``docs/history.md``, "A reader the transport stopped feeding") moves to a participant of
+    its own after ``renew_after`` s of silence with the writer matched
+    (:class:`amb_tools.reader_participant.DeafReaders`), as the nodes' readers do.
 
     Parameters
     ----------
