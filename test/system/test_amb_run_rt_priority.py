@@ -28,29 +28,28 @@ PROBE = (
 )
 
 
+RT_REFUSAL = "expected PROCESS=P with P in 1-99"
+NICE_REFUSAL = "expected NODE=N with NODE in"
+
+
 @pytest.mark.parametrize(
-    "item", ["plant_sim=0", "plant_sim=100", "plant_sim=x", "plant=5", "wavelet_stack"]
-)
-def test_a_bad_item_is_refused_before_anything_is_made(tmp_path, item: str) -> None:
+    ("option", "item", "reason"),
+    [
+        *(("--rt-priority", i, RT_REFUSAL) for i in
+          ("plant_sim=0", "plant_sim=100", "plant_sim=x", "plant=5", "wavelet_stack")),
+        *(("--nice", i, NICE_REFUSAL) for i in ("fault_monitor=x", "fault_monitor=--5", "plant=3")),
+    ],
+)  # fmt: skip
+def test_a_bad_item_is_refused_before_anything_is_made(
+    tmp_path, option: str, item: str, reason: str
+) -> None:
     out = tmp_path / "run"
     args = build_parser().parse_args(
-        ["--scenario", "mass_loss_first_critical.yaml", "--out", str(out), "--rt-priority", item]
+        ["--scenario", "mass_loss_first_critical.yaml", "--out", str(out), option, item]
     )
     with pytest.raises(SystemExit) as refused:
         run(args)
-    assert "expected PROCESS=P with P in 1-99" in str(refused.value)
-    assert not out.exists()
-
-
-@pytest.mark.parametrize("item", ["fault_monitor=x", "fault_monitor=--5", "plant=3"])
-def test_a_bad_nice_item_is_refused_before_anything_is_made(tmp_path, item: str) -> None:
-    out = tmp_path / "run"
-    args = build_parser().parse_args(
-        ["--scenario", "mass_loss_first_critical.yaml", "--out", str(out), "--nice", item]
-    )
-    with pytest.raises(SystemExit) as refused:
-        run(args)
-    assert "expected NODE=N with NODE in" in str(refused.value)
+    assert reason in str(refused.value)
     assert not out.exists()
 
 
