@@ -469,23 +469,18 @@ class PlantSimNode(ClosesReaderParticipant, Node):
             self.counts["taken_at_start"] += not queued and k in self._book
             now = time.monotonic()
         force = self._book.take(k, now)
-        status = 0
         if force is None:
-            wf = np.zeros((n, N_AXES))
-            if k >= self._delay:
-                status |= Measurement.STATUS_COMMAND_MISSING
-                if self._mode == "realtime":
-                    self.counts["missing"] += 1
-                    if not self._controller_lost:
-                        self._controller_lost = True
-                        self.counts["watchdog_trips"] += 1
-            if self._controller_lost:
-                status |= Measurement.STATUS_WATCHDOG
+            missing = k >= self._delay  # the first `delay` periods have no command by design
+            if missing and self._mode == "realtime":
+                self.counts["missing"] += 1
+                if not self._controller_lost:
+                    self._controller_lost = True
+                    self.counts["watchdog_trips"] += 1
             if self._book.open_period == k and due is not None:
                 n = self._due_samples(n, due)  # the rest as it falls due (_run_open)
-                wf = wf[:n]
+            wf, status = self._without_command(n, missing)
         else:
-            wf = force[n0 % self._N : n0 % self._N + n]
+            wf, status = force[n0 % self._N : n0 % self._N + n], 0
         block = self._sim.advance(n, wf)
         self._publish(block, wf, status)
 
@@ -516,13 +511,20 @@ class PlantSimNode(ClosesReaderParticipant, Node):
                 # one per late command under a sustained overload: throttled as the warnings
                 self.get_logger().info(self._last_reason, throttle_duration_sec=2.0)
         else:
-            n = self._due_samples(n, due)
-            wf = np.zeros((n, N_AXES))
-            status = Measurement.STATUS_COMMAND_MISSING
-            if self._controller_lost:
-                status |= Measurement.STATUS_WATCHDOG
-        block = self._sim.advance(n, wf)
+            wf, status = self._without_command(self._due_samples(n, due), missing=True)
+        block = self._sim.advance(len(wf), wf)
         self._publish(block, wf, status)
+
+    def _without_command(self, n: int, missing: bool) -> tuple[np.ndarray, int]:
+        """Zero wavelet force for ``n`` samples, and their flags.
+
+        ``STATUS_COMMAND_MISSING`` if a command was due (``missing``), ``STATUS_WATCHDOG`` while
+        the controller is taken as lost.
+        """
+        status = Measurement.STATUS_COMMAND_MISSING if missing else 0
+        if self._controller_lost:
+            status |= Measurement.STATUS_WATCHDOG
+        return np.zeros((n, N_AXES)), status
 
     def _publish(self, block: MeasurementBlock, wf: np.ndarray, status: int) -> None:
         limit = self._sim.rig.amb.force_limit
