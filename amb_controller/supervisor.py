@@ -97,11 +97,12 @@ from enum import IntEnum
 import numpy as np
 
 from amb_common.faults import FINAL, PROVISIONAL, WITHDRAWN, FaultType
+from amb_controller.command_ledger import CommandLedger, Step
 from amb_controller.errors import ControllerValueError, NotIdentifiedError
 from amb_controller.guard import DivergenceGuard
 from amb_controller.identification import IdentificationResult, MarkovIdentifier, StepExperiment
 from amb_controller.stability import MAX_MODEL_RADIUS
-from amb_controller.synthesis import ForceLimiter, synthesize
+from amb_controller.synthesis import ForceLimiter
 
 
 class Mode(IntEnum):
@@ -160,31 +161,6 @@ class Command:
     saturated: np.ndarray
     guard_tripped: bool
     message: str = ""
-
-
-@dataclass
-class _Step:
-    """A controller step, kept until its command is known to be applied (or not).
-
-    For a controller that ``tracks_applied``, ``measured`` and ``state_before`` are None: only
-    the fact that it ran (and must be told of a lost command) is kept.
-    """
-
-    period: int
-    measured: np.ndarray | None
-    state_before: object
-    skipped: bool
-
-
-@dataclass
-class _Undone:
-    """What :meth:`WaveletControlSupervisor.command_missing` changed, for ``command_resumed``."""
-
-    period: int
-    controller: object  # the controller it concerned (replaced or reset: nothing to take back)
-    sent: np.ndarray | None  # the command's coefficients (None: none was sent)
-    state: object  # the controller's state before the undo (None: nothing was replayed)
-    steps: dict | None  # target -> (step, its state_before) before the undo
 
 
 @dataclass
@@ -255,9 +231,7 @@ class WaveletControlSupervisor:
         for action in self.fault_actions.values():
             if action not in ("hold", "off", "ignore"):
                 raise ControllerValueError(f"fault action must be hold/off/ignore, got {action!r}")
-        self._steps: dict[int, _Step] = {}  # target period -> the step that made its command
-        self._missing_reported: int | None = None
-        self._undone: _Undone | None = None  # command_missing's last report
+        self._ledger = CommandLedger(limiter.basis)  # commands sent, steps, lost ones undone
         self.controller = None
         self._provisional_hold = False  # the HOLD was entered on a provisional fault class
         self.mode = Mode.OFF
@@ -266,7 +240,6 @@ class WaveletControlSupervisor:
             self.set_controller(controller)
         self.identification_result: IdentificationResult | None = None
         self._identification: _Identification | None = None
-        self._sent: dict[int, np.ndarray] = {}
         self._last = np.zeros(limiter.basis.n_coefficients)
         self._held: np.ndarray | None = None  # command at HOLD entry (ramp-to-zero)
         self._held_periods = 0
@@ -426,7 +399,7 @@ class WaveletControlSupervisor:
         if self.guard is not None:
             self.guard.reset()
         self.set_mode(Mode.OFF)
-        self._sent.clear()
+        self._ledger.clear()
         self._last = np.zeros(self.limiter.basis.n_coefficients)
 
     @property
@@ -436,7 +409,7 @@ class WaveletControlSupervisor:
 
     def sent(self, target: int) -> np.ndarray | None:
         """The coefficients sent for period ``target`` (None: none kept for it)."""
-        return self._sent.get(int(target))
+        return self._ledger.sent(target)
 
     def replace_command(self, command: Command, coefficients: np.ndarray) -> Command:
         """
@@ -452,7 +425,7 @@ class WaveletControlSupervisor:
             raise ControllerValueError("only a law told the applied inputs may be overridden")
         result = self.limiter.apply(np.asarray(coefficients, dtype=float))
         target = command.target_period
-        self._sent[target] = result.coefficients
+        self._ledger.record(target, result.coefficients)
         self._last = result.coefficients
         self.controller.record_applied(target, result.coefficients)
         return replace(
@@ -465,8 +438,7 @@ class WaveletControlSupervisor:
     def reset_controller(self) -> None:
         """Reset the controller's state (integrators and history to zero)."""
         self.controller.reset()
-        self._steps.clear()
-        self._undone = None  # nothing of before the reset is taken back
+        self._ledger.forget_steps()  # nothing of before the reset is taken back
 
     def command_missing(self, period_index: int) -> bool:
         """
@@ -493,38 +465,7 @@ class WaveletControlSupervisor:
             and this is the first report of the period.
 
         """
-        p = int(period_index)
-        if p == self._missing_reported:
-            return False
-        self._missing_reported = p
-        sent = p in self._sent
-        step = self._steps.get(p)
-        replayed = step is not None and self.controller is not None and not self.tracks_applied
-        # command_resumed: what the command said and, for a replay, how to take it back
-        self._undone = _Undone(
-            p,
-            self.controller,
-            self._sent.get(p),
-            self.controller.get_state() if replayed else None,
-            {t: (s, s.state_before) for t, s in self._steps.items()} if replayed else None,
-        )
-        self._sent[p] = np.zeros(self.limiter.basis.n_coefficients)
-        self._steps.pop(p, None)
-        if step is None or self.controller is None:
-            return sent
-        if self.tracks_applied:  # its estimate uses the applied inputs: tell it, no replay
-            self.controller.record_applied(p, self._sent[p])
-            return sent
-        self.controller.set_state(step.state_before)
-        self.controller.skip(step.period)
-        for target in sorted(t for t in self._steps if t > p):
-            later = self._steps[target]
-            later.state_before = self.controller.get_state()
-            if later.skipped:
-                self.controller.skip(later.period)
-            else:
-                self.controller.step(later.period, later.measured)
-        return sent
+        return self._ledger.missing(period_index, self.controller, self.tracks_applied)
 
     def command_resumed(self, period_index: int, position: int) -> bool:
         """
@@ -532,15 +473,9 @@ class WaveletControlSupervisor:
 
         A realtime plant with partial commands (``plant_sim``'s ``partial_commands``) applies a
         command that arrives during its period to the samples still ahead: the period's samples
-        carry ``STATUS_COMMAND_MISSING`` up to ``position`` and none from there. What the period
-        applied is then the command's force with its first ``position`` samples zeroed; its
-        coefficients, projected on the control basis (least squares), replace the zeros that
-        :meth:`command_missing` recorded (:meth:`applied`, the identification's input, and a
-        controller that tracks the applied inputs). A controller replayed by
-        :meth:`command_missing` (not tracking the applied inputs) knows a step as made or not:
-        the undo is taken back (its state and later steps as before the report) when the
-        command acted on at least half of the period's samples, and kept otherwise, whichever
-        is nearer what acted; the rest shows in the following periods' coefficients.
+        carry ``STATUS_COMMAND_MISSING`` up to ``position`` and none from there. The share that
+        acted is recorded (:meth:`applied`) and the undo is taken back or kept, whichever is
+        nearer what acted (:meth:`amb_controller.command_ledger.CommandLedger.resumed`).
 
         Parameters
         ----------
@@ -555,30 +490,7 @@ class WaveletControlSupervisor:
             True if this supervisor had sent a command for the period and this is the first
             such report; else nothing is changed.
         """
-        p = int(period_index)
-        undone = self._undone
-        if undone is None or undone.period != p or undone.sent is None:
-            return False
-        self._undone = None
-        basis = self.limiter.basis
-        force = synthesize(undone.sent, basis)  # (axes, N), N
-        length = force.shape[1]
-        acted = length - min(length, max(0, int(position) - basis.offset))
-        force[:, : length - acted] = 0.0  # columns from basis.offset
-        W = basis.weights.reshape(basis.n_coefficients, -1)
-        applied = np.linalg.lstsq(W.T, force.ravel(), rcond=None)[0]
-        self._sent[p] = applied
-        if self.controller is not None and self.tracks_applied:
-            self.controller.record_applied(p, applied)
-        elif (
-            undone.state is not None and undone.controller is self.controller
-            and 2 * acted >= length  # mostly applied: as if whole
-        ):  # fmt: skip
-            self.controller.set_state(undone.state)
-            self._steps = {t: s for t, (s, _) in undone.steps.items()}
-            for s, before in undone.steps.values():
-                s.state_before = before
-        return True
+        return self._ledger.resumed(period_index, position, self.controller, self.tracks_applied)
 
     def record_zero(self, target_period: int) -> None:
         """Record a zero-force command for ``target_period`` sent outside :meth:`step`.
@@ -586,12 +498,11 @@ class WaveletControlSupervisor:
         The pipeline answers an incomplete period with zero force; :meth:`applied` and the
         undo of lost commands must know it.
         """
-        self._sent[int(target_period)] = np.zeros(self.limiter.basis.n_coefficients)
+        self._ledger.record(target_period, self._ledger.zeros)
 
     def applied(self, period_index: int) -> np.ndarray:
         """Return the control coefficients commanded for ``period_index`` (zeros if none)."""
-        sent = self.sent(period_index)
-        return np.zeros(self.limiter.basis.n_coefficients) if sent is None else sent
+        return self._ledger.applied(period_index)
 
     # ------------------------------------------------------------------ period step
     def step(self, period_index: int, measured: np.ndarray, displacement_peak=None) -> Command:
@@ -650,21 +561,18 @@ class WaveletControlSupervisor:
         else:
             coefficients = zeros
         if tracks and not guard_tripped:
-            self._steps[target] = _Step(k, None, None, hold)  # a marker: the controller ran
+            self._ledger.steps[target] = Step(k, None, None, hold)  # a marker: it ran
         elif running and not guard_tripped:
-            self._steps[target] = _Step(k, np.array(measured, dtype=float), saved, hold)
+            self._ledger.steps[target] = Step(k, np.array(measured, dtype=float), saved, hold)
         else:
-            self._steps.clear()  # the controller was reset or is not running
+            self._ledger.steps.clear()  # the controller was reset or is not running
         if result is None:
             result = self.limiter.apply(coefficients)
         if tracks and not guard_tripped:
             self.controller.record_applied(target, result.coefficients)
         self._last = result.coefficients
-        self._sent[target] = result.coefficients
-        for old in [p for p in self._sent if p < k - self.delay - 1]:
-            del self._sent[old]
-        for old in [p for p in self._steps if p <= k]:
-            del self._steps[old]  # its period has started: a missing flag came before now
+        self._ledger.record(target, result.coefficients)
+        self._ledger.prune(k, self.delay)
         return Command(
             target,
             k,
