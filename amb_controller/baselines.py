@@ -60,6 +60,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from amb_common.names import N_SENSORS
+from amb_controller.command_ledger import MISSING, RESUMED, MissingFlags
 from amb_controller.errors import ControllerValueError
 from amb_controller.fourier_basis import (
     complex_gain,
@@ -324,6 +325,7 @@ class HarmonicPipeline:
         # one (open loop per window, eq. B.1: no realisation to close)
         self.supervisor.set_controller(controller, own_model_radius(model.markov, controller))
         self._buffer = np.zeros((n, N_SENSORS))
+        self._flags = MissingFlags()  # the samples' STATUS_COMMAND_MISSING
         self._stats = {
             "commands_sent": 0,
             "commands_late": 0,
@@ -376,9 +378,10 @@ class HarmonicPipeline:
         if self._expected is not None and n != self._expected:
             self._ok = False
         self._expected = n + 1
-        if command_missing and self.supervisor.command_missing(m):
+        flag = self._flags.observe(m, pos, command_missing)
+        if flag == MISSING and self.supervisor.command_missing(m):
             self._stats["commands_late"] += 1
-        elif pos and not command_missing and self.supervisor.command_resumed(m, pos):
+        elif flag == RESUMED and self.supervisor.command_resumed(m, pos):
             self._stats["commands_partial"] += 1  # applied from sample pos (partial_commands)
         x = np.asarray(displacement, dtype=float)
         if x.shape != (N_SENSORS,) or not np.all(np.isfinite(x)):

@@ -19,7 +19,12 @@ import numpy as np
 
 from amb_controller.synthesis import BasisSet, synthesize
 
-__all__ = ["CommandLedger", "Step"]
+__all__ = ["MISSING", "RESUMED", "CommandLedger", "MissingFlags", "Step"]
+
+#: :meth:`MissingFlags.observe`: the sample's period ran without its command (so far).
+MISSING = "missing"
+#: :meth:`MissingFlags.observe`: a flagged period's command acts from this sample on.
+RESUMED = "resumed"
 
 
 @dataclass
@@ -212,3 +217,43 @@ class CommandLedger:
             for s, before in undone.steps.values():
                 s.state_before = before
         return True
+
+
+class MissingFlags:
+    """
+    Where a sample stream says a period ran without its command, and where the command resumed.
+
+    The plant flags each sample of a period run without its command
+    ``STATUS_COMMAND_MISSING``; a realtime plant with partial commands stops flagging from the
+    sample on which a late command acts (:meth:`CommandLedger.resumed`). One reading of the
+    flags for every controller (the pipeline and the sampled-harmonic baseline).
+    """
+
+    def __init__(self) -> None:
+        self._flagged: int | None = None  # the period whose samples carry the flag
+
+    def observe(self, period: int, position: int, missing: bool) -> str | None:
+        """
+        Read one sample's flag.
+
+        Parameters
+        ----------
+        period, position : int
+            The sample's period and its position in it.
+        missing : bool
+            The sample's ``STATUS_COMMAND_MISSING``.
+
+        Returns
+        -------
+        str or None
+            :data:`MISSING` at every flagged sample (a report the ledger takes once per
+            period), :data:`RESUMED` at a flagged period's first unflagged sample (once), else
+            None.
+        """
+        if missing:
+            self._flagged = period
+            return MISSING
+        if position and self._flagged == period:
+            self._flagged = None
+            return RESUMED
+        return None

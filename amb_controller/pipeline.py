@@ -48,6 +48,7 @@ from pathlib import Path
 
 import numpy as np
 
+from amb_controller.command_ledger import MISSING, RESUMED, MissingFlags
 from amb_controller.config import (
     BASELINE_CONTROLLERS,
     N_AXES,
@@ -169,7 +170,7 @@ class ControllerPipeline:
             "inputs_rejected": 0,
         }
         self._compute_time = 0.0
-        self._flagged: int | None = None  # the period whose samples carry COMMAND_MISSING
+        self._flags = MissingFlags()  # the samples' STATUS_COMMAND_MISSING
         self._last_command: Command | None = None
         self._last_period = -1
         self._period_message = ""
@@ -452,14 +453,13 @@ class ControllerPipeline:
         if self._expected is not None and n != self._expected:
             self._invalidate(f"sample {n} after {self._expected - 1}: gap")
         self._expected = n + 1
-        if command_missing:
+        flag = self._flags.observe(m, pos, command_missing)
+        if flag == MISSING:
             if self.supervisor.command_missing(m):
                 self._stats["commands_late"] += 1
             if self.early is not None:
                 self.early.command_missing(m)
-            self._flagged = m
-        elif pos and self._flagged == m:  # applied from sample pos on (partial_commands)
-            self._flagged = None
+        elif flag == RESUMED:  # applied from sample pos on (partial_commands)
             if self.supervisor.command_resumed(m, pos):
                 self._stats["commands_partial"] += 1
             if self.early is not None:
