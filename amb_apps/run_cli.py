@@ -85,6 +85,10 @@ from amb_common.paths import config_file, scenario_file
 from amb_plant_sim.errors import ScenarioError
 from amb_tools.streams import MATCHED_KEY
 
+#: Wall s the plant's simulated time may stand still before ``amb-run`` aborts the run: longer
+#: than any wait of a healthy run (a lock-step writer held by a reader that died without leaving
+#: waits for the reader's lease, 20 s by Fast DDS's default; a command timeout per period).
+STALL_TIMEOUT = 120.0
 INSTALL_LIB = Path(__file__).resolve().parent.parent / "install" / "amb_wavelet_control" / "lib"
 #: Nice value added to the nodes that are not on the control loop's chain.
 # fault_monitor is not niced by default: niced, it lags the lock-step chain and the end of the
@@ -134,8 +138,9 @@ class NodeRun:
         )
 
     def stop(self, timeout: float = 20.0) -> int:
-        """SIGINT, wait, then SIGKILL; return the exit status."""
+        """SIGINT, wait, then SIGKILL; return the exit status (a stopped process is continued)."""
         if self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGCONT)  # else SIGINT waits while it is stopped
             self.proc.send_signal(signal.SIGINT)
             try:
                 self.proc.wait(timeout)
@@ -228,6 +233,14 @@ def build_parser() -> argparse.ArgumentParser:
         default=DRAIN_TIMEOUT,
         help="wall s to wait, after the plant's end, for the other nodes to process the last "
         f"sample before they are stopped anyway (default {DRAIN_TIMEOUT:g})",
+    )
+    p.add_argument(
+        "--stall-timeout",
+        type=float,
+        default=STALL_TIMEOUT,
+        help="wall s the plant's simulated time may stand still, once it has started, before "
+        f"the run is aborted with the plant's last log lines (0 = never; default "
+        f"{STALL_TIMEOUT:g})",
     )
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     return p
@@ -512,6 +525,7 @@ def run(args: argparse.Namespace) -> int:
         plant.start(env)
         last_print = 0.0
         first_sample_wall = None  # wall time of the first progress report (nodes are up)
+        sim_seen, advanced = None, 0.0  # the plant's last simulated time, and when it moved
         while plant.proc.poll() is None:
             progress.spin(0.2)
             for r in runs:
@@ -529,6 +543,18 @@ def run(args: argparse.Namespace) -> int:
                 break
             if progress.values and first_sample_wall is None:
                 first_sample_wall = wall
+            sim_now = progress.values.get("time")
+            if sim_now != sim_seen:
+                sim_seen, advanced = sim_now, wall
+            elif sim_now is not None and 0 < args.stall_timeout < wall - advanced:
+                print(
+                    f"[amb-run] the plant's simulated time has stood at {sim_now} s for "
+                    f"{wall - advanced:.0f} s (--stall-timeout): stopping. The plant's last "
+                    f"log lines ({plant.log_path}):\n{log_tail(plant.log_path)}",
+                    file=sys.stderr,
+                )
+                status = 1
+                break
             if not args.quiet and wall - last_print >= 1.0 and progress.values:
                 last_print = wall
                 sim_t = float(progress.values.get("time", "nan"))
@@ -568,6 +594,14 @@ def run(args: argparse.Namespace) -> int:
             flush=True,
         )
     return status
+
+
+def log_tail(path: Path, lines: int = 12) -> str:
+    """The last ``lines`` lines of a node's log (empty if it cannot be read)."""
+    try:
+        return "\n".join(path.read_text(errors="replace").splitlines()[-lines:])
+    except OSError:
+        return ""
 
 
 def _available(name: str) -> bool:

@@ -1,0 +1,63 @@
+"""amb-run aborts a run whose plant stopped making progress, and says where to look.
+
+A plant whose loop broke (an exception in every command callback once left one spinning at
+100 % CPU with its simulated time standing still) or that is stopped kept ``amb-run`` waiting
+for its ``--timeout`` (an hour). With ``--stall-timeout`` it stops the run when the plant's
+simulated time has not moved for that long, exits 1, prints the plant's last log lines, and
+leaves no node behind. Here the plant is stopped (SIGSTOP) mid-run.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+
+pytestmark = [pytest.mark.ros, pytest.mark.slow]
+
+STALL_S = 3.0
+
+
+def _pids_of_run(out) -> list[int]:
+    """The node processes of the run writing to ``out`` (their command line names its params)."""
+    found = subprocess.run(["pgrep", "-f", str(out / "run_params.yaml")], capture_output=True)
+    return [int(p) for p in found.stdout.split()]
+
+
+def test_a_stopped_plant_aborts_the_run_with_its_log(tmp_path, ros_domain_id) -> None:
+    out = tmp_path / "run"
+    run = subprocess.Popen(
+        [sys.executable, "-u", "-m", "amb_apps.run_cli", "--scenario",
+         "identification_first_critical.yaml", "--out", str(out), "--controller", "none",
+         "--without", "fault_monitor", "--stall-timeout", str(STALL_S)],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    try:
+        progress = []
+        for line in run.stdout:  # progress: the plant's simulated time has moved
+            progress.append(line)
+            if "t_sim =" in line and float(line.split("t_sim =")[1].split()[0]) > 0:
+                break
+        plant = [
+            p for p in _pids_of_run(out)
+            if b"plant_sim" in open(f"/proc/{p}/cmdline", "rb").read()
+        ]  # fmt: skip
+        assert len(plant) == 1, (plant, progress, run.poll())
+        os.kill(plant[0], signal.SIGSTOP)
+        stdout, stderr = run.communicate(timeout=120)
+    finally:
+        if run.poll() is None:
+            run.kill()
+            run.wait()
+    logs = "\n".join(f"--- {p.name}\n{p.read_text()[-2000:]}" for p in (out / "logs").glob("*"))
+    assert run.returncode == 1, "".join(progress) + stdout + stderr + logs
+    assert "--stall-timeout" in stderr and "plant_sim.log" in stderr, stderr
+    assert "samples/rev" in stderr  # the plant's own log lines are shown
+    deadline = time.monotonic() + 10.0
+    while _pids_of_run(out) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert not _pids_of_run(out), "node processes left behind"
