@@ -120,14 +120,8 @@ class WaitingPublisher:
             A failure that is not a full history: no reader is matched, or the context is
             shut down.
         """
-        try:
-            self._pub.publish(msg)
-            return
-        except _rclpy.RCLError:
-            if not self._context.ok() or self._pub.get_subscription_count() == 0:
-                raise
         start = time.monotonic()
-        self.waits += 1
+        waiting = False
         while True:
             try:
                 self._pub.publish(msg)
@@ -135,15 +129,18 @@ class WaitingPublisher:
             except _rclpy.RCLError:
                 if not self._context.ok() or self._pub.get_subscription_count() == 0:
                     raise
-                if time.monotonic() - start < WARN_AFTER_S:
-                    continue
+            if not waiting:
+                waiting = True
+                self.waits += 1
+            elif time.monotonic() - start >= WARN_AFTER_S:
                 self._warnings.warning(
                     "full",
                     f"{self.topic_name}: a reader has not taken the writer's last messages "
                     f"(every one is kept for it): publication waiting "
                     f"{time.monotonic() - start:.1f} s",
                 )
-        self.waited_s += time.monotonic() - start
+        if waiting:
+            self.waited_s += time.monotonic() - start
 
 
 def publisher(node: Node, msg_type: type, name: str, qos: QoSProfile, lossless: bool):
