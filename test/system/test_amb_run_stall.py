@@ -16,10 +16,30 @@ import sys
 import time
 
 import pytest
+import yaml
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
 STALL_S = 3.0
+#: Long enough that the plant is still running when the test stops it (an idle machine ran the
+#: 30 s identification scenario through before amb-run's first progress line).
+SCENARIO = {
+    "name": "stall",
+    "speed": {"hz": 20.0},
+    "duration": 600.0,
+    "samples_per_rev": 16,
+    "events": [{"kind": "unbalance", "time": 0.0, "disk": "D1", "me": 1.0e-3, "angle": 0.0}],
+}
+
+
+def _kill_run(out) -> None:
+    """Kill every node process of the run (continued first): none may outlive the test."""
+    for pid in _pids_of_run(out):
+        for sig in (signal.SIGCONT, signal.SIGKILL):
+            try:
+                os.kill(pid, sig)
+            except ProcessLookupError:
+                pass
 
 
 def _pids_of_run(out) -> list[int]:
@@ -30,9 +50,11 @@ def _pids_of_run(out) -> list[int]:
 
 def test_a_stopped_plant_aborts_the_run_with_its_log(tmp_path, ros_domain_id) -> None:
     out = tmp_path / "run"
+    scenario = tmp_path / "stall.yaml"
+    scenario.write_text(yaml.safe_dump(SCENARIO))
     run = subprocess.Popen(
         [sys.executable, "-u", "-m", "amb_apps.run_cli", "--scenario",
-         "identification_first_critical.yaml", "--out", str(out), "--controller", "none",
+         str(scenario), "--out", str(out), "--controller", "none",
          "--without", "fault_monitor", "--stall-timeout", str(STALL_S)],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
     )  # fmt: skip
@@ -53,6 +75,8 @@ def test_a_stopped_plant_aborts_the_run_with_its_log(tmp_path, ros_domain_id) ->
         if run.poll() is None:
             run.kill()
             run.wait()
+        if run.returncode != 1:
+            _kill_run(out)  # amb-run did not stop its nodes: they would talk to later tests
     logs = "\n".join(f"--- {p.name}\n{p.read_text()[-2000:]}" for p in (out / "logs").glob("*"))
     assert run.returncode == 1, "".join(progress) + stdout + stderr + logs
     assert "--stall-timeout" in stderr and "plant_sim.log" in stderr, stderr
@@ -60,4 +84,6 @@ def test_a_stopped_plant_aborts_the_run_with_its_log(tmp_path, ros_domain_id) ->
     deadline = time.monotonic() + 10.0
     while _pids_of_run(out) and time.monotonic() < deadline:
         time.sleep(0.1)
-    assert not _pids_of_run(out), "node processes left behind"
+    left = _pids_of_run(out)
+    _kill_run(out)
+    assert not left, "node processes left behind"
