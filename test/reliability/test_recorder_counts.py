@@ -83,6 +83,7 @@ def test_a_stopped_recorder_holds_the_lockstep_plant_and_loses_nothing(
     from amb_msgs.msg import Measurement
     from diagnostic_msgs.msg import DiagnosticArray
     from rclpy.serialization import deserialize_message
+    from reliability_helpers import Diagnostics
 
     from amb_tools.lossless import WAITED_KEY
 
@@ -90,18 +91,35 @@ def test_a_stopped_recorder_holds_the_lockstep_plant_and_loses_nothing(
     scenario.write_text(yaml.safe_dump(HELD))
     total = round(HELD["duration"] * HELD["speed"]["hz"]) * SPR
     bag = tmp_path / "bag"
-    streams = ["/amb/measurement", "/amb/wavelet/coefficients", "/amb/control/command"]
+    types = {
+        "/amb/measurement": "amb_msgs/msg/Measurement",
+        "/amb/wavelet/coefficients": "amb_msgs/msg/WaveletCoefficients",
+        "/amb/control/command": "amb_msgs/msg/ControlCommand",
+        "/amb/control/status": "amb_msgs/msg/ControllerStatus",
+    }
     recorder = node_process(
         "recorder",
-        params={"output": str(bag), "topics": [*streams, "/amb/control/status", "/diagnostics"]},
-    )
+        params={"output": str(bag), "topics": [*types, "/diagnostics"],
+                "topic_types": [f"{t}:{m}" for t, m in types.items()]},
+    )  # fmt: skip
     filterbank = node_process("wavelet_filterbank", params={"samples_per_rev": SPR})
     controller = node_process(
         "wavelet_controller", params={"samples_per_rev": SPR, "controller": "none"}
     )
     node = ros.node("amb_test_held_observer")
     tap = ros.tap(node, Measurement, "/amb/measurement", SPR, on_message=lambda raw: None)
-    assert ros.spin_until(lambda: node.count_subscribers("/amb/control/command") >= 1, 30.0)
+    # the recorder's readers matched by the writers themselves before the plant starts (as
+    # amb-run's start gate waits): a reader the recorder, stopped at once, had not matched yet
+    # got the coefficients only from its match on (5409 of 12800 samples in, in one suite)
+    writers = Diagnostics(node)
+    assert ros.spin_until(
+        lambda: (
+            writers.matched("wavelet_filterbank", "/amb/wavelet/coefficients") >= 2
+            and writers.matched("wavelet_controller", "/amb/control/command") >= 1
+            and writers.matched("wavelet_controller", "/amb/control/status") >= 1
+        ),
+        60.0,
+    ), (writers.values, recorder.log(), filterbank.log(), controller.log())
     plant = node_process(
         "plant_sim",
         params={"scenario_file": str(scenario), "samples_per_rev": SPR,
