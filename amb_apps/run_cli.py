@@ -17,6 +17,12 @@ reports every published message as written (:mod:`amb_apps.run_end`), each at mo
 then is stopped anyway, named with how far it got, and the exit status is 1: what it had not
 processed or written (events, commands, coefficients) is missing from the bag.
 
+Stopping early: Ctrl-C (SIGINT), SIGTERM and SIGHUP stop the nodes at once (the recorder last,
+so the bag is closed with what was recorded) and exit with 128 + the signal's number. An
+``amb-run`` killed outright (SIGKILL) takes its nodes with it: each gets SIGINT from the kernel
+when ``amb-run`` is gone (:mod:`amb_apps.lifetime`), where they used to run on through their
+scenario on the run's ROS domain.
+
 Namespace: ``--namespace /rig1`` starts every node in ``/rig1`` (``-r __ns:=/rig1``), so that
 the system's topics are ``/rig1/amb/...`` and a second run in another namespace, on the same
 machine and ROS domain, does not cross-talk with this one; the bag then holds
@@ -69,6 +75,7 @@ import yaml
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.executors import SingleThreadedExecutor
 
+from amb_apps.lifetime import RunStopped, catch_stop_signals, die_with_parent
 from amb_apps.run_end import DRAIN_TIMEOUT, drain, plant_samples, settle_recording
 from amb_apps.system import (
     COMPOSED,
@@ -134,11 +141,13 @@ class NodeRun:
             stdout=self._log,
             stderr=subprocess.STDOUT,
             env=env,
-            preexec_fn=scheduling if nice or rt else None,
+            preexec_fn=die_with_parent(then=scheduling if nice or rt else None),
         )
 
     def stop(self, timeout: float = 20.0) -> int:
         """SIGINT, wait, then SIGKILL; return the exit status (a stopped process is continued)."""
+        if self.proc is None:  # never started (the run was stopped before its turn)
+            return 0
         if self.proc.poll() is None:
             self.proc.send_signal(signal.SIGCONT)  # else SIGINT waits while it is stopped
             self.proc.send_signal(signal.SIGINT)
@@ -506,6 +515,7 @@ def run(args: argparse.Namespace) -> int:
     progress = _Progress(namespace)
     status = 0
     t0 = time.monotonic()
+    restore_signals = catch_stop_signals(lambda m: print(f"[amb-run] {m}", file=sys.stderr))
     try:
         plant = next(r for r in runs if r.name == "plant_sim")
         for r in runs:
@@ -571,6 +581,14 @@ def run(args: argparse.Namespace) -> int:
             status = drain(progress, runs, samples, args.drain_timeout, args.quiet)
             if status == 0:  # samples is known
                 status = settle_recording(progress, runs, samples, args.drain_timeout, args.quiet)
+    except (KeyboardInterrupt, RunStopped) as exc:  # Ctrl-C, SIGTERM, SIGHUP
+        signum = getattr(exc, "signum", signal.SIGINT)
+        name = signal.Signals(signum).name
+        print(
+            f"[amb-run] {name}: stopping the nodes; the bag keeps what was recorded",
+            file=sys.stderr,
+        )
+        status = 128 + signum
     finally:
         progress.close()
         codes = {}
@@ -580,10 +598,11 @@ def run(args: argparse.Namespace) -> int:
 
         for r in sorted(runs, key=records):  # the recorder (or the stack holding it) last
             codes[r.name] = r.stop()
+        restore_signals()
     wall = time.monotonic() - t0
     bad = {n: c for n, c in codes.items() if c != 0}
     if bad:
-        status = 1
+        status = status or 1
         print(
             f"[amb-run] nodes that did not stop cleanly: {bad} (logs in {out / 'logs'})",
             file=sys.stderr,

@@ -9,18 +9,12 @@ import signal
 import pytest
 import yaml
 from rosbags.rosbag2 import Reader
+from scenarios import steady_unbalance
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
 SPR = 16
-SCENARIO = {
-    "name": "recorder_counts",
-    "speed": {"hz": 20.0},
-    "duration": 3.0,
-    "samples_per_rev": SPR,
-    "measurement_noise": 2.0e-7,
-    "events": [{"kind": "unbalance", "time": 0.0, "disk": "D1", "me": 1.0e-3, "angle": 0.0}],
-}
+SCENARIO = steady_unbalance("recorder_counts", 3.0, SPR, measurement_noise=2.0e-7)
 
 
 @pytest.mark.parametrize("stop_signal", [signal.SIGTERM, signal.SIGINT])

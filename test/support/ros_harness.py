@@ -29,6 +29,7 @@ import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
+from amb_apps.lifetime import die_with_parent
 from amb_apps.system import param_text
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -309,7 +310,14 @@ class NodeProcess:
         self._log = open(self.log_path, "w")
         env = dict(os.environ)
         env["PYTHONUNBUFFERED"] = "1"
-        self.proc = subprocess.Popen(cmd, stdout=self._log, stderr=subprocess.STDOUT, env=env)
+        # tied to the test process: a suite killed by its timeout leaves no node in the domain
+        self.proc = subprocess.Popen(
+            cmd,
+            stdout=self._log,
+            stderr=subprocess.STDOUT,
+            env=env,
+            preexec_fn=die_with_parent(),
+        )
 
     @property
     def returncode(self) -> int | None:

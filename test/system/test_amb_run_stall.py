@@ -17,35 +17,15 @@ import time
 
 import pytest
 import yaml
+from runs import kill_run, node_pid, pids_of_run
+from scenarios import steady_unbalance
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
 STALL_S = 3.0
 #: Long enough that the plant is still running when the test stops it (an idle machine ran the
 #: 30 s identification scenario through before amb-run's first progress line).
-SCENARIO = {
-    "name": "stall",
-    "speed": {"hz": 20.0},
-    "duration": 600.0,
-    "samples_per_rev": 16,
-    "events": [{"kind": "unbalance", "time": 0.0, "disk": "D1", "me": 1.0e-3, "angle": 0.0}],
-}
-
-
-def _kill_run(out) -> None:
-    """Kill every node process of the run (continued first): none may outlive the test."""
-    for pid in _pids_of_run(out):
-        for sig in (signal.SIGCONT, signal.SIGKILL):
-            try:
-                os.kill(pid, sig)
-            except ProcessLookupError:
-                pass
-
-
-def _pids_of_run(out) -> list[int]:
-    """The node processes of the run writing to ``out`` (their command line names its params)."""
-    found = subprocess.run(["pgrep", "-f", str(out / "run_params.yaml")], capture_output=True)
-    return [int(p) for p in found.stdout.split()]
+SCENARIO = steady_unbalance("stall", 600.0)
 
 
 def test_a_stopped_plant_aborts_the_run_with_its_log(tmp_path, ros_domain_id) -> None:
@@ -64,10 +44,7 @@ def test_a_stopped_plant_aborts_the_run_with_its_log(tmp_path, ros_domain_id) ->
             progress.append(line)
             if "t_sim =" in line and float(line.split("t_sim =")[1].split()[0]) > 0:
                 break
-        plant = [
-            p for p in _pids_of_run(out)
-            if b"plant_sim" in open(f"/proc/{p}/cmdline", "rb").read()
-        ]  # fmt: skip
+        plant = node_pid(out, "plant_sim")
         assert len(plant) == 1, (plant, progress, run.poll())
         os.kill(plant[0], signal.SIGSTOP)
         stdout, stderr = run.communicate(timeout=120)
@@ -76,14 +53,14 @@ def test_a_stopped_plant_aborts_the_run_with_its_log(tmp_path, ros_domain_id) ->
             run.kill()
             run.wait()
         if run.returncode != 1:
-            _kill_run(out)  # amb-run did not stop its nodes: they would talk to later tests
+            kill_run(out)  # amb-run did not stop its nodes: they would talk to later tests
     logs = "\n".join(f"--- {p.name}\n{p.read_text()[-2000:]}" for p in (out / "logs").glob("*"))
     assert run.returncode == 1, "".join(progress) + stdout + stderr + logs
     assert "--stall-timeout" in stderr and "plant_sim.log" in stderr, stderr
     assert "samples/rev" in stderr  # the plant's own log lines are shown
     deadline = time.monotonic() + 10.0
-    while _pids_of_run(out) and time.monotonic() < deadline:
+    while pids_of_run(out) and time.monotonic() < deadline:
         time.sleep(0.1)
-    left = _pids_of_run(out)
-    _kill_run(out)
+    left = pids_of_run(out)
+    kill_run(out)
     assert not left, "node processes left behind"
