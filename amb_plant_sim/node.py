@@ -89,25 +89,19 @@ from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 
 from amb_common import topics
-from amb_common.errors import RigError
 from amb_common.names import N_AXES
-from amb_common.paths import config_file, scenario_file
-from amb_common.rig import load_rig
+from amb_plant_sim import node_params
 from amb_plant_sim.command_book import SPREAD_HISTORY, CommandBook, CommandOffer, spread
 from amb_plant_sim.errors import ScenarioError, SimulationError
-from amb_plant_sim.scenario import load_scenario, resolve_samples_per_rev
-from amb_plant_sim.simulator import MeasurementBlock, PlantSimulator
+from amb_plant_sim.node_params import RUNTIME_PARAMETERS
+from amb_plant_sim.simulator import MeasurementBlock
 from amb_tools import lossless
 from amb_tools.conversions import MessageError, measurement_bytes, stamp, stamp_seconds
-from amb_tools.node_main import ConfigurationError, descriptor, run_node
+from amb_tools.node_main import run_node
 from amb_tools.reader_participant import ClosesReaderParticipant, MovableSubscription, watch_readers
 from amb_tools.streams import COMMAND_QOS, matched_subscribers, stream_qos
 from amb_tools.throttled_log import ThrottledWarnings
 from amb_tools.validation import check_command
-
-MODES = ("lockstep", "realtime")
-#: Parameters settable at run time (applied at the next period boundary).
-RUNTIME_PARAMETERS = ("command_timeout", "wavelet_force_limit", "time_scale", "status_period")
 
 
 class PlantSimNode(ClosesReaderParticipant, Node):
@@ -115,71 +109,8 @@ class PlantSimNode(ClosesReaderParticipant, Node):
 
     def __init__(self) -> None:
         super().__init__("plant_sim")
-        d = self.declare_parameter
-        d("rig_file", "", descriptor("rig description YAML ('' = the package's config/rig.yaml)"))
-        d("scenario_file", "", descriptor("scenario YAML: speed, duration, events (required)"))
-        d(
-            "samples_per_rev",
-            0,
-            descriptor("samples per revolution, power of two (0 = scenario's)", ints=(0, 4096)),
-        )
-        d(
-            "samples_per_period",
-            0,
-            descriptor("control period in samples (0 = samples_per_rev)", ints=(0, 65536)),
-        )
-        d("mode", "lockstep", descriptor("lockstep | realtime"))
-        d(
-            "delay_periods",
-            topics.DELAY_PERIODS,
-            descriptor("i: commands for period k answer measured period k - i", ints=(1, 16)),
-        )
-        d(
-            "command_timeout",
-            5.0,
-            descriptor(
-                "lockstep: wall s to wait for a command before running the period without it",
-                read_only=False,
-                floats=(0.01, 600.0),
-            ),
-        )
-        d(
-            "wait_for_subscribers",
-            1,
-            descriptor("subscribers of /amb/measurement to wait for before sample 0", ints=(0, 64)),
-        )
-        d("startup_timeout", 30.0, descriptor("wall s to wait for them", floats=(0.0, 600.0)))
-        d(
-            "time_scale",
-            1.0,
-            descriptor("realtime: simulated s per wall s", read_only=False, floats=(0.01, 100.0)),
-        )
-        d(
-            "wavelet_force_limit",
-            0.0,
-            descriptor(
-                "N per axis (0 = the rig's bearing capacity)", read_only=False, floats=(0.0, 1.0e5)
-            ),
-        )
-        d(
-            "partial_commands",
-            True,
-            descriptor(
-                "realtime: apply a command that arrives during its period to the samples still "
-                "ahead (counted partial and late)"
-            ),
-        )
-        d("seed", 0, descriptor("noise seed", ints=(0, 2**31 - 1)))
-        d("exit_at_end", True, descriptor("exit when the scenario duration is reached"))
-        d("clock_every", 8, descriptor("publish /clock every this many samples", ints=(1, 65536)))
-        d(
-            "status_period",
-            1.0,
-            descriptor(
-                "period of the /diagnostics report, wall s", read_only=False, floats=(0.05, 60.0)
-            ),
-        )
-        self._configure()
+        node_params.declare(self)
+        self._configure(node_params.configure(node_params.settings(self)))
         # lockstep: every sample reaches every reader, a slow one (the recorder) pacing the loop
         self._meas_pub = lossless.publisher(
             self, Measurement, topics.MEASUREMENT, stream_qos(self._N), self._mode == "lockstep"
@@ -232,58 +163,18 @@ class PlantSimNode(ClosesReaderParticipant, Node):
         )
 
     # ------------------------------------------------------------------ configuration
-    def _configure(self) -> None:
-        p = lambda name: self.get_parameter(name).value  # noqa: E731
-        rig_file = p("rig_file") or str(config_file("rig.yaml"))
-        try:
-            rig = load_rig(rig_file)
-        except RigError as exc:
-            raise ConfigurationError(f"parameter 'rig_file' = {rig_file!r}: {exc}") from exc
-        name = p("scenario_file")
-        if not name:
-            raise ConfigurationError("parameter 'scenario_file' is empty: name a scenario YAML")
-        try:
-            path = scenario_file(name)
-        except FileNotFoundError as exc:
-            raise ConfigurationError(f"parameter 'scenario_file' = {name!r}: no such file") from exc
-        try:
-            scenario = load_scenario(path, rig)
-        except ScenarioError as exc:
-            raise ConfigurationError(f"parameter 'scenario_file' = {str(path)!r}: {exc}") from exc
-        spr = resolve_samples_per_rev(p("samples_per_rev"), scenario)
-        if spr < 4 or spr & (spr - 1):
-            raise ConfigurationError(
-                f"parameter 'samples_per_rev' = {spr}: must be a power of two >= 4"
-            )
-        self._N = p("samples_per_period") or spr
-        if self._N % spr and spr % self._N:
-            raise ConfigurationError(
-                f"parameter 'samples_per_period' = {self._N}: must divide or be a multiple of "
-                f"samples_per_rev = {spr}"
-            )
-        self._mode = p("mode")
-        if self._mode not in MODES:
-            raise ConfigurationError(f"parameter 'mode' = {self._mode!r}: allowed {MODES}")
-        limit = p("wavelet_force_limit") or rig.amb.force_limit
-        if limit > rig.amb.force_limit:
-            raise ConfigurationError(
-                f"parameter 'wavelet_force_limit' = {limit} N exceeds the bearing capacity "
-                f"{rig.amb.force_limit} N (rig file amb.force_limit)"
-            )
-        self._force_limit = limit
-        self._delay = p("delay_periods")
-        self._timeout = p("command_timeout")
-        self._clock_every = p("clock_every")
-        self._spr = spr
-        self._scenario = scenario
-        self._duration = scenario.duration
-        try:
-            self._sim = PlantSimulator(rig, scenario, samples_per_rev=spr, seed=p("seed"))
-        except SimulationError as exc:
-            raise ConfigurationError(str(exc)) from exc
-        # whole control periods, as many as fit the duration (rounded): amb-sim runs the same
-        periods = max(1, round(self._duration * self._sim.fs / self._N))
-        self._n_total = periods * self._N if not scenario.profile_hz else None
+    def _configure(self, run: node_params.PlantRun) -> None:
+        self._N = run.samples_per_period
+        self._mode = run.settings.mode
+        self._force_limit = run.force_limit
+        self._delay = run.settings.delay_periods
+        self._timeout = run.settings.command_timeout
+        self._clock_every = run.settings.clock_every
+        self._spr = run.samples_per_rev
+        self._scenario = run.scenario
+        self._duration = run.scenario.duration
+        self._sim = run.simulator
+        self._n_total = run.n_total
 
     # ------------------------------------------------------------------ commands
     def _on_command(self, msg: ControlCommand) -> None:

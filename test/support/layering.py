@@ -51,6 +51,7 @@ ROS = {
     "amb_fault_monitor.blackbox",  # the node's black-box bags
     "amb_fault_monitor.coefficient_messages",  # the node's check and conversion of messages
     "amb_fault_monitor.node_params",  # the node's parameters <-> MonitorConfig
+    "amb_plant_sim.node_params",  # the node's parameters and the run they configure
     "amb_wavelet.messages",  # the coefficient messages (filterbank records <-> amb_msgs)
 }
 APPLICATION = {

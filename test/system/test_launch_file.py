@@ -85,8 +85,8 @@ def test_the_nodes_are_installed_console_scripts() -> None:
 
 
 def _declared(name: str) -> set[str] | None:
-    """The controller's and the fault monitor's parameters as they declare them (from their
-    config classes); None: read the other nodes' sources."""
+    """The controller's, the fault monitor's and the plant's parameters as they declare them
+    (from their config classes); None: read the other nodes' sources."""
     if name == "wavelet_controller":
         from amb_controller.node_params import PARAMETERS, NodeSettings
 
@@ -95,6 +95,10 @@ def _declared(name: str) -> set[str] | None:
         from amb_fault_monitor.node_params import MONITOR_PARAMETERS, NODE_PARAMETERS
 
         return {f.name for f in (*MONITOR_PARAMETERS, *NODE_PARAMETERS)}
+    if name == "plant_sim":
+        from amb_plant_sim.node_params import PlantSettings
+
+        return {f.name for f in fields(PlantSettings)}
     return None
 
 
