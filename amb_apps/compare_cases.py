@@ -43,8 +43,11 @@ CONTROLLERS = (
     "predictive_early_i1",
     "predictive_early_i2",
     "harmonic_i1",
+    "harmonic_i2",
     "synchronous_i1",
+    "synchronous_i2",
 )
+#: The baselines at i = 1 (issue 9's verdict: the wavelet controller at i = 1 against them).
 BASELINE_ROWS = ("harmonic_i1", "synchronous_i1")
 MULTILEVEL = ("wavelet_124_coupled", "wavelet_124_perlevel")
 ML_LEVELS = (1, 2, 3)
@@ -86,6 +89,10 @@ SPECS = {
     "predictive_early_i2": Spec("predictive_early_i2", "predictive", 2, "fe", "sinusoid", True),
     "harmonic_i1": Spec("harmonic_i1", "harmonic", 1, "harmonic"),
     "synchronous_i1": Spec("synchronous_i1", "synchronous", 1, "trials"),
+    # the baselines at the thesis's (and a realtime rig's) delay: every i = 2 row is compared
+    # with them, at the same force limit, sensors and delay (issue 18)
+    "harmonic_i2": Spec("harmonic_i2", "harmonic", 2, "harmonic"),
+    "synchronous_i2": Spec("synchronous_i2", "synchronous", 2, "trials"),
 }
 
 

@@ -21,9 +21,11 @@ Controllers (all at the same per-axis force limit, the rig's bearing capacity un
 * ``predictive_early_i1`` / ``predictive_early_i2``: the same with the early action on a
   sudden unbalance (issue 18 item 4, :mod:`amb_controller.early_action`, its FE-route
   sample-domain model at the scenario's speed);
-* ``harmonic_i1``: sampled-harmonic transient control (Keogh et al. 2002), same w, v, order;
-* ``synchronous_i1``: adaptive influence-coefficient control (Burrows & Sahinkaya 1983,
-  Knospe et al. 1995), T identified by trial injections, gain a = 0.5, 2-period window;
+* ``harmonic_i1`` / ``harmonic_i2``: sampled-harmonic transient control (Keogh et al. 2002),
+  same w, v, order;
+* ``synchronous_i1`` / ``synchronous_i2``: adaptive influence-coefficient control (Burrows &
+  Sahinkaya 1983, Knospe et al. 1995), T identified by trial injections, gain a = 0.5, 2-period
+  window (the baselines at both delays: every row is compared with those at its own);
 * ``limit_i1`` / ``limit_i2``: not a controller but the best response any controller with
   that delay could give (``amb-bound``, :mod:`amb_plant_sim.control_limit`); every row's
   ``peak_to_limit`` is its peak over the limit at its own delay (``--no-limit``: skipped).

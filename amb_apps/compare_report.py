@@ -124,20 +124,29 @@ def verdict(table: dict, force_limit: float) -> list[str]:
     return lines
 
 
+#: The issue-18 rows the report sets against every other row at their delay, and what they are.
+PREDICTIVE_ROWS = {
+    "predictive": "receding horizon on the same coefficients, sinusoidal force",
+    "predictive_early": "the same with the early action on a sudden unbalance",
+}
+
+
 def _predictive_lines(rows: dict) -> list[str]:
-    """``predictive_i1`` / ``_i2`` against every other controller at the same delay."""
+    """The :data:`PREDICTIVE_ROWS` against every other controller at the same delay.
+
+    The baselines are among those others at both delays (``harmonic_i2``, ``synchronous_i2``).
+    """
     lines = []
     pid_steady = rows.get("pid", {}).get("steady_1x")
-    for i in (1, 2):
-        p = rows.get(f"predictive_i{i}")
+    for (stem, what), i in ((k, i) for k in PREDICTIVE_ROWS.items() for i in (1, 2)):
+        name = f"{stem}_i{i}"
+        p = rows.get(name)
         if p is None:
             continue
         others = [
             n
             for n in rows
-            if n not in ("pid", f"predictive_i{i}")
-            and not n.startswith("limit_")
-            and n.endswith(f"_i{i}")
+            if n not in ("pid", name) and not n.startswith("limit_") and n.endswith(f"_i{i}")
         ]
         peak_wins = [n for n in others if p["peak"] < rows[n]["peak"]]
         mine = p.get("revs_below_10pct_pid")
@@ -157,7 +166,7 @@ def _predictive_lines(rows: dict) -> list[str]:
             else ""
         )
         lines.append(
-            f"- predictive_i{i} (receding horizon on the same coefficients, sinusoidal force): "
+            f"- {name} ({what}): "
             f"peak {p['peak'] * 1e6:.1f} um"
             + (f" ({ratio:.2f} x limit_i{i})" if ratio is not None else "")
             + f", below 10 % of PID's steady amplitude after {_fmt(mine, 1, 0)} revolutions"

@@ -153,6 +153,38 @@ def test_verdict_says_where_the_wavelet_controller_wins_and_loses_and_why():
     assert "sooner below than 3 of 4 (not harmonic_i1)." in text
 
 
+def test_the_i2_rows_are_set_against_the_baselines_at_i2():
+    """The mass_loss_2nd figures of 2026-12-06's amb-compare: the early action at i = 2
+    (194.9 um) is below the harmonic baseline at its own delay only if that row exists; at
+    i = 1 (188.9 um) the baseline had the delay advantage. Each i = 2 row is named where it
+    loses, and no i = 1 row counts among the i = 2 ones."""
+    from amb_apps.compare_report import verdict
+
+    def row(peak, revs):
+        r = _row(peak, revs, revs, 0.8)
+        r.update(revs_below_10pct_pid=revs, steady_1x=0.5e-6)
+        return r
+
+    rows = {
+        "pid": row(252.3e-6, None),
+        "wavelet_i1": row(197.8e-6, None),
+        "harmonic_i1": row(188.9e-6, 9),
+        "predictive_early_i2": row(194.9e-6, 5),
+        "predictive_i2": row(218.0e-6, 7),
+        "harmonic_i2": row(200.0e-6, 10),
+        "synchronous_i2": row(190.0e-6, 4),
+    }
+    rows["pid"]["steady_1x"] = 250e-6
+    text = "\n".join(verdict({"mass_loss_2nd": rows}, 1000.0))
+    early = next(line for line in text.splitlines() if line.startswith("- predictive_early_i2"))
+    assert "the early action on a sudden unbalance" in early
+    assert "lower peak than 2 of 3 rows at i = 2 (not synchronous_i2)" in early
+    assert "sooner below than 2 of 3 (not synchronous_i2)." in early
+    law = next(line for line in text.splitlines() if line.startswith("- predictive_i2"))
+    assert "lower peak than 0 of 3 rows at i = 2" in law
+    assert "harmonic_i1" not in early and "harmonic_i1" not in law
+
+
 def test_rows_whose_own_model_predicts_divergence_are_flagged():
     from amb_apps.compare_report import _notes
 
