@@ -49,6 +49,8 @@ CONTROLLERS = (
 )
 #: The baselines at i = 1 (issue 9's verdict: the wavelet controller at i = 1 against them).
 BASELINE_ROWS = ("harmonic_i1", "synchronous_i1")
+#: The baselines at each delay (issue 18: a row is compared with those at its own delay).
+BASELINES_AT = {1: BASELINE_ROWS, 2: ("harmonic_i2", "synchronous_i2")}
 MULTILEVEL = ("wavelet_124_coupled", "wavelet_124_perlevel")
 ML_LEVELS = (1, 2, 3)
 MASS_LOSS = 1

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from amb_apps import compare_targets
 from amb_apps.compare_cases import (
     BASELINE_ROWS,
     CONTROLLERS,
@@ -333,6 +334,11 @@ def markdown(result: dict, timing: dict, speeds: dict, force_limit: float | None
             lines.append(f"| {name} | " + " | ".join(cells) + " |")
         lines.append("")
         lines.append("Cells: peak after the fault / revolutions to 10 %.")
+    lines += compare_targets.markdown(
+        compare_targets.checks(
+            result["table"], result.get("robustness"), result.get("limits_unavailable")
+        )
+    )
     lines += ["", "## Command evaluation time", ""]
     for name, t in timing.items():
         lines.append(

@@ -38,6 +38,8 @@ from results_parsers import (
     parse_run,
 )
 
+from amb_apps import compare_targets
+
 
 @dataclass
 class Section:
@@ -388,6 +390,9 @@ def _compare_report(outs: list[Output], work: Path) -> list[str]:
         )
         for name, why in doc.get("limits_unavailable", {}).get(key, {}).items():
             lines += ["", f"No {name} row: {why}."]
+    lines += compare_targets.markdown(
+        compare_targets.checks(doc["table"], None, doc.get("limits_unavailable")), level=3
+    )
     lines += ["", "Time for one command (controller step + synthesis + force limit):", ""]
     lines += table(
         ["controller", "median (µs)", "p99 (µs)"],
