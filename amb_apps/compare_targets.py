@@ -43,6 +43,12 @@ def _um(value: float) -> str:
     return f"{value * 1e6:.1f} um"
 
 
+def _versus(mine: dict, name: str, theirs: dict) -> str:
+    """``mine``'s peak against ``name``'s, with the difference (ties show as +-0.0x um)."""
+    diff = (mine["peak"] - theirs["peak"]) * 1e6
+    return f"{_um(mine['peak'])}, {name} {_um(theirs['peak'])} ({diff:+.2f} um)"
+
+
 def _rows_at(rows: dict, i: int) -> list[str]:
     return [n for n in rows if n != "pid" and not n.startswith("limit_") and n.endswith(f"_i{i}")]
 
@@ -91,7 +97,7 @@ def checks(
                     Check(
                         "ahead of the baselines at the same delay",
                         case,
-                        f"peak {_um(me['peak'])}, {best} {_um(rows[best]['peak'])}",
+                        "peak " + _versus(me, best, rows[best]),
                         me["peak"] < rows[best]["peak"],
                     )
                 )
@@ -150,7 +156,7 @@ def _mass_loss(case: str, i: int, me: dict, pid: dict, baselines: dict) -> list[
             Check(
                 "peak below every baseline at the same delay",
                 case,
-                f"{_um(me['peak'])}, {best} {_um(baselines[best]['peak'])}",
+                _versus(me, best, baselines[best]),
                 me["peak"] < baselines[best]["peak"],
             )
         )
