@@ -12,8 +12,7 @@ exits (``prctl(PR_SET_PDEATHSIG)``, kept across ``execve`` of a non-set-user-ID 
 recorder closes its bag).
 
 The signal follows the forking *thread*: start children from a thread that lives as long as
-they should (``amb-run`` uses its main thread). The test harness does not tie its nodes
-(docs/history.md, "Children tied to amb-run").
+they should (``amb-run`` and the test harness use the main thread).
 
 The parent's side (:func:`catch_stop_signals`): SIGTERM (what ``kill``, ``timeout``, systemd and
 container runtimes send) and SIGHUP (the terminal closed) ended ``amb-run`` at once, by

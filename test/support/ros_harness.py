@@ -29,6 +29,7 @@ import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
+from amb_apps.lifetime import die_with_parent
 from amb_apps.system import param_text
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -309,11 +310,14 @@ class NodeProcess:
         self._log = open(self.log_path, "w")
         env = dict(os.environ)
         env["PYTHONUNBUFFERED"] = "1"
-        # not tied to the test process (amb_apps.lifetime.die_with_parent): tied, the first
-        # periods' commands of test_controller_node's early-action test went missing in 8 of 55
-        # runs, against 0 of 20 untied or with a preexec_fn that does nothing (not understood
-        # yet: docs/history.md, "Children tied to amb-run")
-        self.proc = subprocess.Popen(cmd, stdout=self._log, stderr=subprocess.STDOUT, env=env)
+        # tied to the test process: a suite killed by its timeout leaves no node in the domain
+        self.proc = subprocess.Popen(
+            cmd,
+            stdout=self._log,
+            stderr=subprocess.STDOUT,
+            env=env,
+            preexec_fn=die_with_parent(),
+        )
 
     @property
     def returncode(self) -> int | None:
