@@ -144,11 +144,7 @@ def _predictive_lines(rows: dict) -> list[str]:
         p = rows.get(name)
         if p is None:
             continue
-        others = [
-            n
-            for n in rows
-            if n not in ("pid", name) and not n.startswith("limit_") and n.endswith(f"_i{i}")
-        ]
+        others = [n for n in compare_targets.rows_at_delay(rows, i) if n != name]
         peak_wins = [n for n in others if p["peak"] < rows[n]["peak"]]
         mine = p.get("revs_below_10pct_pid")
         revs_wins = [

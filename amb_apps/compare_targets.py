@@ -49,8 +49,20 @@ def _versus(mine: dict, name: str, theirs: dict) -> str:
     return f"{_um(mine['peak'])}, {name} {_um(theirs['peak'])} ({diff:+.2f} um)"
 
 
-def _rows_at(rows: dict, i: int) -> list[str]:
+def rows_at_delay(rows: dict, i: int) -> list[str]:
+    """The controller rows of a scenario with delay ``i`` (not PID, not the limits)."""
     return [n for n in rows if n != "pid" and not n.startswith("limit_") and n.endswith(f"_i{i}")]
+
+
+def _below_baselines(target: str, case: str, me: dict, baselines: dict, prefix: str = "") -> Check:
+    """``me``'s peak against the lowest of ``baselines`` (``{row: metrics}``, not empty)."""
+    best = min(baselines, key=lambda b: baselines[b]["peak"])
+    return Check(
+        target,
+        case,
+        prefix + _versus(me, best, baselines[best]),
+        me["peak"] < baselines[best]["peak"],
+    )
 
 
 def checks(
@@ -77,9 +89,9 @@ def checks(
                 continue
             case = f"{key}, i = {i}"
             why = (unavailable or {}).get(key, {}).get(f"limit_i{i}")
-            baselines = [b for b in BASELINES_AT[i] if b in rows]
+            baselines = {b: rows[b] for b in BASELINES_AT[i] if b in rows}
             if key.startswith("mass_loss"):
-                out += _mass_loss(case, i, me, pid, {b: rows[b] for b in baselines})
+                out += _mass_loss(case, i, me, pid, baselines)
             elif key.startswith("sync_"):
                 out.append(
                     Check(
@@ -92,19 +104,15 @@ def checks(
                     )
                 )
             if not key.startswith("mass_loss") and baselines:
-                best = min(baselines, key=lambda b: rows[b]["peak"])
                 out.append(
-                    Check(
-                        "ahead of the baselines at the same delay",
-                        case,
-                        "peak " + _versus(me, best, rows[best]),
-                        me["peak"] < rows[best]["peak"],
+                    _below_baselines(
+                        "ahead of the baselines at the same delay", case, me, baselines, "peak "
                     )
                 )
         if key.startswith("contact") and pid is not None:
             worse = [
                 n
-                for n in (*_rows_at(rows, 1), *_rows_at(rows, 2))
+                for n in (*rows_at_delay(rows, 1), *rows_at_delay(rows, 2))
                 if rows[n]["contacts"] > pid["contacts"] or rows[n]["peak"] > pid["peak"]
             ]
             out.append(
@@ -151,14 +159,8 @@ def _mass_loss(case: str, i: int, me: dict, pid: dict, baselines: dict) -> list[
             )
         )
     if baselines:
-        best = min(baselines, key=lambda b: baselines[b]["peak"])
         out.append(
-            Check(
-                "peak below every baseline at the same delay",
-                case,
-                _versus(me, best, baselines[best]),
-                me["peak"] < baselines[best]["peak"],
-            )
+            _below_baselines("peak below every baseline at the same delay", case, me, baselines)
         )
     revs = me.get("revs_below_10pct_pid")
     theirs = {b: m.get("revs_below_10pct_pid") for b, m in baselines.items()}
