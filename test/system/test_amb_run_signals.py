@@ -13,14 +13,10 @@ from __future__ import annotations
 import os
 import re
 import signal
-import subprocess
-import sys
-import time
 
 import pytest
-import yaml
 from rosbags.rosbag2 import Reader
-from runs import kill_run, pids_of_run
+from runs import kill_run, left_after, log_tails, pids_of_run, read_until_plant_moves, start_run
 from scenarios import steady_unbalance
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
@@ -33,35 +29,21 @@ STOP_WITHIN = 30.0
 
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGKILL], ids=["SIGTERM", "SIGKILL"])
 def test_a_signalled_run_leaves_no_node_and_a_closed_bag(tmp_path, ros_domain_id, sig) -> None:
-    out = tmp_path / "run"
-    scenario = tmp_path / "signalled.yaml"
-    scenario.write_text(yaml.safe_dump(SCENARIO))
-    run = subprocess.Popen(
-        [sys.executable, "-u", "-m", "amb_apps.run_cli", "--scenario", str(scenario),
-         "--out", str(out), "--controller", "none", "--without", "fault_monitor"],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-    )  # fmt: skip
+    run, out = start_run(tmp_path, SCENARIO)
     progress: list[str] = []
     left: list[int] = []
     try:
-        for line in run.stdout:  # progress: the plant's simulated time has moved
-            progress.append(line)
-            if "t_sim =" in line and float(line.split("t_sim =")[1].split()[0]) > 0:
-                break
+        progress = read_until_plant_moves(run)
         running = len(pids_of_run(out))
         os.kill(run.pid, sig)
         stdout, stderr = run.communicate(timeout=60)
-        deadline = time.monotonic() + STOP_WITHIN
-        while pids_of_run(out) and time.monotonic() < deadline:
-            time.sleep(0.1)
-        left = pids_of_run(out)
+        left = left_after(out, STOP_WITHIN)
     finally:
         if run.poll() is None:
             run.kill()
             run.wait()
         kill_run(out)  # whatever the outcome, nothing of this run talks to later tests
-    logs = "\n".join(f"--- {p.name}\n{p.read_text()[-1500:]}" for p in (out / "logs").glob("*"))
-    context = "".join(progress) + stdout + stderr + logs
+    context = "".join(progress) + stdout + stderr + log_tails(out, 1500)
     assert running == 4, context  # plant, filterbank, controller, recorder were up
     assert not left, f"node processes still running {STOP_WITHIN:g} s later\n{context}"
     if sig == signal.SIGTERM:

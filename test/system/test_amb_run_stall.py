@@ -11,13 +11,9 @@ from __future__ import annotations
 
 import os
 import signal
-import subprocess
-import sys
-import time
 
 import pytest
-import yaml
-from runs import kill_run, node_pid, pids_of_run
+from runs import kill_run, left_after, log_tails, node_pid, read_until_plant_moves, start_run
 from scenarios import steady_unbalance
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
@@ -29,21 +25,9 @@ SCENARIO = steady_unbalance("stall", 600.0)
 
 
 def test_a_stopped_plant_aborts_the_run_with_its_log(tmp_path, ros_domain_id) -> None:
-    out = tmp_path / "run"
-    scenario = tmp_path / "stall.yaml"
-    scenario.write_text(yaml.safe_dump(SCENARIO))
-    run = subprocess.Popen(
-        [sys.executable, "-u", "-m", "amb_apps.run_cli", "--scenario",
-         str(scenario), "--out", str(out), "--controller", "none",
-         "--without", "fault_monitor", "--stall-timeout", str(STALL_S)],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-    )  # fmt: skip
+    run, out = start_run(tmp_path, SCENARIO, "--stall-timeout", str(STALL_S))
     try:
-        progress = []
-        for line in run.stdout:  # progress: the plant's simulated time has moved
-            progress.append(line)
-            if "t_sim =" in line and float(line.split("t_sim =")[1].split()[0]) > 0:
-                break
+        progress = read_until_plant_moves(run)
         plant = node_pid(out, "plant_sim")
         assert len(plant) == 1, (plant, progress, run.poll())
         os.kill(plant[0], signal.SIGSTOP)
@@ -54,13 +38,10 @@ def test_a_stopped_plant_aborts_the_run_with_its_log(tmp_path, ros_domain_id) ->
             run.wait()
         if run.returncode != 1:
             kill_run(out)  # amb-run did not stop its nodes: they would talk to later tests
-    logs = "\n".join(f"--- {p.name}\n{p.read_text()[-2000:]}" for p in (out / "logs").glob("*"))
+    logs = log_tails(out, 2000)
     assert run.returncode == 1, "".join(progress) + stdout + stderr + logs
     assert "--stall-timeout" in stderr and "plant_sim.log" in stderr, stderr
     assert "samples/rev" in stderr  # the plant's own log lines are shown
-    deadline = time.monotonic() + 10.0
-    while pids_of_run(out) and time.monotonic() < deadline:
-        time.sleep(0.1)
-    left = pids_of_run(out)
+    left = left_after(out, 10.0)
     kill_run(out)
     assert not left, "node processes left behind"
