@@ -9,9 +9,10 @@ import numpy as np
 import pytest
 from amb_msgs.msg import ControlCommand, ControllerStatus, Measurement
 from amb_msgs.srv import SetControllerMode, StartIdentification
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from reliability_helpers import Diagnostics, call_service, set_parameters, subscribed_by
 
-from amb_tools.streams import COMMAND_QOS, FRAME_CODES, QUAD_CODES
+from amb_tools.streams import FRAME_CODES, QUAD_CODES
 from amb_wavelet.analysis import AnalysisFilterbank
 from amb_wavelet.frontend import FRAMES, QUADRATURES, ChannelFrontEnd
 from amb_wavelet.messages import coefficients_msg
@@ -20,6 +21,12 @@ pytestmark = pytest.mark.ros
 
 SPR = 16
 DELAY = 2
+#: The tests' command reader. A test publishes its whole stream before it spins again, so its
+#: reader must hold every command of the run: with the nodes' ``COMMAND_QOS`` (16 deep) the
+#: 26-period test lost its first commands whenever the controller kept up with the stream.
+EVERY_COMMAND = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST, depth=256, reliability=ReliabilityPolicy.RELIABLE
+)
 
 
 def _stream(n_periods: int, skip_coefficients_of: int | None = None):
@@ -65,7 +72,7 @@ def _run_periods(ros, ctrl, name: str, n_periods: int):
     """Feed ``n_periods`` of :func:`_stream` to ``ctrl``; return its commands and the stream."""
     node = ros.node(name)
     commands: list[ControlCommand] = []
-    node.create_subscription(ControlCommand, "/amb/control/command", commands.append, COMMAND_QOS)
+    node.create_subscription(ControlCommand, "/amb/control/command", commands.append, EVERY_COMMAND)
     pm, pc = ros.stream_writers(node, SPR, ctrl)
     _command_reader_matched(ros, node, ctrl)
     stream = _stream(n_periods)
@@ -82,7 +89,7 @@ def test_one_command_per_period_and_mode_services(ros, node_process) -> None:
     node = ros.node("amb_test_driver")
     commands: list[ControlCommand] = []
     statuses: list[ControllerStatus] = []
-    node.create_subscription(ControlCommand, "/amb/control/command", commands.append, COMMAND_QOS)
+    node.create_subscription(ControlCommand, "/amb/control/command", commands.append, EVERY_COMMAND)
     node.create_subscription(ControllerStatus, "/amb/control/status", statuses.append, 10)
     pm, pc = ros.stream_writers(node, SPR, ctrl)
     _command_reader_matched(ros, node, ctrl)
@@ -156,7 +163,7 @@ def test_a_slow_filterbank_is_waited_for_while_its_coefficients_keep_coming(
     ctrl = _start(node_process, controller="transient")
     node = ros.node("amb_test_slow_filterbank")
     commands: list[ControlCommand] = []
-    node.create_subscription(ControlCommand, "/amb/control/command", commands.append, COMMAND_QOS)
+    node.create_subscription(ControlCommand, "/amb/control/command", commands.append, EVERY_COMMAND)
     pm, pc = ros.stream_writers(node, SPR, ctrl)
     _command_reader_matched(ros, node, ctrl)
     n_periods = 3
@@ -202,7 +209,7 @@ def test_a_controller_unsafe_on_its_own_model_is_never_active(ros, node_process,
     node = ros.node("amb_test_model_check")
     commands: list[ControlCommand] = []
     statuses: list[ControllerStatus] = []
-    node.create_subscription(ControlCommand, "/amb/control/command", commands.append, COMMAND_QOS)
+    node.create_subscription(ControlCommand, "/amb/control/command", commands.append, EVERY_COMMAND)
     node.create_subscription(ControllerStatus, "/amb/control/status", statuses.append, 10)
     diagnostics = Diagnostics(node)
     pm, pc = ros.stream_writers(node, SPR, ctrl)
@@ -356,7 +363,7 @@ def test_the_early_action_reports_a_sudden_unbalance_from_its_model_file(
     ctrl = _start(node_process, controller="transient", early_model_file=path)
     node = ros.node("amb_test_early")
     commands: list[ControlCommand] = []
-    node.create_subscription(ControlCommand, "/amb/control/command", commands.append, COMMAND_QOS)
+    node.create_subscription(ControlCommand, "/amb/control/command", commands.append, EVERY_COMMAND)
     pm, pc = ros.stream_writers(node, SPR, ctrl)
     _command_reader_matched(ros, node, ctrl)
     n_periods, onset = 26, 20 * SPR + 5
@@ -395,7 +402,7 @@ def test_coefficients_ahead_of_silent_measurements_are_reported_once(ros, node_p
     ctrl = _start(node_process, measurement_timeout=1.5)  # the first check's margin under load
     node = ros.node("amb_test_blind_reader")
     commands: list[ControlCommand] = []
-    node.create_subscription(ControlCommand, "/amb/control/command", commands.append, COMMAND_QOS)
+    node.create_subscription(ControlCommand, "/amb/control/command", commands.append, EVERY_COMMAND)
     pm, pc = ros.stream_writers(node, SPR, ctrl)
     _command_reader_matched(ros, node, ctrl)
     stream = _stream(16)
@@ -432,7 +439,7 @@ def test_silent_streams_with_a_matched_writer_move_the_readers_to_a_new_particip
     ctrl = _start(node_process, reader_renewal_after=1.0)
     node = ros.node("amb_test_renewed_readers")
     commands: list[ControlCommand] = []
-    node.create_subscription(ControlCommand, "/amb/control/command", commands.append, COMMAND_QOS)
+    node.create_subscription(ControlCommand, "/amb/control/command", commands.append, EVERY_COMMAND)
     diagnostics = Diagnostics(node)
     pm, pc = ros.stream_writers(node, SPR, ctrl)
     _command_reader_matched(ros, node, ctrl)
