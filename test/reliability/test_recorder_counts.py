@@ -64,8 +64,15 @@ def test_bag_holds_every_message_after_a_crash_and_a_stop(
 
 
 #: Lock-step run for a stopped recorder: long enough that the plant, left to run on, publishes
-#: more than a writer's history (Fast DDS keeps 5000 of a KEEP_ALL writer's messages) past it.
-HELD = {**SCENARIO, "name": "recorder_held", "duration": 40.0}
+#: more than a writer's history (Fast DDS keeps 5000 of a KEEP_ALL writer's messages) past it,
+#: however late the test stops the recorder. The test process sees the plant's first samples
+#: late with one core busy; at 40 s (12800 samples, 4.8 s of wall at 8x real time) it stopped
+#: the recorder with fewer than 5000 left in 2 of 15 runs, and the plant never waited.
+HELD = {**SCENARIO, "name": "recorder_held", "duration": 120.0}
+#: Samples the test sees before it stops the recorder: the loop under way, every reader long
+#: matched. Stopped at the plant's first samples (16-32 in, idle), the plant was not held in 2
+#: of 36 runs and ran to its end.
+STOP_AT = 1000
 
 
 def test_a_stopped_recorder_holds_the_lockstep_plant_and_loses_nothing(
@@ -101,7 +108,11 @@ def test_a_stopped_recorder_holds_the_lockstep_plant_and_loses_nothing(
         "wavelet_controller", params={"samples_per_rev": SPR, "controller": "none"}
     )
     node = ros.node("amb_test_held_observer")
-    tap = ros.tap(node, Measurement, "/amb/measurement", SPR, on_message=lambda raw: None)
+    # the tap's silence during the deliberate hold is no deaf reader: a renewal then would lose
+    # what the plant publishes before the new reader matches (56 samples, once, under load)
+    tap = ros.tap(
+        node, Measurement, "/amb/measurement", SPR, on_message=lambda raw: None, renew_after=30.0
+    )
     # the recorder's readers matched by the writers themselves before the plant starts (as
     # amb-run's start gate waits): a reader the recorder, stopped at once, had not matched yet
     # got the coefficients only from its match on (5409 of 12800 samples in, in one suite)
@@ -119,7 +130,7 @@ def test_a_stopped_recorder_holds_the_lockstep_plant_and_loses_nothing(
         params={"scenario_file": str(scenario), "samples_per_rev": SPR,
                 "wait_for_subscribers": 4, "command_timeout": 5.0},
     )  # fmt: skip
-    assert ros.spin_until(lambda: tap.received > 0, 60.0), plant.log()
+    assert ros.spin_until(lambda: tap.received >= STOP_AT, 60.0), plant.log()
     recorder.proc.send_signal(signal.SIGSTOP)
     try:
         at_stop = tap.received
@@ -132,6 +143,9 @@ def test_a_stopped_recorder_holds_the_lockstep_plant_and_loses_nothing(
     finally:
         recorder.proc.send_signal(signal.SIGCONT)
     assert not ended and held_at < total, (at_stop, held_at, total, plant.log()[-2000:])
+    assert "publication waiting" in plant.log(), (
+        at_stop, held_at, plant.log()[-2000:], filterbank.log()[-2000:], controller.log()[-2000:]
+    )  # fmt: skip
     assert ros.spin_until_progress(
         lambda: plant.returncode is not None, lambda: tap.received, stall=30.0
     ), plant.log()[-2000:]
