@@ -70,8 +70,8 @@ def test_bag_holds_every_message_after_a_crash_and_a_stop(
 #: the recorder with fewer than 5000 left in 2 of 15 runs, and the plant never waited.
 HELD = {**SCENARIO, "name": "recorder_held", "duration": 120.0}
 #: Samples the test sees before it stops the recorder: the loop under way, every reader long
-#: matched. Stopped at the plant's first samples (16-32 in, idle), the plant was not held in 2
-#: of 36 runs and ran to its end.
+#: matched. Stopped at the plant's first samples (16-32 in, idle), the plant was not held in 3
+#: of 46 runs and ran to its end.
 STOP_AT = 1000
 
 
