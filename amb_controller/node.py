@@ -121,13 +121,13 @@ from amb_controller.early_messages import decision_message, model_change_message
 from amb_controller.errors import ControllerValueError
 from amb_controller.node_params import (
     PARAMETERS,
-    SETTINGS,
     START_MODES,
     TUNABLES,
     NodeSettings,
     config_from_parameters,
     parameter_descriptor,
     parameter_value,
+    runtime_change,
 )
 from amb_controller.pipeline import ControllerPipeline
 from amb_controller.selection import control_waveform
@@ -293,26 +293,13 @@ class WaveletControllerNode(ClosesReaderParticipant, Node):
         changes = {
             p.name: list(p.value) if isinstance(p.value, array | tuple) else p.value for p in params
         }
-        for name in SETTINGS:
-            if name in changes:
-                value = changes[name]
-                lo, hi = SETTINGS[name]
-                if not (isinstance(value, float) and lo <= value <= hi):
-                    return SetParametersResult(
-                        successful=False,
-                        reason=f"parameter '{name}' = {value!r}: expected {lo}..{hi} s",
-                    )
-        tunable = {k: v for k, v in changes.items() if k in TUNABLES}
-        if tunable:
-            values = {name: self.get_parameter(name).value for name in PARAMETERS}
-            values.update(tunable)
-            try:
-                config = ControllerConfig.from_dict(config_from_parameters(values), self._capacity)
-            except (ControllerValueError, ValueError, TypeError) as exc:
-                return SetParametersResult(
-                    successful=False, reason=f"parameters {tunable!r} refused: {exc}"
-                )
+        values = {name: self.get_parameter(name).value for name in PARAMETERS}
+        config, reason = runtime_change(changes, values, self._capacity)
+        if reason is not None:
+            return SetParametersResult(successful=False, reason=reason)
+        if config is not None:
             self._pending_config = config
+            tunable = {k: v for k, v in changes.items() if k in TUNABLES}
             self.get_logger().info(f"{tunable}: applied at the next period boundary")
         if "status_period" in changes:
             self._status_timer.cancel()

@@ -8,7 +8,7 @@ timeouts, status period, rig file, start mode, model output), each with the desc
 list or a mapping: :func:`parameter_value` gives the ROS form of a field's value and
 :func:`config_from_parameters` maps the parameter values back onto the configuration's fields.
 :data:`TUNABLES` and :data:`SETTINGS` are those the node accepts at run time (its module notes,
-"Parameters").
+"Parameters"), validated by :func:`runtime_change` as at start-up.
 """
 
 from __future__ import annotations
@@ -21,6 +21,7 @@ from rcl_interfaces.msg import ParameterDescriptor
 
 from amb_common.config_fields import param, parameter_fields
 from amb_controller.config import ControllerConfig
+from amb_controller.errors import ControllerValueError
 from amb_tools.node_main import ConfigurationError, field_descriptor
 
 START_MODES = ("off", "active", "identify")
@@ -119,3 +120,41 @@ def config_from_parameters(values: dict) -> dict:
             ) from exc
     d["fault_actions"] = actions
     return d
+
+
+def runtime_change(
+    changes: dict, values: dict, capacity: float
+) -> tuple[ControllerConfig | None, str | None]:
+    """
+    Validate a run-time change of the node's parameters with the start-up validation.
+
+    Parameters
+    ----------
+    changes : dict
+        Parameter name -> new value (lists, not ``array``), as set on the node.
+    values : dict
+        The current values of the controller's parameters (:data:`PARAMETERS`).
+    capacity : float
+        The bearings' force capacity, N (``ControllerConfig`` checks ``force_limit`` against it).
+
+    Returns
+    -------
+    config : ControllerConfig or None
+        The configuration with the change, if it changes a controller parameter
+        (:data:`TUNABLES`); None if only node settings change.
+    reason : str or None
+        Why the change is refused (nothing of it is then applied); None if it is accepted.
+    """
+    for name, (lo, hi) in SETTINGS.items():
+        if name in changes:
+            value = changes[name]
+            if not (isinstance(value, float) and lo <= value <= hi):
+                return None, f"parameter '{name}' = {value!r}: expected {lo}..{hi} s"
+    tunable = {k: v for k, v in changes.items() if k in TUNABLES}
+    if not tunable:
+        return None, None
+    try:
+        config = ControllerConfig.from_dict(config_from_parameters({**values, **tunable}), capacity)
+    except (ControllerValueError, ValueError, TypeError) as exc:
+        return None, f"parameters {tunable!r} refused: {exc}"
+    return config, None
