@@ -67,7 +67,7 @@ def test_bag_holds_every_message_after_a_crash_and_a_stop(
 #: more than a writer's history (Fast DDS keeps 5000 of a KEEP_ALL writer's messages) past it,
 #: however late the test stops the recorder. The test process sees the plant's first samples
 #: late with one core busy; at 40 s (12800 samples, 4.8 s of wall at 8x real time) it stopped
-#: the recorder with fewer than 5000 left in 2 of 15 runs, and the plant never waited.
+#: the recorder with fewer than 5000 left in 2 of 20 runs, and the plant never waited.
 HELD = {**SCENARIO, "name": "recorder_held", "duration": 120.0}
 #: Samples the test sees before it stops the recorder: the loop under way, every reader long
 #: matched. Stopped at the plant's first samples (16-32 in, idle), the plant was not held in 3
