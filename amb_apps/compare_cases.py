@@ -51,6 +51,8 @@ CONTROLLERS = (
 BASELINE_ROWS = ("harmonic_i1", "synchronous_i1")
 #: The baselines at each delay (issue 18: a row is compared with those at its own delay).
 BASELINES_AT = {1: BASELINE_ROWS, 2: ("harmonic_i2", "synchronous_i2")}
+#: The scenario of the robustness matrix (``amb-compare --robustness``).
+ROBUSTNESS_SCENARIO = "mass_loss_1st"
 MULTILEVEL = ("wavelet_124_coupled", "wavelet_124_perlevel")
 ML_LEVELS = (1, 2, 3)
 MASS_LOSS = 1

@@ -54,6 +54,7 @@ from amb_apps.compare_cases import (
     MASS_LOSS,
     ML_LEVELS,
     MULTILEVEL,
+    ROBUSTNESS_SCENARIO,
     SPECS,
     Matrix,
 )
@@ -489,7 +490,7 @@ def _robustness_task(task: tuple) -> dict:
     """Worker of :func:`robustness`: ``(matrix args, row, case)`` -> the run's metrics."""
     args, name, case = task
     matrix = Matrix.shared(*args)
-    key = "mass_loss_1st"
+    key = ROBUSTNESS_SCENARIO
     scenario = matrix.scenarios[key]
     p = ROBUSTNESS_CASES[case]
     spec = SPECS[name]

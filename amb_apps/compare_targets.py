@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from amb_apps.compare_cases import BASELINES_AT
+from amb_apps.compare_cases import BASELINES_AT, ROBUSTNESS_SCENARIO
 
 #: The issue-18 controller's rows (``{CONTROLLER}_i1``, ``_i2``).
 CONTROLLER = "predictive_early"
@@ -136,7 +136,7 @@ def checks(
             Check(
                 f"robust (model gain +-30 %, phase +-30 deg, speed +-10 %): peak <= "
                 f"{ROBUST_RATIO} x nominal",
-                f"mass_loss_1st, i = {i}",
+                f"{ROBUSTNESS_SCENARIO}, i = {i}",
                 f"nominal {_um(nominal)}, worst {worst} {_um(cases[worst]['peak'])} "
                 f"({ratio:.2f} x)",
                 ratio <= ROBUST_RATIO,
