@@ -13,42 +13,40 @@ messages' field names instead of rclpy message objects: the conversion of the ne
 
 Joining the two streams
 -----------------------
-Every sample ``n`` has a ``Measurement``; the filterbank publishes a ``WaveletCoefficients``
-message exactly for odd ``n`` (its finest level completes every second sample). Sample ``n`` is
-processed once its measurement and, for odd ``n``, its coefficients are in, whatever order DDS
-delivered them in, so the commands equal the in-process runner's (``amb-sim``) bit for bit. If a
-coefficient message is lost (a later one arrived first: each topic is delivered in order), the
-sample is processed without it and the pipeline answers that period with zero force.
+Sample ``n`` is processed once its measurement and, for odd ``n``, its coefficients are in,
+whatever order DDS delivered them in, so the commands equal the in-process runner's (``amb-sim``)
+bit for bit: :class:`amb_controller.stream_join.StreamJoin` (ROS-free) holds the two streams and
+releases the samples in index order; this node validates the messages, keeps the clocks and the
+log, and feeds the pipeline with what the join releases.
 
 Bad input and dead peers
 ------------------------
 Measurements are validated (:func:`amb_tools.validation.check_measurement`) and sequenced
-(:class:`amb_tools.validation.SampleSequencer`: repeats, stray indices and impossible stamps
-are dropped; a confirmed gap or restart makes the pipeline answer the broken period with a
-held zero command). Coefficient messages are rejected if their wavelet or ``samples_per_rev``
-is not the controller's, their sample index lies before the stream or more than eight periods
-ahead of it, their stamp differs from their measurement's, or a set is malformed. If the
-coefficients of a sample have not arrived ``coefficient_timeout`` wall seconds after the later
-of its measurement and the last coefficient message accepted for an earlier sample (a dead
+(:class:`amb_tools.validation.SampleSequencer`: repeats, stray indices and impossible stamps are
+dropped; a confirmed gap or restart makes the pipeline answer the broken period with a held zero
+command). Coefficient messages are rejected if their wavelet or ``samples_per_rev`` is not the
+controller's, their sample index lies before the stream or more than eight periods ahead of it,
+their stamp differs from their measurement's (these four by the join), or a set is malformed. If
+the coefficients of a sample have not arrived ``coefficient_timeout`` wall seconds after the
+later of its measurement and the last coefficient message accepted for an earlier sample (a dead
 filterbank), the sample is processed without them: the period is answered with zero force, and
 the lock-step loop keeps running on the PID. (A message for a later sample is no progress
-towards this one: a filterbank restarted past it never sends it.) If neither a measurement nor
-a coefficient message arrives for ``measurement_timeout`` s, the controller reports it and
-forgets its history, so that it holds zero until the stream returns; it then resumes without a
-restart. Coefficients that run ahead of the measurements while no measurement has come for
+towards this one: a filterbank restarted past it never sends it.) If neither a measurement nor a
+coefficient message arrives for ``measurement_timeout`` s, the controller reports it and forgets
+its history, so that it holds zero until the stream returns; it then resumes without a restart.
+Coefficients that run ahead of the measurements while no measurement has come for
 ``measurement_timeout`` s mean the filterbank is fed and this node is not: the node says so once
 per silence, as an error (the transport stopped feeding its reader, as seen after the process
 was stopped for seconds, with shared memory or UDP; docs/history.md), and moves both stream
 readers to a DDS participant of their own once no measurement has come for
 ``reader_renewal_after`` s while the measurement writer is still matched
 (:class:`amb_tools.reader_participant.DeafReaders`; also when the coefficients are silent too, a
-case the node cannot tell from a paused writer). A command the
-pipeline made with a non-finite value (never expected) is replaced by a
-zero command. A period whose measurements carry ``STATUS_COMMAND_MISSING`` ran without the
-command sent for it (lost, late, or the plant's watchdog): it is counted ``commands_late`` and
-the controller's step that made it is undone, so that the integrators do not wind up
-(:mod:`amb_controller.supervisor`, "Commands the plant did not apply"). All of it is counted
-on ``/diagnostics``.
+case the node cannot tell from a paused writer). A command the pipeline made with a non-finite
+value (never expected) is replaced by a zero command. A period whose measurements carry
+``STATUS_COMMAND_MISSING`` ran without the command sent for it (lost, late, or the plant's
+watchdog): it is counted ``commands_late`` and the controller's step that made it is undone, so
+that the integrators do not wind up (:mod:`amb_controller.supervisor`, "Commands the plant did
+not apply"). All of it is counted on ``/diagnostics``.
 
 Why the timeouts count from the last coefficient message: in lock-step the plant publishes a
 period's samples at once and waits for the command, so a loaded filterbank that works through
@@ -92,7 +90,6 @@ from __future__ import annotations
 import dataclasses
 import time
 from array import array
-from collections import deque
 from pathlib import Path
 
 import numpy as np
@@ -131,6 +128,7 @@ from amb_controller.node_params import (
 )
 from amb_controller.pipeline import ControllerPipeline
 from amb_controller.selection import control_waveform
+from amb_controller.stream_join import StreamJoin
 from amb_controller.supervisor import Mode
 from amb_controller.synthesis import ForceLimiter
 from amb_tools.backlog import backlog_counts, declare_catch_up, gap_known
@@ -157,10 +155,6 @@ from amb_tools.validation import SampleSequencer, check_measurement
 from amb_wavelet.frontend import FRAMES, QUADRATURES, ChannelFrontEnd
 from amb_wavelet.messages import coefficient_records
 
-#: Coefficient messages more than this many periods ahead of the measurements are refused.
-COEFFICIENT_HORIZON_PERIODS = 8
-
-
 #: What the node's error says when its measurement reader is no longer fed (module notes).
 BLIND_READER = "the transport no longer feeds this node's measurement reader"
 
@@ -185,7 +179,6 @@ class WaveletControllerNode(ClosesReaderParticipant, Node):
         self._status_pub = stream_publisher(
             self, bus, ControllerStatus, topics.STATUS, STATUS_QOS, lossless
         )
-        self._max_backlog = backlog.max_backlog
         self._readers = (
             stream_subscription(
                 self, bus, Measurement, topics.MEASUREMENT, self._on_measurement, qos, backlog,
@@ -205,29 +198,21 @@ class WaveletControllerNode(ClosesReaderParticipant, Node):
         self.create_service(SetControllerMode, topics.SET_MODE, self._on_set_mode)
         self.create_service(StartIdentification, topics.START_IDENTIFICATION, self._on_identify)
         self._diag_pub = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS, 10)
-        self._pending: deque[tuple[MeasurementView, float]] = deque()  # (message, wall s)
-        self._coefficients: dict[int, CoefficientsView] = {}
-        self._sequencer = SampleSequencer(self._pipe.config.samples_per_rev)
-        self._last_processed: int | None = None
-        self._last_wall: float | None = None
-        self._last_coefficient: tuple[int, float] | None = None  # last accepted: index, wall s
+        cfg = self._pipe.config
+        self._join = StreamJoin(
+            cfg.wavelet, cfg.samples_per_rev, self._pipe.samples_per_period, backlog.max_backlog,
+            SampleSequencer(cfg.samples_per_rev), self._report,
+        )  # fmt: skip
+        self._last_wall: float | None = None  # arrival of the last valid measurement (monotonic)
         self._stale = False
         self._early_omega: float | None = -1.0  # the early action's model speed last logged
         self._blind_reported = False  # the error of a reader not fed (module notes), this silence
         self._pending_config: ControllerConfig | None = None
         # messages published, per topic (amb-run waits until its bag holds as many)
         self.commands_published = self.statuses_published = 0
+        # the join counts what it refuses, gives up on and drops (coefficients_*, pending_*)
         self.counts = dict.fromkeys(
-            (
-                "measurements_rejected",
-                "coefficients_rejected",
-                "coefficients_missing",
-                "nonfinite_commands",
-                "stalls",
-                "pending_dropped",
-                "config_changes",
-            ),
-            0,
+            ("measurements_rejected", "nonfinite_commands", "stalls", "config_changes"), 0
         )
         self._last_reason = ""
         self._warnings = ThrottledWarnings(self.get_logger(), period=5.0)
@@ -323,10 +308,14 @@ class WaveletControllerNode(ClosesReaderParticipant, Node):
         self.counts["config_changes"] += 1
 
     # ------------------------------------------------------------------ streams
+    def _report(self, key: str, reason: str) -> None:
+        """The status's reason and a throttled warning (the join's reports as well)."""
+        self._last_reason = reason
+        self._warnings.warning(key, reason)
+
     def _reject(self, counter: str, reason: str) -> None:
         self.counts[counter] += 1
-        self._last_reason = reason
-        self._warnings.warning(counter, reason)
+        self._report(counter, reason)
 
     def _on_measurement(self, raw: bytes) -> None:
         try:
@@ -345,121 +334,50 @@ class WaveletControllerNode(ClosesReaderParticipant, Node):
         if self._stale:
             self._stale = False
             self.get_logger().info(f"measurements resumed at sample {msg.sample_index}")
-        before = dict(self._sequencer.counts)
-        accepted = self._sequencer.push(
-            int(msg.sample_index), stamp_seconds(msg.header.stamp), msg.rotor_speed, msg,
+        released = self._join.measurement(
+            msg, stamp_seconds(msg.header.stamp), now, self._coefficient_timeout(),
             gap_known(self._readers[0]),
         )  # fmt: skip
-        if self._sequencer.counts != before:
-            self._last_reason = self._sequencer.last_reason
-            self._warnings.warning("sequence", self._last_reason)
-        for reset, m in accepted:
-            if reset and self._last_processed is not None:
-                # restart or gap: everything queued belongs to the old stream's tail
-                self._drain(force=True)
-            self._pending.append((m, now))
-        excess = len(self._pending) - self._max_backlog
-        if self._max_backlog and excess > 0:
-            # realtime and behind: the filterbank's coefficients trail the measurements, so the
-            # backlog sits here, not in the DDS queue; the oldest go (the pipeline sees a gap)
-            for _ in range(excess):
-                self._pending.popleft()
-            self.counts["pending_dropped"] += excess
-            self._warnings.warning(
-                "pending",
-                f"{excess + self._max_backlog} measurements waiting for their coefficients, more "
-                f"than max_backlog = {self._max_backlog}: the oldest {excess} dropped",
-            )
-        self._drain()
+        self._process_all(released)
 
     def _on_coefficients(self, raw: bytes) -> None:
         try:
             msg = read_coefficients(raw)
         except ValueError as exc:
-            self._reject("coefficients_rejected", f"unreadable coefficients: {exc}; dropped")
+            self._join.reject(f"unreadable coefficients: {exc}; dropped")
             return
-        cfg = self._pipe.config
         n = int(msg.sample_index)
-        horizon = COEFFICIENT_HORIZON_PERIODS * self._pipe.samples_per_period
-        newest = self._pending[-1][0].sample_index if self._pending else self._last_processed
-        if newest is not None and n > newest + horizon and self._readers[0] is not None:
+        if self._join.beyond_horizon(n) and self._readers[0] is not None:
             # each reader takes its whole queue at a wake: the measurements of these
             # coefficients may be queued still, behind this wake (amb_tools.backlog)
             self._readers[0].poll()
-            newest = self._pending[-1][0].sample_index if self._pending else self._last_processed
-        reason = None
-        if msg.wavelet != cfg.wavelet or msg.samples_per_rev != cfg.samples_per_rev:
-            reason = (
-                f"coefficients of sample {n}: {msg.wavelet!r} at {msg.samples_per_rev} "
-                f"samples/rev, expected {cfg.wavelet!r} at {cfg.samples_per_rev}"
-            )
-        elif newest is not None and n > newest + horizon:
-            reason = (
-                f"coefficients of sample {n}: measurements only reach {newest}, from the future"
-            )
-            self._report_blind_reader()
-        elif n in self._coefficients:
-            reason = f"coefficients of sample {n} repeated"
-        elif (
-            self._last_processed is not None
-            and n <= self._last_processed
-            and not (
-                self._sequencer.pending_index is not None and n >= self._sequencer.pending_index
-            )
-        ):
-            reason = f"coefficients of sample {n}: sample {self._last_processed} already processed"
-        if reason is not None:
-            self._reject("coefficients_rejected", reason + "; dropped")
-            return
-        self._coefficients[n] = msg
-        self._last_coefficient = (n, time.monotonic())
-        while len(self._coefficients) > 2 * horizon:  # bounded, whatever arrives
-            del self._coefficients[min(self._coefficients)]
-        self._drain()
+            if self._join.beyond_horizon(n):
+                self._report_blind_reader()
+        self._process_all(
+            self._join.coefficients(msg, time.monotonic(), self._coefficient_timeout())
+        )
+
+    def _coefficient_timeout(self) -> float:
+        return self.get_parameter("coefficient_timeout").value
 
     def _drain(self, force: bool = False) -> None:
-        """Process queued samples in order; ``force`` stops waiting for coefficients."""
-        timeout = self.get_parameter("coefficient_timeout").value
-        now = time.monotonic()
-        while self._pending:
-            m, received = self._pending[0]
-            n = int(m.sample_index)
-            coeffs = self._coefficients.pop(n, None)
-            if coeffs is None and n % 2 == 1:
-                later = any(
-                    n < k <= n + 2 * self._pipe.samples_per_period for k in self._coefficients
-                )
-                # the timeout is a silence of the coefficient stream on its way to n, not the
-                # age of the measurement: a loaded filterbank working through a period (module
-                # notes); a message beyond n is no progress (a filterbank restarted past n)
-                since = received
-                if self._last_coefficient is not None and self._last_coefficient[0] < n:
-                    since = max(since, self._last_coefficient[1])
-                if not (force or later or now - since > timeout):
-                    return  # wait for the coefficients of this sample
-                self.counts["coefficients_missing"] += 1
-            self._pending.popleft()
-            for old in [k for k in self._coefficients if k <= n]:
-                del self._coefficients[old]  # belong to samples before a restart, or lost
-            if coeffs is not None and coeffs.header.stamp != m.header.stamp:
-                self._reject(
-                    "coefficients_rejected",
-                    f"coefficients of sample {n}: stamp differs from the measurement's; dropped",
-                )
-                coeffs = None
+        """Process the samples the join releases now; ``force`` stops waiting for coefficients."""
+        self._process_all(self._join.release(time.monotonic(), self._coefficient_timeout(), force))
+
+    def _process_all(self, released: list[tuple[MeasurementView, CoefficientsView | None]]) -> None:
+        for m, coeffs in released:
             self._process(m, coeffs)
-            self._last_processed = n
 
     def _watchdog(self) -> None:
-        if self._pending:
+        if self._join.waiting:
             self._drain()  # a dead filterbank: stop waiting after coefficient_timeout
         if self._last_wall is None or self._stale:
             return
         # in lock-step the plant waits for our command: no measurement comes while the
         # filterbank works through a period, but its coefficients do (module notes)
         last = self._last_wall
-        if self._last_coefficient is not None:
-            last = max(last, self._last_coefficient[1])
+        if self._join.last_coefficient is not None:
+            last = max(last, self._join.last_coefficient[1])
         silent = time.monotonic() - last
         if silent > self.get_parameter("measurement_timeout").value:
             self._stale = True
@@ -469,7 +387,7 @@ class WaveletControllerNode(ClosesReaderParticipant, Node):
             if sup.controller is not None:
                 sup.reset_controller()  # hold zero: no history carried across the silence
             self._last_reason = (
-                f"no measurement for {silent:.2f} s after sample {self._last_processed}: "
+                f"no measurement for {silent:.2f} s after sample {self._join.last_processed}: "
                 "holding zero until the stream returns"
             )
             self.get_logger().warning(self._last_reason)
@@ -496,9 +414,7 @@ class WaveletControllerNode(ClosesReaderParticipant, Node):
                 records = coefficient_records(coeffs, self._slots)
             except MessageError as exc:
                 self._pipe.count_rejected_input()
-                self._reject(
-                    "coefficients_rejected", f"coefficients of sample {m.sample_index}: {exc}"
-                )
+                self._join.reject(f"coefficients of sample {m.sample_index}: {exc}")
         command = self._pipe.on_sample(
             m.sample_index,
             records,
@@ -549,9 +465,10 @@ class WaveletControllerNode(ClosesReaderParticipant, Node):
 
     def _publish_diagnostics(self) -> None:
         status = self._pipe.status()
-        seq = self._sequencer.counts
+        seq = self._join.sequencer.counts
+        counts = {**self.counts, **self._join.counts}
         problems = (
-            any(self.counts[k] for k in self.counts if k != "config_changes")
+            any(counts[k] for k in counts if k != "config_changes")
             or any(seq[k] for k in ("stray", "stamp", "repeat"))
             or status["commands_late"] > 0  # the plant ran periods without our command
         )
@@ -561,7 +478,7 @@ class WaveletControllerNode(ClosesReaderParticipant, Node):
             "mode": Mode(status["mode"]).name,
             "closed_loop_radius": "none" if radius is None else f"{radius:.4f}",
             "measurements_stale": self._stale,
-            "last_sample": self._last_processed,
+            "last_sample": self._join.last_processed,
             "commands_sent": status["commands_sent"],
             "commands_published": self.commands_published,
             "statuses_published": self.statuses_published,
@@ -569,7 +486,7 @@ class WaveletControllerNode(ClosesReaderParticipant, Node):
             "commands_partial": status["commands_partial"],  # of those, applied from a sample on
             "callback_errors": getattr(self, "callback_errors", 0),
             "inputs_rejected": status["inputs_rejected"],
-            **self.counts,
+            **counts,
             "readers_renewed": self._deaf.renewals,
             **{f"samples_{k}": v for k, v in seq.items()},
             **matched_subscribers(self._cmd_pub, self._status_pub),
