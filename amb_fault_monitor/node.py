@@ -94,7 +94,7 @@ from rclpy.serialization import serialize_message
 
 from amb_common import topics
 from amb_common.errors import RigError
-from amb_common.faults import FaultEvent, FaultType
+from amb_common.faults import FaultEvent
 from amb_common.rig import load_rig
 from amb_fault_monitor.blackbox import BlackBox
 from amb_fault_monitor.coefficient_messages import (
@@ -117,7 +117,7 @@ from amb_fault_monitor.node_params import (
     parameter_descriptor,
     parameter_value,
 )
-from amb_fault_monitor.trips import SynchronousAmplitude, TripMonitor, clearance_levels
+from amb_fault_monitor.trips import PlaneTrips, clearance_levels
 from amb_tools.backlog import BacklogReader, backlog_counts, declare_catch_up, gap_known
 from amb_tools.cdr import (
     CoefficientsView,
@@ -179,10 +179,12 @@ class FaultMonitorNode(ClosesReaderParticipant, Node):
         except (FaultMonitorError, OSError) as exc:
             raise ConfigurationError(f"parameter 'event_log' = {log_path!r}: {exc}") from exc
         self._rig_levels()
-        hyst = p("trip_hysteresis").value
-        self._trip = TripMonitor(self._level(p("trip_displacement").value, "disp"), hyst)
-        self._trip_1x = TripMonitor(self._level(p("trip_1x").value, "1x"), hyst)
-        self._sync_amp = SynchronousAmplitude(self._spr)
+        self._trips = PlaneTrips(
+            self._level(p("trip_displacement").value, "disp"),
+            self._level(p("trip_1x").value, "1x"),
+            p("trip_hysteresis").value,
+            self._spr,
+        )
         self._box = self._blackbox()
         self._monitor = FaultMonitor(
             config, self._ki, self._feedback_channels, self._plane_bearings
@@ -330,11 +332,11 @@ class FaultMonitorNode(ClosesReaderParticipant, Node):
         names = {prm.name for prm in params}
         p = self.get_parameter
         if names & {"trip_displacement", "trip_displacement_fraction"}:
-            self._trip.set_level(self._level(p("trip_displacement").value, "disp"))
+            self._trips.displacement.set_level(self._level(p("trip_displacement").value, "disp"))
         if names & {"trip_1x", "trip_1x_fraction"}:
-            self._trip_1x.set_level(self._level(p("trip_1x").value, "1x"))
+            self._trips.amplitude.set_level(self._level(p("trip_1x").value, "1x"))
         if "trip_hysteresis" in names:
-            self._trip.hysteresis = self._trip_1x.hysteresis = p("trip_hysteresis").value
+            self._trips.set_hysteresis(p("trip_hysteresis").value)
         changed = {name: p(name).value for name in MONITOR_RUNTIME if name in names}
         if changed:
             self._monitor.config = replace(self._monitor.config, **changed)
@@ -404,7 +406,7 @@ class FaultMonitorNode(ClosesReaderParticipant, Node):
             float(msg.rotor_speed), self._readers[1],
         ):  # fmt: skip
             if reset:
-                self._sync_amp.reset()  # the 1 x window must not straddle a discontinuity
+                self._trips.window.reset()  # the 1 x window must not straddle a discontinuity
             self._measurement(m, r)
 
     def _measurement(self, msg: MeasurementView, raw: bytes) -> None:
@@ -419,22 +421,7 @@ class FaultMonitorNode(ClosesReaderParticipant, Node):
             self._emit(ev, msg.header.stamp, n)
         d = from_float_array(msg.displacement)
         self._monitor.displacements(n, d)
-        amp = self._sync_amp.step(d, float(msg.rotor_angle))
-        found = [("displacement", pl, self._trip) for pl in self._trip.step(d)]
-        if self._sync_amp.ready:
-            found += [("1x", pl, self._trip_1x) for pl in self._trip_1x.update(amp)[0]]
-        for kind, plane, trip in found:
-            r = float(trip.value[plane])
-            level = float(trip.level[plane])
-            what = "displacement" if kind == "displacement" else "1 x amplitude"
-            ev = FaultEvent(
-                FaultType.TRIP, n, n, n, self._spr, self._omega,
-                plane=int(plane) + 1,
-                severity=r,
-                confidence=1.0,
-                evidence={"quantity": kind, "trip_level_m": level, "value_m": r},
-                description=f"plane {plane + 1} {what} {r:.3g} m over the trip level {level:.3g} m",
-            )  # fmt: skip
+        for ev in self._trips.step(n, d, float(msg.rotor_angle), self._omega):
             self._emit(ev, msg.header.stamp, n)
 
     def _on_coefficients(self, raw: bytes) -> None:
@@ -539,12 +526,13 @@ class FaultMonitorNode(ClosesReaderParticipant, Node):
 
     def _publish_status(self) -> None:
         statuses = []
+        disp, amp = self._trips.displacement, self._trips.amplitude
         for p in range(4):
             level = DiagnosticStatus.OK
             message = "ok"
-            if self._trip.tripped[p]:
+            if disp.tripped[p]:
                 level, message = DiagnosticStatus.ERROR, "displacement over the trip level"
-            elif self._trip_1x.tripped[p]:
+            elif amp.tripped[p]:
                 level, message = DiagnosticStatus.ERROR, "1 x amplitude over the trip level"
             elif self._monitor.alarm:
                 level, message = DiagnosticStatus.WARN, "fault episode in progress"
@@ -556,10 +544,10 @@ class FaultMonitorNode(ClosesReaderParticipant, Node):
                     ),
                     message=message,
                     values=[
-                        KeyValue(key="peak_displacement_m", value=f"{self._trip.peak[p]:.6g}"),
-                        KeyValue(key="trip_level_m", value=f"{self._trip.level[p]:.6g}"),
-                        KeyValue(key="amplitude_1x_m", value=f"{self._trip_1x.value[p]:.6g}"),
-                        KeyValue(key="trip_1x_level_m", value=f"{self._trip_1x.level[p]:.6g}"),
+                        KeyValue(key="peak_displacement_m", value=f"{disp.peak[p]:.6g}"),
+                        KeyValue(key="trip_level_m", value=f"{disp.level[p]:.6g}"),
+                        KeyValue(key="amplitude_1x_m", value=f"{amp.value[p]:.6g}"),
+                        KeyValue(key="trip_1x_level_m", value=f"{amp.level[p]:.6g}"),
                     ],
                 )
             )

@@ -25,9 +25,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
+from amb_common.faults import FaultEvent, FaultType
 from amb_fault_monitor.errors import FaultMonitorError
 
-__all__ = ["SynchronousAmplitude", "TripMonitor", "clearance_levels"]
+__all__ = ["PlaneTrips", "SynchronousAmplitude", "TripMonitor", "clearance_levels"]
 
 
 def clearance_levels(rig: Any, fraction: float) -> np.ndarray:
@@ -207,3 +208,91 @@ class SynchronousAmplitude:
                 for x, y in zip(ph[0::2], ph[1::2], strict=True)
             ]
         )
+
+
+class PlaneTrips:
+    """
+    Both trips of the four sensor planes, fed sample by sample: the TRIP events they raise.
+
+    The displacement trip sees every sample; the 1 x amplitude trip only once a whole
+    revolution is in its window (:class:`SynchronousAmplitude`), so that a window still filling
+    never trips. An event is raised when a plane trips, not while it stays tripped.
+
+    Parameters
+    ----------
+    displacement_level : float or array_like
+        m, trip level of the radial displacement, scalar or per plane (4,); 0 disables a plane.
+    amplitude_level : float or array_like
+        m, trip level of the 1 x amplitude, likewise.
+    hysteresis : float
+        Fraction in [0, 1) below a level at which a trip clears (both trips).
+    samples_per_rev : int
+        Samples per revolution (the 1 x window).
+
+    Attributes
+    ----------
+    displacement, amplitude : TripMonitor
+        The two trips (levels, state and peaks, for the node's status).
+    window : SynchronousAmplitude
+        The 1 x window; :meth:`SynchronousAmplitude.reset` it at a discontinuity of the stream.
+    """
+
+    def __init__(
+        self,
+        displacement_level: float | ArrayLike,
+        amplitude_level: float | ArrayLike,
+        hysteresis: float,
+        samples_per_rev: int,
+    ) -> None:
+        self.displacement = TripMonitor(displacement_level, hysteresis)
+        self.amplitude = TripMonitor(amplitude_level, hysteresis)
+        self.window = SynchronousAmplitude(samples_per_rev)
+
+    def set_hysteresis(self, hysteresis: float) -> None:
+        """Change both trips' hysteresis (a fraction in [0, 1))."""
+        if not 0 <= hysteresis < 1:
+            raise FaultMonitorError(f"hysteresis must be in [0, 1), got {hysteresis}")
+        self.displacement.hysteresis = self.amplitude.hysteresis = float(hysteresis)
+
+    def step(
+        self, sample_index: int, displacement: ArrayLike, angle: float, omega: float
+    ) -> list[FaultEvent]:
+        """
+        Add one sample; return the TRIP events of the planes that tripped at it.
+
+        Parameters
+        ----------
+        sample_index : int
+            The sample's index (the event's onset, detection and decision).
+        displacement : array_like
+            (8,) m, ``[x1, y1, ..., x4, y4]``.
+        angle : float
+            rad, rotor angle from the keyphasor.
+        omega : float
+            rad/s, running speed (carried by the event).
+        """
+        amp = self.window.step(displacement, angle)
+        found = [
+            ("displacement", p, self.displacement) for p in self.displacement.step(displacement)
+        ]
+        if self.window.ready:
+            found += [("1x", p, self.amplitude) for p in self.amplitude.update(amp)[0]]
+        n, spr = int(sample_index), self.window.samples_per_rev
+        events = []
+        for kind, plane, trip in found:
+            r = float(trip.value[plane])
+            level = float(trip.level[plane])
+            what = "displacement" if kind == "displacement" else "1 x amplitude"
+            events.append(
+                FaultEvent(
+                    FaultType.TRIP, n, n, n, spr, omega,
+                    plane=int(plane) + 1,
+                    severity=r,
+                    confidence=1.0,
+                    evidence={"quantity": kind, "trip_level_m": level, "value_m": r},
+                    description=(
+                        f"plane {plane + 1} {what} {r:.3g} m over the trip level {level:.3g} m"
+                    ),
+                )
+            )  # fmt: skip
+        return events

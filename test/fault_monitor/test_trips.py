@@ -3,9 +3,10 @@
 import numpy as np
 import pytest
 
+from amb_common.faults import FaultType
 from amb_common.rig import load_rig
 from amb_fault_monitor.errors import FaultMonitorError
-from amb_fault_monitor.trips import SynchronousAmplitude, TripMonitor, clearance_levels
+from amb_fault_monitor.trips import PlaneTrips, SynchronousAmplitude, TripMonitor, clearance_levels
 
 SPR = 32
 
@@ -71,6 +72,33 @@ def test_hysteresis_trips_and_clears():
     assert list(trip.update([7.9, 9.0, 0.0, 6.0])[1]) == [0]
     assert list(np.flatnonzero(trip.tripped)) == [3]
     assert trip.peak[0] == 11.0
+
+
+def test_plane_trips_raise_one_event_per_trip_the_1x_only_after_a_revolution():
+    # plane 2 whirls on a 30 um circle from the start: displacement 30 um every sample (closed
+    # form), 1 x amplitude 30 um once a revolution is in the window
+    omega = 2 * np.pi * 20.0
+    trips = PlaneTrips([50e-6, 25e-6, 50e-6, 50e-6], 20e-6, 0.1, SPR)
+    events = []
+    for n in range(2 * SPR):
+        theta = 2 * np.pi * n / SPR
+        d = np.zeros(8)
+        d[2], d[3] = 30e-6 * np.cos(theta), 30e-6 * np.sin(theta)
+        events += [(n, ev) for ev in trips.step(n, d, theta, omega)]
+    (n0, disp), (n1, one_x) = events  # one each: a tripped plane stays tripped, no repeat
+    assert n0 == 0 and n1 == SPR - 1  # the window is full at the revolution's last sample
+    for ev, quantity, level in ((disp, "displacement", 25e-6), (one_x, "1x", 20e-6)):
+        assert ev.fault_type == FaultType.TRIP and ev.plane == 2
+        assert ev.onset_sample_index == ev.detection_sample_index == ev.decision_sample_index
+        assert ev.samples_per_rev == SPR and ev.omega == omega
+        assert ev.severity == pytest.approx(30e-6, rel=1e-9)
+        assert ev.evidence == {"quantity": quantity, "trip_level_m": level, "value_m": ev.severity}
+    assert list(np.flatnonzero(trips.displacement.tripped)) == [1]
+    assert list(np.flatnonzero(trips.amplitude.tripped)) == [1]
+    trips.set_hysteresis(0.5)
+    assert trips.displacement.hysteresis == trips.amplitude.hysteresis == 0.5
+    with pytest.raises(FaultMonitorError, match="hysteresis"):
+        trips.set_hysteresis(1.0)
 
 
 def test_clearance_levels_from_rig_file():
