@@ -18,6 +18,15 @@ until it succeeds, and raises only what is not a full history (no reader matched
 shut down). A reader that died without leaving (SIGKILL) holds the writer until its
 participant's lease runs out (measured: 19.4 s with Fast DDS's 20 s default).
 
+A reader's process can also hold a writer inside ``write`` itself: Fast DDS's shared-memory
+transport guards each reader's port with a mutex shared between processes, which the reader's
+listener thread holds while it takes a message from the port; stopped (or descheduled) there,
+it blocks every writer that pushes to that port, in every process, until it runs again (seen
+with ``gdb``: the plant's ``publish`` waiting in ``SharedMemManager::Port::try_push`` on the
+mutex whose owner was the stopped recorder's ``dds.shm`` thread; ``docs/history.md``, "A
+stopped reader that blocks its writers"). Nothing is lost then either; a publication that took
+longer than :data:`BLOCKED_AFTER_S` is counted and logged as a wait like the others.
+
 In ``realtime`` the writers stay KEEP_LAST: the control path never waits for a reader, and a
 reader that far behind loses the oldest messages as ``max_backlog`` drops them on the reading
 side. Which nodes wait: the plant in ``lockstep``, the other nodes while they keep every
@@ -41,6 +50,9 @@ WAITED_KEY = "publication waited s "
 WARN_AFTER_S = 1.0
 #: Seconds between the warnings of one long wait (a reader that died holds it about 20 s).
 WARN_PERIOD_S = 5.0
+#: Seconds one ``write`` may take before it counts as a wait (module notes); ordinarily it takes
+#: about 0.1 ms, and a full history makes Fast DDS give up after its 100 ms blocking time.
+BLOCKED_AFTER_S = 0.5
 
 
 def keep_all(qos: QoSProfile) -> QoSProfile:
@@ -122,12 +134,24 @@ class WaitingPublisher:
         waiting = False
         warn_at = start + WARN_AFTER_S
         while True:
+            tried = time.monotonic()
             try:
                 self._pub.publish(msg)
-                break
             except _rclpy.RCLError:
                 if not self._context.ok() or self._pub.get_subscription_count() == 0:
                     raise
+            else:
+                blocked = time.monotonic() - tried
+                if blocked > BLOCKED_AFTER_S:  # held inside the transport (module notes)
+                    if not waiting:
+                        waiting = True
+                        self.waits += 1
+                    self._logger.warning(
+                        f"{self.topic_name}: publication blocked {blocked:.1f} s in the "
+                        "transport (a reader's process stopped or descheduled while it held "
+                        "its shared-memory port)"
+                    )
+                break
             if not waiting:
                 waiting = True
                 self.waits += 1
