@@ -37,7 +37,9 @@ Run modes (ARCHITECTURE.md, "Time")
     its arrival minus the wall time its period started (negative: in time; the lead a rig has left).
     So is the plant's own punctuality: at each wake that publishes, how long after its instant the
     oldest sample left (``sample publication lag``, p99 and max): a late command after a plant
-    stall is the plant's, not the nodes'.
+    stall is the plant's, not the nodes'. Its longest single measurement write is reported too:
+    a reader process stopped or descheduled while it holds its shared-memory port holds the
+    write (:mod:`amb_tools.lossless`).
 
 A command is rejected (counted, reported, never applied) if its period has already started
 (``late``), if it is malformed (:func:`amb_tools.validation.check_command`: sizes, indices,
@@ -135,6 +137,9 @@ class PlantSimNode(ClosesReaderParticipant, Node):
         # realtime: at each wake that publishes, how far behind its instant the oldest sample
         # left (simulated s): the plant's (a bridge's) own stalls, apart from the nodes'
         self._publication_lag: deque[float] = deque(maxlen=SPREAD_HISTORY)
+        # wall s of the longest measurement write: a write held by a reader's shared-memory
+        # port (amb_tools.lossless, module notes) delays the samples after it
+        self._write_max = 0.0
         self._book = CommandBook(
             self._delay,
             self._force_limit,
@@ -433,7 +438,9 @@ class PlantSimNode(ClosesReaderParticipant, Node):
 
     def _release(self, t: float, index: int, raw: bytes) -> None:
         """Publish one serialised sample (and ``/clock``); a period's last one starts latency."""
+        start = time.monotonic()
         self._meas_pub.publish(raw)
+        self._write_max = max(self._write_max, time.monotonic() - start)
         if index % self._clock_every == 0:
             self._clock_pub.publish(Clock(clock=stamp(t)))
         self._last_stamp = t
@@ -472,7 +479,8 @@ class PlantSimNode(ClosesReaderParticipant, Node):
             lag = spread(self._publication_lag)
             control += (
                 f"; sample publication lag p99 {lag['p99'] * 1e3:.2f} ms, "
-                f"max {lag['max'] * 1e3:.2f} ms"
+                f"max {lag['max'] * 1e3:.2f} ms; longest measurement write "
+                f"{self._write_max * 1e3:.2f} ms"
             )
         waits = getattr(self._meas_pub, "waits", 0)  # lockstep (amb_tools.lossless)
         if waits:

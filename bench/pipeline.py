@@ -14,7 +14,9 @@ For each case (running speed, samples per revolution): a wavelet model from the 
    with a command and the p99 of each command's arrival minus its period's start (negative: in
    time); ``partial``: late commands the plant applied to the rest of their period
    (``partial_commands``), the share of the samples that ran with their command, and the
-   plant's largest sample publication lag (``pub max``: its own stall, apart from the nodes').
+   plant's largest sample publication lag (``pub max``: its own stall, apart from the nodes')
+   and its longest single measurement write (``write max``: held by a reader's shared-memory
+   port, ``amb_tools.lossless``, or the plant descheduled in it).
 3. with ``--hog START:SECONDS``: during each realtime run a CPU hog (``python -c 'while True:
    pass'``, one core busy) starts START wall s after ``amb-run`` is launched (its start-up
    takes a few seconds: the window actually hit is printed in run time) and runs SECONDS;
@@ -73,6 +75,7 @@ COMPLETE = re.compile(
 PARTIAL = re.compile(r"partial (?P<partial>\d+)")
 SAMPLES = re.compile(r"samples controlled (?P<samples>[\d.]+)%")
 PUBLICATION = re.compile(r"sample publication lag p99 [\d.]+ ms, max (?P<pub_max>[\d.]+) ms")
+WRITE = re.compile(r"longest measurement write (?P<write_max>[\d.]+) ms")
 CONTROL = re.compile(
     r"periods controlled (?P<controlled>[\d.]+)%"
     r"(?:, command arrival - period start p50 (?P<arr50>[-+\d.]+) ms, p99 (?P<arr99>[-+\d.]+) ms)?"
@@ -361,6 +364,9 @@ def case(
             publication = PUBLICATION.search(log)
             if publication is not None:
                 result[mode]["pub_max"] = float(publication.group(1))
+            write = WRITE.search(log)
+            if write is not None:
+                result[mode]["write_max"] = float(write.group(1))
             result[mode]["commanded"] = (  # without partial periods, the periods controlled
                 float(samples.group(1)) if samples else result[mode].get("controlled", math.nan)
             )
@@ -379,7 +385,7 @@ def _row(label: str, r: dict) -> str:
         f"{rt.get('controlled', nan) / 100:>11.1%} {rt.get('arr99', nan):>+11.2f} "
         f"{rt.get('missing', -1):>8d} {rt.get('late', -1):>5d} {rt.get('partial', -1):>8d} "
         f"{rt.get('commanded', nan) / 100:>12.1%} {rt.get('pub_max', nan):>11.2f} "
-        f"{r['load']:>6.1f}"
+        f"{rt.get('write_max', nan):>13.2f} {r['load']:>6.1f}"
     ) + _hog_cells(r.get("hog"))
 
 
@@ -441,7 +447,8 @@ def main() -> None:
     cases = [tuple(c.split(":")) for c in args.cases.split(",")]
     print(f"{'case / run':>16} {'lockstep RTF':>13} {'rt p50 ms':>10} {'p99 ms':>8} "
           f"{'p99/period':>11} {'controlled':>11} {'arr p99 ms':>11} {'missing':>8} "
-          f"{'late':>5} {'partial':>8} {'samples ctl':>12} {'pub max ms':>11} {'load':>6}"
+          f"{'late':>5} {'partial':>8} {'samples ctl':>12} {'pub max ms':>11} "
+          f"{'write max ms':>13} {'load':>6}"
           + (f" {'hog s (run)':>11} {'before':>7} {'during':>7} {'(samples)':>8} {'after':>7} "
              f"{'recover':>8} "
              f"{'lost':>5}" if hog else ""))  # fmt: skip
@@ -476,6 +483,7 @@ def main() -> None:
                             "arr99",
                             "commanded",
                             "pub_max",
+                            "write_max",
                         )
                     },
                     "load": statistics.median(r["load"] for r in runs),
