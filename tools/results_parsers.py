@@ -211,9 +211,10 @@ def parse_fault_eval(text: str) -> dict:
 _BENCH_ROW = re.compile(
     r"^\s*(?P<hz>[\d.]+) Hz x (?P<spr>\d+) (?P<run>#\d+|median)\s+(?P<rtf>\S+)\s+(?P<p50>\S+)\s+"
     r"(?P<p99>\S+)\s+(?P<frac>\S+)%\s+(?P<controlled>\S+)%\s+(?P<arr99>\S+)\s+"
-    r"(?P<missing>-?\d+)\s+(?P<late>-?\d+)\s+(?P<load>\S+)"
+    r"(?P<missing>-?\d+)\s+(?P<late>-?\d+)\s+(?P<partial>-?\d+)\s+(?P<commanded>\S+)%\s+"
+    r"(?P<pub_max>\S+)\s+(?P<write_max>\S+)\s+(?P<load>\S+)"
     r"(?:\s+(?P<hog_on>[\d.]+)-(?P<hog_off>\S+)\s+(?P<before>\S+)%\s+(?P<during>\S+)%\s+"
-    r"(?P<after>\S+)%\s+(?P<recover>\S+)\s+(?P<lost>-?\d+))?\s*$",
+    r"(?P<during_samples>\S+)%\s+(?P<after>\S+)%\s+(?P<recover>\S+)\s+(?P<lost>-?\d+))?\s*$",
     re.M,
 )
 
@@ -232,11 +233,18 @@ def parse_pipeline_bench(text: str) -> list[dict]:
             "arrival_p99_ms": float(m["arr99"]),
             "missing": int(m["missing"]),
             "late": int(m["late"]),
+            "partial": int(m["partial"]),
+            "samples_controlled": float(m["commanded"]) / 100,
+            "pub_max_ms": float(m["pub_max"]),
+            "write_max_ms": float(m["write_max"]),
             "load": float(m["load"]),
             **(
                 {
                     "hog_s": (float(m["hog_on"]), float(m["hog_off"])),
-                    **{k: float(m[k]) / 100 for k in ("before", "during", "after")},
+                    **{
+                        k: float(m[k]) / 100
+                        for k in ("before", "during", "during_samples", "after")
+                    },
                     "recover_periods": float(m["recover"]),
                     "lost": int(m["lost"]),
                 }

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import importlib.util
 import json
-import math
 import re
 import sys
 from pathlib import Path
@@ -61,21 +60,24 @@ ratio 11 Hz / 67 Hz without contact (same run): 1.25
 target >= 20x real time without contact: met
 """
 
+# bench/pipeline.py's output, as printed (--composed, 2026-12-06)
 PIPELINE_BENCH = "\n".join(
     [
-        "      case / run  lockstep RTF  rt p50 ms   p99 ms  p99/period  controlled  arr p99 ms "
-        " missing  late   load",
-        "   67 Hz x 32 #1          0.67      16.02    25.31        5.4%       96.5%      +22.66 "
-        "      47    47    3.2",
-        "   11 Hz x 64 #1          1.41        nan      nan        nan%        nan%         nan "
-        "      -1    -1    3.4",
-        "targets (#17): lock-step RTF >= 2 at 67 Hz x 32, >= 3 at 11 Hz x 64; realtime: 0 missing",
+        "      case / run  lockstep RTF  rt p50 ms   p99 ms  p99/period  controlled  arr p99 ms"
+        "  missing  late  partial  samples ctl  pub max ms  write max ms   load",
+        "   67 Hz x 32 #1          5.97       1.76     3.21       21.5%      100.0%      -12.14"
+        "        0     0        0       100.0%        8.43          0.73    0.8",
+        "   11 Hz x 64 #1         20.73       1.32     1.63        1.8%      100.0%      -90.68"
+        "        0     0        0       100.0%        6.42          7.43    0.8",
+        "targets (#17): lock-step RTF >= 2 at 67 Hz x 32, >= 3 at 11 Hz x 64; realtime: 0 "
+        "missing, 0 late, p99 <= 50% of the period",
     ]
 )
 
 PIPELINE_HOG = (
-    "   67 Hz x 32 #1          1.11       5.88    17.33      116.1%       11.8%     +158.22     "
-    "1772  1638    2.2   8.3-18.3    25.4%    0.7%   11.5%    784.7     0\n"
+    "   67 Hz x 32 #1          6.15       1.51     3.26       21.8%      100.0%      -12.02"
+    "        0     0        0       100.0%        5.02          4.15    1.1   7.1-11.1  "
+    " 100.0%  100.0%   100.0%  100.0%      0.0     0\n"
 )
 
 RUN_STDOUT = """\
@@ -244,13 +246,15 @@ def test_plant_bench_parser_reads_the_four_cases_and_the_threads() -> None:
 def test_pipeline_bench_parser_reads_each_row_including_nan() -> None:
     rows = P.parse_pipeline_bench(PIPELINE_BENCH)
     assert [r["case"] for r in rows] == ["67 Hz x 32", "11 Hz x 64"]
-    assert rows[0]["rtf"] == 0.67 and rows[0]["p99_of_period"] == pytest.approx(0.054)
-    assert rows[0]["controlled"] == pytest.approx(0.965) and rows[0]["arrival_p99_ms"] == 22.66
-    assert math.isnan(rows[1]["p50_ms"]) and rows[1]["missing"] == -1
-    assert math.isnan(rows[1]["controlled"]) and "hog_s" not in rows[0]
+    assert rows[0]["rtf"] == 5.97 and rows[0]["p99_of_period"] == pytest.approx(0.215)
+    assert rows[0]["controlled"] == pytest.approx(1.0) and rows[0]["arrival_p99_ms"] == -12.14
+    assert (rows[0]["missing"], rows[0]["late"], rows[0]["partial"]) == (0, 0, 0)
+    assert (rows[0]["pub_max_ms"], rows[0]["write_max_ms"], rows[0]["load"]) == (8.43, 0.73, 0.8)
+    assert rows[1]["write_max_ms"] == 7.43 and "hog_s" not in rows[0]
     (hog,) = P.parse_pipeline_bench(PIPELINE_HOG)
-    assert hog["hog_s"] == (8.3, 18.3) and hog["during"] == pytest.approx(0.007)
-    assert (hog["recover_periods"], hog["lost"], hog["missing"]) == (784.7, 0, 1772)
+    assert hog["hog_s"] == (7.1, 11.1) and hog["during"] == pytest.approx(1.0)
+    assert hog["during_samples"] == pytest.approx(1.0) and hog["write_max_ms"] == 4.15
+    assert (hog["recover_periods"], hog["lost"], hog["missing"]) == (0.0, 0, 0)
 
 
 def test_run_parser_reads_the_drain_and_the_plant_line() -> None:
