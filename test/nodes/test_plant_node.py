@@ -195,6 +195,11 @@ def test_realtime_publishes_each_sample_at_its_instant(ros, node_process, tmp_pa
     lag = re.search(r"sample publication lag p99 ([\d.]+) ms, max ([\d.]+) ms", plant.log())
     assert lag is not None, plant.log()
     assert 0.0 <= float(lag.group(1)) <= float(lag.group(2)), lag.group(0)
+    # and its longest single write, under the wall time the run took
+    write = re.search(r"longest measurement write ([\d.]+) ms", plant.log())
+    wall = re.search(r"in ([\d.]+) s wall", plant.log())
+    assert write is not None and wall is not None, plant.log()
+    assert 0.0 <= float(write.group(1)) < 1e3 * float(wall.group(1)), write.group(0)
     # each period is simulated at its start and published sample by sample: the last sample
     # published trails the simulated time by 1 sample to 1 period (bench/realtime_session.py
     # places the samples in wall time with it)
