@@ -200,7 +200,7 @@ class WaveletControllerNode(ClosesReaderParticipant, Node):
         self._diag_pub = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS, 10)
         cfg = self._pipe.config
         self._join = StreamJoin(
-            cfg.wavelet, cfg.samples_per_rev, self._pipe.samples_per_period, backlog.max_backlog,
+            cfg.wavelet, self._pipe.samples_per_period, backlog.max_backlog,
             SampleSequencer(cfg.samples_per_rev), self._report,
         )  # fmt: skip
         self._last_wall: float | None = None  # arrival of the last valid measurement (monotonic)

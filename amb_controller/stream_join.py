@@ -51,8 +51,6 @@ class StreamJoin:
     ----------
     wavelet : str
         The controller's wavelet; coefficient messages of another are refused.
-    samples_per_rev : int
-        Samples per revolution of the stream (the sequencer's and the messages').
     samples_per_period : int
         Samples per control period (the horizon and the search for a later message).
     max_backlog : int
@@ -60,7 +58,8 @@ class StreamJoin:
         (realtime catch-up; 0: keep every one, as in lock-step).
     sequencer : amb_tools.validation.SampleSequencer
         Orders the measurements (``push``, ``counts``, ``last_reason``, ``pending_index``);
-        given, not made here, so that this module imports nothing of the transport.
+        given, not made here, so that this module imports nothing of the transport. Its
+        ``samples_per_rev`` is the stream's: coefficient messages of another are refused.
     report : callable
         ``report(key, text)``: a rejection, a sequencing event or a drop, of kind ``key``
         (the node makes it its status's reason and logs it, throttled per key).
@@ -81,14 +80,13 @@ class StreamJoin:
     def __init__(
         self,
         wavelet: str,
-        samples_per_rev: int,
         samples_per_period: int,
         max_backlog: int,
         sequencer: Any,
         report: Callable[[str, str], None],
     ) -> None:
         self.wavelet = wavelet
-        self.samples_per_rev = int(samples_per_rev)
+        self.samples_per_rev = int(sequencer.samples_per_rev)
         self.samples_per_period = int(samples_per_period)
         self.max_backlog = int(max_backlog)
         self._report = report
@@ -180,7 +178,6 @@ class StreamJoin:
             s, the coefficient timeout.
         """
         n = int(msg.sample_index)
-        newest = self.newest()
         seq = self.sequencer
         reason = None
         if msg.wavelet != self.wavelet or msg.samples_per_rev != self.samples_per_rev:
@@ -190,7 +187,8 @@ class StreamJoin:
             )
         elif self.beyond_horizon(n):
             reason = (
-                f"coefficients of sample {n}: measurements only reach {newest}, from the future"
+                f"coefficients of sample {n}: measurements only reach {self.newest()}, from the "
+                "future"
             )
         elif n in self._coefficients:
             reason = f"coefficients of sample {n} repeated"

@@ -67,7 +67,7 @@ class Sink:
 
 def make(max_backlog: int = 0) -> tuple[StreamJoin, Sink]:
     sink = Sink()
-    return StreamJoin("haar", SPR, SPR, max_backlog, SampleSequencer(SPR), sink), sink
+    return StreamJoin("haar", SPR, max_backlog, SampleSequencer(SPR), sink), sink
 
 
 def feed(join: StreamJoin, events, now: float = 0.0) -> list:
