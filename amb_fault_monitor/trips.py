@@ -75,6 +75,12 @@ def _levels(level: float | ArrayLike) -> np.ndarray:
     return lv
 
 
+def _hysteresis(hysteresis: float) -> float:
+    if not 0 <= hysteresis < 1:
+        raise FaultMonitorError(f"hysteresis must be in [0, 1), got {hysteresis}")
+    return float(hysteresis)
+
+
 class TripMonitor:
     """
     Trip per plane with hysteresis on any non-negative per-plane quantity.
@@ -88,10 +94,8 @@ class TripMonitor:
     """
 
     def __init__(self, level: float | ArrayLike, hysteresis: float = 0.1) -> None:
-        if not 0 <= hysteresis < 1:
-            raise FaultMonitorError(f"hysteresis must be in [0, 1), got {hysteresis}")
+        self.hysteresis = _hysteresis(hysteresis)
         self.level = _levels(level)
-        self.hysteresis = float(hysteresis)
         self.tripped = np.zeros(4, dtype=bool)
         self._tripped_any = False
         self.peak = np.zeros(4)
@@ -250,9 +254,7 @@ class PlaneTrips:
 
     def set_hysteresis(self, hysteresis: float) -> None:
         """Change both trips' hysteresis (a fraction in [0, 1))."""
-        if not 0 <= hysteresis < 1:
-            raise FaultMonitorError(f"hysteresis must be in [0, 1), got {hysteresis}")
-        self.displacement.hysteresis = self.amplitude.hysteresis = float(hysteresis)
+        self.displacement.hysteresis = self.amplitude.hysteresis = _hysteresis(hysteresis)
 
     def step(
         self, sample_index: int, displacement: ArrayLike, angle: float, omega: float
