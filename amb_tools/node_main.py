@@ -52,7 +52,7 @@ from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
-from amb_tools.transport_profile import use_project_profile
+from amb_tools.transport_profile import TransportError, transport_of, use_project_profile
 
 EXIT_CONFIGURATION_ERROR = 2
 #: Garbage collections longer than this (s) are listed in the CPU log (``AMB_CPU_LOG``).
@@ -181,7 +181,11 @@ def run_nodes(
         nonlocal stop
         stop = True
 
-    use_project_profile()  # before the first participant (amb_tools.transport_profile)
+    try:
+        use_project_profile()  # before the first participant (amb_tools.transport_profile)
+    except TransportError as exc:
+        print(f"[ERROR] configuration: {exc}", file=sys.stderr, flush=True)
+        return EXIT_CONFIGURATION_ERROR
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     previous = {s: signal.signal(s, _request_stop) for s in (signal.SIGINT, signal.SIGTERM)}
     nodes: list[Node] = []
@@ -200,6 +204,11 @@ def run_nodes(
             label = {os.SCHED_FIFO: "SCHED_FIFO", os.SCHED_RR: "SCHED_RR"}.get(policy, policy)
             nodes[0].get_logger().info(
                 f"scheduling: {label}, priority {os.sched_getparam(0).sched_priority}"
+            )
+        if transport_of(os.environ) == "udp":
+            nodes[0].get_logger().info(
+                "transport: UDPv4 only, no shared memory (AMB_TRANSPORT=udp; "
+                "amb_tools/transport_profile.py)"
             )
         spinner = make_executor(executor)
         for node in nodes:

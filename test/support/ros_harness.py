@@ -275,6 +275,9 @@ class NodeProcess:
         Passed as ``-p name:=value``.
     extra_args : sequence of str
         More ``--ros-args`` arguments (remappings ``-r``).
+    env : dict, optional
+        Variables added to (or replacing) the test's environment for this process
+        (``AMB_TRANSPORT=udp``).
     """
 
     def __init__(
@@ -284,6 +287,7 @@ class NodeProcess:
         params_file: Path | None = None,
         params: dict | None = None,
         extra_args: Sequence[str] = (),
+        env: dict[str, str] | None = None,
     ) -> None:
         if executable.startswith("-m "):
             cmd = [sys.executable, "-m", executable[3:]]
@@ -308,8 +312,7 @@ class NodeProcess:
         self.cmd = cmd
         self.log_path = Path(log_dir) / f"{name}-{os.getpid()}-{time.monotonic_ns()}.log"
         self._log = open(self.log_path, "w")
-        env = dict(os.environ)
-        env["PYTHONUNBUFFERED"] = "1"
+        env = {**os.environ, **(env or {}), "PYTHONUNBUFFERED": "1"}
         # tied to the test process: a suite killed by its timeout leaves no node in the domain
         self.proc = subprocess.Popen(
             cmd,
