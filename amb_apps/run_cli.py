@@ -46,6 +46,13 @@ to (root, ``CAP_SYS_NICE``, or an ``rtprio`` limit of at least P in
 ``/etc/security/limits.conf``); amb-run checks it before it starts anything and refuses with the
 reason. The nodes log the policy they run under.
 
+Transport: the recorder runs off shared memory (``amb_apps.system.OFF_SHARED_MEMORY``): its
+DDS participant is on UDPv4 only, on 127.0.0.1 with the localhost discovery range. On shared
+memory a reader's listener, descheduled while it holds its port's mutex, holds every writer
+that pushes to that port, and the niced recorder is the reader most often descheduled
+(``amb_tools.transport_profile``). ``--udp PROCESS`` takes another process off shared memory,
+``--shm recorder`` puts the recorder back on it.
+
 Examples
 --------
 ::
@@ -81,6 +88,7 @@ from amb_apps.system import (
     COMPOSED,
     NODE_MODULES,
     NODES,
+    OFF_SHARED_MEMORY,
     PUBLISHERS,
     STACK,
     run_parameters,
@@ -91,6 +99,7 @@ from amb_common import topics
 from amb_common.paths import config_file, scenario_file
 from amb_plant_sim.errors import ScenarioError
 from amb_tools.streams import MATCHED_KEY
+from amb_tools.transport_profile import TRANSPORT_VARIABLE
 
 #: Wall s the plant's simulated time may stand still before ``amb-run`` aborts the run: longer
 #: than any wait of a healthy run (a lock-step writer held by a reader that died without leaving
@@ -117,6 +126,8 @@ class NodeRun:
     rt_priority: int = 0
     #: The nodes the process hosts (``wavelet_stack``: several; default: the one named).
     hosts: tuple[str, ...] = ()
+    #: The process's DDS transport (``AMB_TRANSPORT``): ``shm`` (Fast DDS's) or ``udp``.
+    transport: str = "shm"
 
     def __post_init__(self) -> None:
         self.hosts = self.hosts or (self.name,)
@@ -125,8 +136,10 @@ class NodeRun:
         """Start the process, output to its log file.
 
         ``nice`` is added to its niceness; ``rt_priority``, if given, puts it under
-        ``SCHED_FIFO`` (module notes).
+        ``SCHED_FIFO``; ``transport`` ``udp`` takes it off shared memory (module notes).
         """
+        if self.transport != "shm":
+            env = {**env, TRANSPORT_VARIABLE: self.transport}
         self._log = open(self.log_path, "w")
         nice, rt = self.nice, self.rt_priority
 
@@ -235,6 +248,22 @@ def build_parser() -> argparse.ArgumentParser:
         help="run a process (a node, or wavelet_stack) under SCHED_FIFO at priority P, 1-99 "
         "(repeatable; needs root, CAP_SYS_NICE or an rtprio limit: checked before the start)",
     )
+    p.add_argument(
+        "--udp",
+        action="append",
+        default=[],
+        metavar="PROCESS",
+        help="run a process (a node, or wavelet_stack) off shared memory: its DDS participant on "
+        f"UDPv4 only (repeatable; default {' '.join(OFF_SHARED_MEMORY)}; --shm PROCESS undoes it)",
+    )
+    p.add_argument(
+        "--shm",
+        action="append",
+        default=[],
+        metavar="PROCESS",
+        help="run a process with Fast DDS's shared memory (the default of every process not "
+        "named by --udp or its default)",
+    )
     p.add_argument("--timeout", type=float, default=3600.0, help="wall s before the run is aborted")
     p.add_argument(
         "--drain-timeout",
@@ -314,6 +343,24 @@ def rt_priorities(items: list[str]) -> dict[str, int]:
                 "of at least that priority (/etc/security/limits.conf)"
             )
     return out
+
+
+def transports(udp: list[str], shm: list[str]) -> dict[str, str]:
+    """The transport of each process named by ``--udp`` / ``--shm`` or ``OFF_SHARED_MEMORY``.
+
+    Raises
+    ------
+    SystemExit
+        A name that is not a process, or one named by both options.
+    """
+    processes = (*NODES, STACK)
+    for name in (*udp, *shm):
+        if name not in processes:
+            raise SystemExit(f"amb-run: --udp/--shm {name!r}: expected one of {processes}")
+    if both := sorted(set(udp) & set(shm)):
+        raise SystemExit(f"amb-run: {', '.join(both)} named by both --udp and --shm")
+    chosen = {n: "udp" for n in (*OFF_SHARED_MEMORY, *udp)}
+    return chosen | {n: "shm" for n in shm}
 
 
 def _set_overrides(args: argparse.Namespace) -> dict[str, dict[str, object]]:
@@ -429,6 +476,7 @@ def run(args: argparse.Namespace) -> int:
         "--nice", args.nice, NODES, f"NODE=N with NODE in {NODES}", signed=True
     )
     rt = rt_priorities(args.rt_priority)
+    transport = transports(args.udp, args.shm)
     try:
         scenario = scenario_file(args.scenario)
     except FileNotFoundError as exc:
@@ -489,6 +537,7 @@ def run(args: argparse.Namespace) -> int:
             out / "logs" / f"{n}.log",
             nice=nice.get(n, 0),
             rt_priority=rt.get(n, 0),
+            transport=transport.get(n, "shm"),
         )
         for n in names
         if n not in hosted
@@ -503,6 +552,7 @@ def run(args: argparse.Namespace) -> int:
                 out / "logs" / f"{STACK}.log",
                 hosts=tuple(hosted),
                 rt_priority=rt.get(STACK, 0),
+                transport=transport.get(STACK, "shm"),
             ),
         )
     env = dict(os.environ)

@@ -41,7 +41,7 @@ runs made under the same load.
 
     python bench/pipeline.py [--duration 8] [--cases 11:64,67:32] [--repeat 3]
         [--composed [--apart fault_monitor]] [--nice NODE=N] [--rt-priority PROCESS=P]
-        [--hog START:SECONDS]
+        [--udp PROCESS] [--shm PROCESS] [--hog START:SECONDS]
         [--set NODE.PARAM:=VALUE ...] [--keep DIR]
 """
 
@@ -417,6 +417,8 @@ def main() -> None:
     ap.add_argument(
         "--rt-priority", action="append", default=[], help="amb-run --rt-priority PROCESS=P"
     )
+    ap.add_argument("--udp", action="append", default=[], help="amb-run --udp PROCESS")
+    ap.add_argument("--shm", action="append", default=[], help="amb-run --shm PROCESS")
     ap.add_argument(
         "--set", action="append", default=[], help="amb-run --set NODE.PARAM:=VALUE (repeatable)"
     )
@@ -438,9 +440,13 @@ def main() -> None:
     run_args += [a for n in args.apart for a in ("--apart", n)]
     run_args += [a for n in args.nice for a in ("--nice", n)]
     run_args += [a for n in args.rt_priority for a in ("--rt-priority", n)]
+    run_args += [a for n in args.udp for a in ("--udp", n)]
+    run_args += [a for n in args.shm for a in ("--shm", n)]
     apart = f", {', '.join(args.apart)} apart" if args.apart else ""
     apart += f", nice {' '.join(args.nice)}" if args.nice else ""
     apart += f", SCHED_FIFO {' '.join(args.rt_priority)}" if args.rt_priority else ""
+    apart += f", UDP {' '.join(args.udp)}" if args.udp else ""
+    apart += f", shared memory {' '.join(args.shm)}" if args.shm else ""
     apart += f", set {' '.join(args.set)}" if args.set else ""
     print(f"deployment: {'composed (wavelet_stack)' if args.composed else 'one process per node'}"
           f"{apart}")  # fmt: skip

@@ -31,9 +31,16 @@ from launch.substitutions import LaunchConfiguration, PathJoinSubstitution
 from launch_ros.actions import Node
 from launch_ros.substitutions import FindPackageShare
 
-from amb_apps.system import COMPOSED, NODES, run_parameters, run_params_document
+from amb_apps.system import (
+    COMPOSED,
+    NODES,
+    OFF_SHARED_MEMORY,
+    run_parameters,
+    run_params_document,
+)
 from amb_common.paths import scenario_file
 from amb_common.topics import namespace
+from amb_tools.transport_profile import TRANSPORT_VARIABLE
 from launch import LaunchDescription
 
 PACKAGE = "amb_wavelet_control"
@@ -88,6 +95,8 @@ def _nodes(context) -> list:
             namespace=ns,
             parameters=[params, overrides[name]],
             output="screen",
+            # off shared memory as amb-run runs it (amb_apps.system.OFF_SHARED_MEMORY)
+            additional_env={TRANSPORT_VARIABLE: "udp"} if name in OFF_SHARED_MEMORY else None,
         )
         for name in names
         if name not in hosted

@@ -60,6 +60,10 @@ def test_launch_builds_its_nodes_with_run_parameters() -> None:
         if isinstance(k.value, ast.Constant)
     }  # fmt: skip
     assert executables == {"wavelet_stack"}  # the other is the loop variable `name`
+    # the processes amb-run runs off shared memory get AMB_TRANSPORT from the same list
+    assert "OFF_SHARED_MEMORY" in imported
+    per_node = [n for n in nodes if "additional_env" in {k.arg for k in n.keywords}]
+    assert len(per_node) == 1, "the per-node Node sets additional_env"
 
 
 def test_every_launch_argument_has_a_description() -> None:
