@@ -11,8 +11,9 @@ fewer than 20 samples is a blocked one: in 0.25 s its writers' histories (5000 m
 fill, so the plant is held inside a ``write`` (``amb_tools.lossless``, module notes). With
 ``gdb`` on the path, each blocked stop leaves every process's threads' backtraces and the
 plant's mutex (its ``__owner`` is a thread id) in ``PROBE_DIR`` (default: the test's tmp dir).
-The summary line is printed and appended to ``PROBE_DIR/summary.log``. ``docs/history.md``,
-"A stopped reader that blocks its writers", has the runs.
+The summary line is printed and appended to ``PROBE_DIR/summary.log``. ``PROBE_TRANSPORT=udp``
+runs the recorder off shared memory (``AMB_TRANSPORT``, ``amb_tools.transport_profile``).
+``docs/history.md``, "A stopped reader that blocks its writers", has the runs.
 """
 
 from __future__ import annotations
@@ -37,6 +38,7 @@ RUN = {
     "name": "stopped_reader",
     "duration": 600.0,
 }
+TOTAL = round(RUN["duration"] * RUN["speed"]["hz"]) * SPR  # samples of the run
 STOP_S, GO_S = 0.25, 0.4  # s the recorder is stopped, then let go, per cycle
 BLOCKED_BELOW = 20  # samples the plant advanced in a stop: fewer is a blocked stop
 
@@ -56,12 +58,17 @@ def test_probe_stopped_recorder(ros, node_process, tmp_path) -> None:
     from amb_msgs.msg import Measurement
     from reliability_helpers import Diagnostics
 
+    from amb_tools.transport_profile import TRANSPORT_VARIABLE
+
     out_dir = Path(os.environ.get("PROBE_DIR", tmp_path))
     out_dir.mkdir(parents=True, exist_ok=True)
     scenario = tmp_path / "scenario.yaml"
     scenario.write_text(yaml.safe_dump(RUN))
+    transport = os.environ.get("PROBE_TRANSPORT", "shm")
     recorder = node_process(
-        "recorder", params={"output": str(tmp_path / "bag"), "topics": ["/amb/*"]}
+        "recorder",
+        params={"output": str(tmp_path / "bag"), "topics": ["/amb/*"]},
+        env={TRANSPORT_VARIABLE: transport},
     )
     filterbank = node_process("wavelet_filterbank", params={"samples_per_rev": SPR})
     controller = node_process(
@@ -91,7 +98,12 @@ def test_probe_stopped_recorder(ros, node_process, tmp_path) -> None:
         recorder.proc.send_signal(signal.SIGSTOP)
         before = tap.received
         ros.spin_for(STOP_S)
-        if tap.received - before < BLOCKED_BELOW and plant.returncode is None:
+        # at the end the plant waits for every reader's acknowledgements: not a blocked stop
+        if (
+            tap.received - before < BLOCKED_BELOW
+            and plant.returncode is None
+            and not (tap.received >= TOTAL)
+        ):
             blocked += 1
             if gdb:
                 dump = "".join(
@@ -101,11 +113,15 @@ def test_probe_stopped_recorder(ros, node_process, tmp_path) -> None:
         recorder.proc.send_signal(signal.SIGCONT)
         ros.spin_for(GO_S)
     log = plant.log()
+    ros.spin_for(2.0)  # the recorder's last messages (the plant waited for every reader's acks)
+    recorder.stop()
+    written = re.search(r"messages written: (.*)", recorder.log())
     line = (
-        f"stops {cycles}, blocked {blocked}; plant: 'publication blocked' "
+        f"recorder on {transport}: stops {cycles}, blocked {blocked}; plant: 'publication blocked' "
         f"{log.count('publication blocked')}, 'publication waiting' "
         f"{log.count('publication waiting')}; samples seen {tap.received}; readers moved "
-        f"{[p.log().count('moved to a new participant') for p in procs]}"
+        f"{[p.log().count('moved to a new participant') for p in procs]}; bag: "
+        f"{written.group(1) if written else 'no summary'}"
     )
     print(line)
     with open(out_dir / "summary.log", "a") as fh:

@@ -72,13 +72,19 @@ HELD = {**SCENARIO, "name": "recorder_held", "duration": 120.0}
 #: Samples the test sees before it stops the recorder: the loop under way, every reader long
 #: matched.
 STOP_AT = 1000
-#: What the plant logs when it was held: its history full (the usual way), or its write held
-#: by the stopped recorder's shared-memory port (amb_tools.lossless; 2 of 110 runs stopped 16 in).
-HELD_LOGS = ("publication waiting", "publication blocked")
+#: What the plant logs when it was held, by the recorder's transport: its history full (the
+#: usual way), or, on shared memory, its write held by the stopped recorder's port
+#: (amb_tools.lossless; 2 of 110 runs stopped 16 in). On UDP the recorder shares no lock with
+#: the plant (amb_tools.transport_profile): only the history holds it.
+HELD_LOGS = {
+    "shm": ("publication waiting", "publication blocked"),
+    "udp": ("publication waiting",),
+}
 
 
+@pytest.mark.parametrize("transport", ["udp", "shm"])  # udp: as amb-run runs the recorder
 def test_a_stopped_recorder_holds_the_lockstep_plant_and_loses_nothing(
-    ros, node_process, tmp_path
+    ros, node_process, tmp_path, transport
 ) -> None:
     """The demo's recorder, niced on two cores, once lost 240 of 18688 measurements: in
     lock-step the writers keep every message until each reader has it (amb_tools.lossless), so
@@ -89,6 +95,7 @@ def test_a_stopped_recorder_holds_the_lockstep_plant_and_loses_nothing(
     from reliability_helpers import Diagnostics
 
     from amb_tools.lossless import WAITED_KEY
+    from amb_tools.transport_profile import TRANSPORT_VARIABLE
 
     scenario = tmp_path / "scenario.yaml"
     scenario.write_text(yaml.safe_dump(HELD))
@@ -104,6 +111,7 @@ def test_a_stopped_recorder_holds_the_lockstep_plant_and_loses_nothing(
         "recorder",
         params={"output": str(bag), "topics": [*types, "/diagnostics"],
                 "topic_types": [f"{t}:{m}" for t, m in types.items()]},
+        env={TRANSPORT_VARIABLE: transport},
     )  # fmt: skip
     filterbank = node_process("wavelet_filterbank", params={"samples_per_rev": SPR})
     controller = node_process(
@@ -146,7 +154,8 @@ def test_a_stopped_recorder_holds_the_lockstep_plant_and_loses_nothing(
         recorder.proc.send_signal(signal.SIGCONT)
     assert not ended and held_at < total, (at_stop, held_at, total, plant.log()[-2000:])
     # a write held by the port is logged once it returns, after the recorder runs again
-    assert ros.spin_until(lambda: any(text in plant.log() for text in HELD_LOGS), 10.0), (
+    held_logs = HELD_LOGS[transport]
+    assert ros.spin_until(lambda: any(text in plant.log() for text in held_logs), 10.0), (
         at_stop, held_at, plant.log()[-2000:], filterbank.log()[-2000:], controller.log()[-2000:]
     )  # fmt: skip
     assert ros.spin_until_progress(
