@@ -146,7 +146,8 @@ def _executor_report(outs: list[Output], work: Path) -> list[str]:
 
 #: (label, bench/pipeline.py arguments) of the ``deployment`` section, in the order run.
 DEPLOYMENTS = (
-    ("one process per node", []),
+    ("one process per node (recorder on UDP)", []),
+    ("one process per node, recorder on shared memory", ["--shm", "recorder"]),
     ("wavelet_stack, recorder apart", ["--composed", "--apart", "recorder"]),
     ("wavelet_stack with the recorder", ["--composed"]),
     (
@@ -165,7 +166,8 @@ def _deployment_commands(work: Path, args) -> list[Command]:
 def _deployment_report(outs: list[Output], work: Path) -> list[str]:
     columns = (
         ("rtf", ".2f"), ("controlled", ".1%"), ("p99_of_period", ".0%"),
-        ("arrival_p99_ms", "+.1f"), ("missing", ""), ("late", ""), ("load", ".1f"),
+        ("arrival_p99_ms", "+.1f"), ("missing", ""), ("late", ""), ("pub_max_ms", ".2f"),
+        ("write_max_ms", ".2f"), ("load", ".1f"),
     )  # fmt: skip
     rows = [
         [label, r["run"], *_cells(r, columns)]
@@ -178,7 +180,9 @@ def _deployment_report(outs: list[Output], work: Path) -> list[str]:
         "lock-step real-time factor; in `realtime` the share of control periods that ran with "
         "their command, the p99 command latency as a share of the period, the p99 of a "
         "command's arrival minus its period's start (negative: in time), commands missing and "
-        "late. `load`: 1-minute load average at the end of each run.",
+        "late, the plant's largest publication lag and its longest single measurement write. "
+        "`load`: 1-minute load average at the end of each run. The separate recorder runs on "
+        "UDP as `amb-run` runs it, once on shared memory (`--shm recorder`).",
         "",
     ]
     return lines + table(
@@ -191,6 +195,8 @@ def _deployment_report(outs: list[Output], work: Path) -> list[str]:
             "arrival p99 (ms)",
             "missing",
             "late",
+            "pub max (ms)",
+            "write max (ms)",
             "load",
         ],
         rows,
