@@ -66,15 +66,11 @@ Examples
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import math
 import os
 import signal
-import subprocess
 import sys
 import time
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import rclpy
@@ -82,11 +78,19 @@ import yaml
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.executors import SingleThreadedExecutor
 
-from amb_apps.lifetime import RunStopped, catch_stop_signals, die_with_parent
+from amb_apps.lifetime import RunStopped, catch_stop_signals
 from amb_apps.run_end import DRAIN_TIMEOUT, drain, plant_samples, settle_recording
+from amb_apps.run_processes import (
+    NICENESS,
+    NodeRun,
+    available,
+    executable,
+    per_process,
+    rt_priorities,
+    transports,
+)
 from amb_apps.system import (
     COMPOSED,
-    NODE_MODULES,
     NODES,
     OFF_SHARED_MEMORY,
     PUBLISHERS,
@@ -99,86 +103,11 @@ from amb_common import topics
 from amb_common.paths import config_file, scenario_file
 from amb_plant_sim.errors import ScenarioError
 from amb_tools.streams import MATCHED_KEY
-from amb_tools.transport_profile import TRANSPORT_VARIABLE
 
 #: Wall s the plant's simulated time may stand still before ``amb-run`` aborts the run: longer
 #: than any wait of a healthy run (a lock-step writer held by a reader that died without leaving
 #: waits for the reader's lease, 20 s by Fast DDS's default; a command timeout per period).
 STALL_TIMEOUT = 120.0
-INSTALL_LIB = Path(__file__).resolve().parent.parent / "install" / "amb_wavelet_control" / "lib"
-#: Nice value added to the nodes that are not on the control loop's chain.
-# fault_monitor is not niced by default: niced, it lags the lock-step chain and the end of the
-# run waits for it to drain (what it did before runs drained: docs/history.md, "amb-run").
-NICENESS = {"recorder": 10}
-
-
-@dataclass
-class NodeRun:
-    """One node process of the run."""
-
-    name: str
-    cmd: list[str]
-    log_path: Path
-    proc: subprocess.Popen | None = None
-    extra: dict = field(default_factory=dict)
-    nice: int = 0
-    #: ``SCHED_FIFO`` priority of the process (1-99); 0: the ordinary policy.
-    rt_priority: int = 0
-    #: The nodes the process hosts (``wavelet_stack``: several; default: the one named).
-    hosts: tuple[str, ...] = ()
-    #: The process's DDS transport (``AMB_TRANSPORT``): ``shm`` (Fast DDS's) or ``udp``.
-    transport: str = "shm"
-
-    def __post_init__(self) -> None:
-        self.hosts = self.hosts or (self.name,)
-
-    def start(self, env: dict) -> None:
-        """Start the process, output to its log file.
-
-        ``nice`` is added to its niceness; ``rt_priority``, if given, puts it under
-        ``SCHED_FIFO``; ``transport`` ``udp`` takes it off shared memory (module notes).
-        """
-        if self.transport != "shm":
-            env = {**env, TRANSPORT_VARIABLE: self.transport}
-        self._log = open(self.log_path, "w")
-        nice, rt = self.nice, self.rt_priority
-
-        def scheduling() -> None:  # in the child, before exec: every thread it makes inherits
-            if nice:
-                os.nice(nice)
-            if rt:
-                os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(rt))
-
-        self.proc = subprocess.Popen(
-            self.cmd,
-            stdout=self._log,
-            stderr=subprocess.STDOUT,
-            env=env,
-            preexec_fn=die_with_parent(then=scheduling if nice or rt else None),
-        )
-
-    def stop(self, timeout: float = 20.0) -> int:
-        """SIGINT, wait, then SIGKILL; return the exit status (a stopped process is continued)."""
-        if self.proc is None:  # never started (the run was stopped before its turn)
-            return 0
-        if self.proc.poll() is None:
-            self.proc.send_signal(signal.SIGCONT)  # else SIGINT waits while it is stopped
-            self.proc.send_signal(signal.SIGINT)
-            try:
-                self.proc.wait(timeout)
-            except subprocess.TimeoutExpired:
-                self.proc.kill()
-                self.proc.wait(5)
-        self._log.close()
-        return self.proc.returncode
-
-
-def executable(name: str) -> list[str]:
-    """Command that starts node ``name`` (the colcon-installed executable, else ``-m``)."""
-    path = INSTALL_LIB / "amb_wavelet_control" / name
-    if path.exists():
-        return [str(path)]
-    return [sys.executable, "-m", NODE_MODULES[name]]
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -282,85 +211,6 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     return p
-
-
-def per_process(
-    option: str,
-    items: list[str],
-    names: Sequence[str],
-    form: str,
-    signed: bool = False,
-    valid: Callable[[int], bool] = lambda value: True,
-) -> dict[str, int]:
-    """Parse the ``NAME=N`` items of a repeatable option (``--nice``, ``--rt-priority``).
-
-    Raises
-    ------
-    SystemExit
-        An item whose NAME is not in ``names``, whose N is not an integer (no sign unless
-        ``signed``) or not ``valid``: ``amb-run: OPTION ITEM: expected FORM``.
-    """
-    out: dict[str, int] = {}
-    for item in items:
-        name, _, value = item.partition("=")
-        digits = value[1:] if signed and value.startswith("-") else value
-        if name not in names or not digits.isdigit() or not valid(int(value)):
-            raise SystemExit(f"amb-run: {option} {item!r}: expected {form}")
-        out[name] = int(value)
-    return out
-
-
-def rt_priorities(items: list[str]) -> dict[str, int]:
-    """Parse ``--rt-priority PROCESS=P`` and check that this user may set it (module notes).
-
-    Returns
-    -------
-    dict
-        ``SCHED_FIFO`` priority by process name.
-
-    Raises
-    ------
-    SystemExit
-        A malformed item, an unknown process, P outside 1-99, or no right to the policy: the
-        reason, before any process starts (a ``preexec_fn`` that failed would only say that
-        one did).
-    """
-    processes = (*NODES, STACK)
-    form = f"PROCESS=P with P in 1-99 and PROCESS in {processes}"
-    out = per_process("--rt-priority", items, processes, form, valid=lambda p: 1 <= p <= 99)
-    if out:
-        top = max(out.values())
-        probe = subprocess.run(
-            [sys.executable, "-c", f"import os; os.sched_setscheduler(0, os.SCHED_FIFO, "
-             f"os.sched_param({top}))"],
-            capture_output=True, text=True,
-        )  # fmt: skip
-        if probe.returncode != 0:
-            reason = probe.stderr.strip().splitlines()[-1] if probe.stderr.strip() else "?"
-            raise SystemExit(
-                f"amb-run: --rt-priority: this user may not run a process under SCHED_FIFO at "
-                f"priority {top} ({reason}); it needs root, CAP_SYS_NICE, or an rtprio limit "
-                "of at least that priority (/etc/security/limits.conf)"
-            )
-    return out
-
-
-def transports(udp: list[str], shm: list[str]) -> dict[str, str]:
-    """The transport of each process named by ``--udp`` / ``--shm`` or ``OFF_SHARED_MEMORY``.
-
-    Raises
-    ------
-    SystemExit
-        A name that is not a process, or one named by both options.
-    """
-    processes = (*NODES, STACK)
-    for name in (*udp, *shm):
-        if name not in processes:
-            raise SystemExit(f"amb-run: --udp/--shm {name!r}: expected one of {processes}")
-    if both := sorted(set(udp) & set(shm)):
-        raise SystemExit(f"amb-run: {', '.join(both)} named by both --udp and --shm")
-    chosen = {n: "udp" for n in (*OFF_SHARED_MEMORY, *udp)}
-    return chosen | {n: "shm" for n in shm}
 
 
 def _set_overrides(args: argparse.Namespace) -> dict[str, dict[str, object]]:
@@ -495,7 +345,7 @@ def run(args: argparse.Namespace) -> int:
     if out.exists():
         print(f"amb-run: output folder {out} exists; choose a new one", file=sys.stderr)
         return 2
-    names = [n for n in NODES if n not in args.without and _available(n)]
+    names = [n for n in NODES if n not in args.without and available(n)]
     missing = [n for n in NODES if n not in names and n not in args.without]
     if "plant_sim" not in names:
         print("amb-run: plant_sim is not available", file=sys.stderr)
@@ -671,14 +521,6 @@ def log_tail(path: Path, lines: int = 12) -> str:
         return "\n".join(path.read_text(errors="replace").splitlines()[-lines:])
     except OSError:
         return ""
-
-
-def _available(name: str) -> bool:
-    if (INSTALL_LIB / "amb_wavelet_control" / name).exists():
-        return True
-
-    module = executable(name)[-1]
-    return module.startswith("amb_") and importlib.util.find_spec(module) is not None
 
 
 def main(argv: list[str] | None = None) -> int:

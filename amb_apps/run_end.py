@@ -87,7 +87,7 @@ class Reports(Protocol):
 
 
 class Process(Protocol):
-    """One process of the run (``amb_apps.run_cli.NodeRun``): its name, its nodes, its process."""
+    """One process of the run (``amb_apps.run_processes.NodeRun``): name, nodes, process."""
 
     name: str
     hosts: tuple[str, ...]

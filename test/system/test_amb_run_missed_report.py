@@ -19,8 +19,8 @@ import sys
 
 import pytest
 
-from amb_apps.run_cli import NodeRun
 from amb_apps.run_end import DRAINED, drain, plant_samples, settle_recording
+from amb_apps.run_processes import NodeRun
 
 PLANT_LINE = (
     "[INFO] [1.0] [plant_sim]: scenario x complete at t = 8.0250 s (4992 samples) in 2.10 s "

@@ -15,7 +15,8 @@ import sys
 
 import pytest
 
-from amb_apps.run_cli import NodeRun, build_parser, rt_priorities, run
+from amb_apps.run_cli import build_parser, run
+from amb_apps.run_processes import NodeRun, rt_priorities
 
 PRIORITY = 7
 #: The child prints its main thread's and a new thread's policy and priority.

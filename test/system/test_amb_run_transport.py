@@ -14,7 +14,8 @@ import sys
 
 import pytest
 
-from amb_apps.run_cli import NodeRun, build_parser, run, transports
+from amb_apps.run_cli import build_parser, run
+from amb_apps.run_processes import NodeRun, transports
 from amb_apps.system import OFF_SHARED_MEMORY
 from amb_tools.node_main import EXIT_CONFIGURATION_ERROR
 from amb_tools.transport_profile import TRANSPORT_VARIABLE
