@@ -35,6 +35,8 @@ no lock with its writers. Two ways, after what the RMW does with the discovery r
   profile with that participant marked default, :func:`loopback_profile`) and the range
   ``SYSTEM_DEFAULT``, with which the RMW leaves the transports and locators to the profile:
   UDPv4 on 127.0.0.1 only, discovery unicast to 127.0.0.1 only, as the localhost range's.
+  ``ROS_STATIC_PEERS``, which the RMW adds only for the localhost and subnet ranges, is then
+  not applied to that process (peers on other machines are not reachable over 127.0.0.1).
 * Any other range (``SUBNET``, ``SYSTEM_DEFAULT``): the RMW leaves the transports alone, and
   ``FASTDDS_BUILTIN_TRANSPORTS=UDPv4`` takes the shared memory away.
 

@@ -20,6 +20,7 @@ import xml.etree.ElementTree as ET
 import pytest
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String
+from writer_process import writer_script
 
 from amb_tools.transport_profile import (
     LOOPBACK_PARTICIPANT,
@@ -35,24 +36,11 @@ pytestmark = [pytest.mark.ros]
 
 TOPIC = "/amb_test/off_shared_memory"
 MESSAGES = 50
-WRITER = f"""
-import os, sys, time
-from amb_tools.transport_profile import use_project_profile
-use_project_profile()
-import rclpy
-from rclpy.duration import Duration
-from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
-from std_msgs.msg import String
-rclpy.init()
-node = rclpy.create_node("amb_test_off_shm_writer")
-qos = QoSProfile(depth=1, history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE)
-pub = node.create_publisher(String, "{TOPIC}", qos)
-deadline = time.monotonic() + 60.0
-while pub.get_subscription_count() < 1:
-    if time.monotonic() > deadline:
-        sys.exit("no reader matched in 60 s")
-    time.sleep(0.01)
-time.sleep(0.5)  # the reader's side of the match
+WRITER = writer_script(
+    "amb_test_off_shm_writer",
+    TOPIC,
+    "depth=1, history=HistoryPolicy.KEEP_ALL",
+    f"""
 for k in range({MESSAGES}):
     pub.publish(String(data=str(k)))
 if not pub.wait_for_all_acked(Duration(seconds=20.0)):
@@ -60,7 +48,8 @@ if not pub.wait_for_all_acked(Duration(seconds=20.0)):
 tasks = os.listdir("/proc/self/task")
 names = sorted(open(f"/proc/self/task/{{t}}/comm").read().strip() for t in tasks)
 print("threads", *names, flush=True)
-"""
+""",
+)
 
 
 def _defaults(path) -> list[ET.Element]:

@@ -18,6 +18,7 @@ import xml.etree.ElementTree as ET
 
 import pytest
 from std_msgs.msg import String
+from writer_process import writer_script
 
 from amb_tools.transport_profile import PROFILE_VARIABLES, project_profile, use_project_profile
 
@@ -25,25 +26,11 @@ pytestmark = [pytest.mark.ros]
 
 TOPIC = "/amb_test/transport_profile"
 PUBLISHES = 5
-WRITER = f"""
-import statistics, sys, time
-from amb_tools.transport_profile import use_project_profile
-use_project_profile()
-import rclpy
-from rclpy.duration import Duration
-from rclpy.qos import QoSProfile, ReliabilityPolicy
-from std_msgs.msg import String
-rclpy.init()
-node = rclpy.create_node("amb_test_profile_writer")
-pub = node.create_publisher(
-    String, "{TOPIC}", QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
-)
-deadline = time.monotonic() + 60.0
-while pub.get_subscription_count() < 1:
-    if time.monotonic() > deadline:
-        sys.exit("no reader matched in 60 s")
-    time.sleep(0.01)
-time.sleep(0.5)  # the reader's side of the match
+WRITER = writer_script(
+    "amb_test_profile_writer",
+    TOPIC,
+    "depth=10",
+    f"""
 waits = []
 for k in range({PUBLISHES}):
     pub.publish(String(data=str(k)))
@@ -52,7 +39,8 @@ for k in range({PUBLISHES}):
         sys.exit("not acknowledged in 10 s")
     waits.append(time.monotonic() - t0)
 print("waits", *waits, flush=True)
-"""
+""",
+)
 
 
 def test_the_project_profile_is_chosen_unless_the_user_chose_one(tmp_path) -> None:
