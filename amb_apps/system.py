@@ -75,9 +75,8 @@ STACK = "wavelet_stack"
 #: The processes run off shared memory (``AMB_TRANSPORT=udp``; ``amb-run --udp/--shm``, the
 #: launch file). The recorder, niced and off the control loop, is the reader most often
 #: descheduled: on shared memory its listener, descheduled while it holds its port's mutex,
-#: holds the plant's and the filterbank's writes (``amb_tools.transport_profile``; the probe
-#: ``test/reliability/probe_stopped_reader.py``: 4-6 of 52-55 stops of the recorder held the
-#: plant on shared memory, 0 of 58 on UDP).
+#: holds the plant's and the filterbank's writes (``amb_tools.transport_profile``; measured with
+#: ``test/reliability/probe_stopped_reader.py``: ``docs/history.md``, "Off shared memory").
 OFF_SHARED_MEMORY = ("recorder",)
 #: The node publishing each stream (composed or not: each node reports under its own name).
 PUBLISHERS = {
