@@ -26,6 +26,7 @@ from amb_tools.transport_profile import TRANSPORT_VARIABLE
 __all__ = [
     "INSTALL_LIB",
     "NICENESS",
+    "PROCESSES",
     "NodeRun",
     "available",
     "executable",
@@ -39,6 +40,8 @@ INSTALL_LIB = Path(__file__).resolve().parent.parent / "install" / "amb_wavelet_
 # fault_monitor is not niced by default: niced, it lags the lock-step chain and the end of the
 # run waits for it to drain (what it did before runs drained: docs/history.md, "amb-run").
 NICENESS = {"recorder": 10}
+#: What ``--rt-priority``, ``--udp`` and ``--shm`` may name: a node's process, or the stack's.
+PROCESSES = (*NODES, STACK)
 
 
 @dataclass
@@ -102,9 +105,14 @@ class NodeRun:
         return self.proc.returncode
 
 
+def _installed(name: str) -> Path:
+    """Where colcon installs node ``name``'s executable."""
+    return INSTALL_LIB / "amb_wavelet_control" / name
+
+
 def executable(name: str) -> list[str]:
     """Command that starts node ``name`` (the colcon-installed executable, else ``-m``)."""
-    path = INSTALL_LIB / "amb_wavelet_control" / name
+    path = _installed(name)
     if path.exists():
         return [str(path)]
     return [sys.executable, "-m", NODE_MODULES[name]]
@@ -151,9 +159,8 @@ def rt_priorities(items: list[str]) -> dict[str, int]:
         reason, before any process starts (a ``preexec_fn`` that failed would only say that
         one did).
     """
-    processes = (*NODES, STACK)
-    form = f"PROCESS=P with P in 1-99 and PROCESS in {processes}"
-    out = per_process("--rt-priority", items, processes, form, valid=lambda p: 1 <= p <= 99)
+    form = f"PROCESS=P with P in 1-99 and PROCESS in {PROCESSES}"
+    out = per_process("--rt-priority", items, PROCESSES, form, valid=lambda p: 1 <= p <= 99)
     if out:
         top = max(out.values())
         probe = subprocess.run(
@@ -179,10 +186,9 @@ def transports(udp: list[str], shm: list[str]) -> dict[str, str]:
     SystemExit
         A name that is not a process, or one named by both options.
     """
-    processes = (*NODES, STACK)
     for name in (*udp, *shm):
-        if name not in processes:
-            raise SystemExit(f"amb-run: --udp/--shm {name!r}: expected one of {processes}")
+        if name not in PROCESSES:
+            raise SystemExit(f"amb-run: --udp/--shm {name!r}: expected one of {PROCESSES}")
     if both := sorted(set(udp) & set(shm)):
         raise SystemExit(f"amb-run: {', '.join(both)} named by both --udp and --shm")
     chosen = {n: "udp" for n in (*OFF_SHARED_MEMORY, *udp)}
@@ -191,7 +197,7 @@ def transports(udp: list[str], shm: list[str]) -> dict[str, str]:
 
 def available(name: str) -> bool:
     """Whether node ``name`` can be started (installed, or its module importable)."""
-    if (INSTALL_LIB / "amb_wavelet_control" / name).exists():
+    if _installed(name).exists():
         return True
     module = executable(name)[-1]
     return module.startswith("amb_") and importlib.util.find_spec(module) is not None
