@@ -58,12 +58,13 @@ import math
 import time
 from collections import deque
 from collections.abc import Callable
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
 
 from amb_tools.node_main import descriptor
+from amb_tools.reader_participant import PendingMove
 from amb_tools.throttled_log import ThrottledWarnings
 
 __all__ = [
@@ -239,24 +240,45 @@ class BacklogReader:
         self._warnings = ThrottledWarnings(node.get_logger(), period=5.0)
         self._qos = qos
         self._node = node
+        self._move: PendingMove | None = None
         self.subscription = node.create_subscription(
             msg_type, name, self._on_message, qos, raw=True
         )
 
-    def move_to(self, node: Node) -> None:
-        """Subscribe the same topic from ``node`` and destroy the subscription held until now.
+    def subscribe_on(self, node: Node) -> Any:
+        """Subscribe the same topic from ``node`` as the pending successor; return it.
 
-        For a reader the transport stopped feeding: ``node`` is in another participant
-        (:class:`amb_tools.reader_participant.ReaderParticipant`). The topic is the resolved
-        name of the subscription replaced; counts and the age estimate carry over (the writer
-        is the same).
+        For a reader the transport stopped feeding: ``node`` is in another participant, not
+        spun yet (:class:`amb_tools.reader_participant.DeafReaders`). Until :meth:`switch` or
+        :meth:`cancel`, the messages taken here are remembered.
         """
-        topic = self.subscription.topic_name
-        self._node.destroy_subscription(self.subscription)
-        self._node = node
-        self.subscription = node.create_subscription(
-            self._msg_type, topic, self._on_message, self._qos, raw=True
+        self.cancel()
+        new = node.create_subscription(
+            self._msg_type, self.subscription.topic_name, self._on_message, self._qos, raw=True
         )
+        self._move = PendingMove(node, new)
+        return new
+
+    def switch(self) -> None:
+        """Drain and destroy the subscription; go on from the successor, less what was seen.
+
+        Counts and the age estimate carry over (the writer is the same).
+        """
+        move = self._move
+        if move is None:
+            return
+        self._on_message(None)
+        self._node.destroy_subscription(self.subscription)
+        self._node, self.subscription, self._move = move.node, move.subscription, None
+        taken = self._take()
+        keep = move.unseen(taken[0])
+        self._process(None, *([column[k] for k in keep] for column in taken))
+
+    def cancel(self) -> None:
+        """Destroy the pending successor, if any."""
+        if self._move is not None:
+            self._move.node.destroy_subscription(self._move.subscription)
+            self._move = None
 
     def poll(self) -> None:
         """Take and deliver, as at a wake, whatever is queued now.
@@ -266,10 +288,9 @@ class BacklogReader:
         """
         self._on_message(None)
 
-    def _on_message(self, raw: bytes | None) -> None:
-        # the executor's message comes without its message info (rclpy's EventsExecutor fails on
-        # a callback that asks for it); the rest are taken with it, for their source timestamps
-        batch = [] if raw is None else [raw]
+    def _take(self) -> tuple[list[bytes], list[int], list[int], list[int]]:
+        """Every message queued now with its source and reception stamps and sequence number."""
+        batch: list[bytes] = []
         sent: list[int] = []
         received: list[int] = []
         sequence: list[int] = []
@@ -281,8 +302,26 @@ class BacklogReader:
                 sent.append(info["source_timestamp"])
                 received.append(info["received_timestamp"])
                 sequence.append(info.get("publication_sequence_number") or 0)
+        return batch, sent, received, sequence
+
+    def _on_message(self, raw: bytes | None) -> None:
+        # the executor's message comes without its message info (rclpy's EventsExecutor fails on
+        # a callback that asks for it); the rest are taken with it, for their source timestamps
+        self._process(raw, *self._take())
+
+    def _process(
+        self,
+        raw: bytes | None,
+        taken: list[bytes],
+        sent: list[int],
+        received: list[int],
+        sequence: list[int],
+    ) -> None:
+        batch = taken if raw is None else [raw, *taken]
         if not batch:
             return
+        if self._move is not None:  # the successor's queue may hold these too
+            self._move.seen.extend(batch)
         self._received += len(batch)
         queued = max(len(batch) - self.max_backlog, 0) if self.max_backlog else 0
         old = 0
@@ -305,7 +344,7 @@ class BacklogReader:
             )
             self._warnings.warning(
                 "backlog",
-                f"{sub.topic_name}: {why}: the oldest {excess} dropped to catch up "
+                f"{self.subscription.topic_name}: {why}: the oldest {excess} dropped to catch up "
                 f"({self.dropped} in {self.episodes} overloads so far)",
             )
             if self._on_dropped is not None:

@@ -9,14 +9,20 @@ a segment nobody listens to. A new reader of the same participant listens on the
 is not fed either (tried: 2d05ebb). A new participant has a new port, which the writer's process
 opens afresh: :class:`ReaderParticipant` is one, in a context of its own in the same process,
 spun by the node's executor, whose node takes the stream readers over
-(:meth:`amb_tools.backlog.BacklogReader.move_to`). It is made only when a node finds its stream
-silent for ``reader_renewal_after`` s while the stream's writer is still matched and the
+(:meth:`amb_tools.backlog.BacklogReader.subscribe_on`). It is made only when a node finds its
+stream silent for ``reader_renewal_after`` s while the stream's writer is still matched and the
 readers' queues hold nothing (:class:`DeafReaders`), so that a healthy run never has it.
 
-The new participant costs one discovery (its readers match the writers within tens of ms
-idle); what the writers published between the stall and the match is not received (a gap the
-readers' sequencers report as such). Every renewal makes a new participant and then closes the
-one before it, so a participant id the writers may still hold a failed port for is not taken
+The move is made before the old readers are broken. The new participant's readers are made
+beside the old ones and left unspun; once the watched one has matched its writer, the old
+readers are drained once more, destroyed, and the new ones take over from their queues, minus
+any message an old reader delivered meanwhile. If the old watched reader delivers a message
+first, the stream was only paused (a writer held, not a deaf port) and the move is called off
+(``docs/history.md``, "A reader move made before the old readers are broken"). The new
+participant costs one discovery (its readers match the writers within tens of ms idle); in a
+real deafness what the writers published between the stall and the match is not received (a gap
+the readers' sequencers report as such). Every renewal makes a new participant and then closes
+the one before it, so a participant id the writers may still hold a failed port for is not taken
 again at once.
 """
 
@@ -24,8 +30,9 @@ from __future__ import annotations
 
 import itertools
 import time
-from collections.abc import Callable, Sequence
-from typing import Any, Protocol
+from collections import deque
+from collections.abc import Callable, Iterable, Sequence
+from typing import Any, NamedTuple, Protocol
 
 import rclpy
 from rclpy.node import Node
@@ -35,15 +42,21 @@ from amb_tools.node_main import descriptor
 
 __all__ = [
     "RENEWAL_AFTER",
+    "SEEN_DURING_MOVE",
     "ClosesReaderParticipant",
     "DeafReaders",
     "MovableSubscription",
+    "PendingMove",
     "ReaderParticipant",
     "Readers",
     "StreamReader",
     "declare_reader_renewal",
     "watch_readers",
 ]
+
+#: Messages an old reader delivered while its successor was pending that are remembered, to be
+#: dropped from the successor's queue at the switch (a stream's queue is at most this deep).
+SEEN_DURING_MOVE = 1 << 16
 
 #: Parameter: s of silence, with the writer matched, before the readers move (0 = never).
 RENEWAL_AFTER = "reader_renewal_after"
@@ -63,13 +76,15 @@ class ReaderParticipant:
     ----------
     node : rclpy.node.Node
         ``<owner>_readers_<k>`` in the owner's namespace and ROS domain, without parameter
-        services or global arguments (its topics are the owner's resolved names).
+        services or global arguments (its topics are the owner's resolved names). Not spun
+        until :meth:`start`: its subscriptions queue what they receive.
     """
 
     def __init__(self, owner: Node) -> None:
         executor = owner.executor
         if executor is None:
             raise RuntimeError(f"node {owner.get_name()} is not in an executor")
+        self._started = False
         self.context = rclpy.Context()
         # no signal handlers: the process's own (amb_tools.node_main.run_nodes) stay in charge
         rclpy.init(
@@ -85,11 +100,17 @@ class ReaderParticipant:
             start_parameter_services=False,
         )
         self._executor = executor
-        executor.add_node(self.node)
+
+    def start(self) -> None:
+        """Add the node to the owner's executor: its callbacks are called from now on."""
+        if not self._started:
+            self._executor.add_node(self.node)
+            self._started = True
 
     def close(self) -> None:
         """Take the node out of the executor, destroy it and shut the context down."""
-        self._executor.remove_node(self.node)
+        if self._started:
+            self._executor.remove_node(self.node)
         self.node.destroy_node()
         self.context.try_shutdown()
 
@@ -111,15 +132,53 @@ def declare_reader_renewal(node: Node) -> float:
 
 
 class StreamReader(Protocol):
-    """What :class:`DeafReaders` needs of a reader: its subscription, a poll and a move."""
+    """What :class:`DeafReaders` needs of a reader: its subscription, a poll and a move.
+
+    A move has two steps: :meth:`subscribe_on` makes the successor beside the subscription,
+    then :meth:`switch` hands over to it, or :meth:`cancel` drops it.
+    """
 
     subscription: Any
 
     def poll(self) -> object:
         """Deliver, in order, every message queued now."""
 
-    def move_to(self, node: Node) -> None:
-        """Subscribe the same topic from ``node``; destroy the subscription held until then."""
+    def subscribe_on(self, node: Node) -> Any:
+        """Subscribe the same topic from ``node`` (not spun yet) as the pending successor.
+
+        Returns the new subscription. Until :meth:`switch` or :meth:`cancel` the reader
+        remembers what it delivers.
+        """
+
+    def switch(self) -> None:
+        """Drain and destroy the subscription; deliver the successor's queue less what was seen."""
+
+    def cancel(self) -> None:
+        """Destroy the pending successor; the subscription stays."""
+
+
+class PendingMove:
+    """A reader's pending successor and what the reader delivered since it was made.
+
+    The part of a two-step move (:class:`StreamReader`) that every reader shares: the new
+    subscription and its node, and the messages (CDR bytes, or deserialised messages: any
+    values with ``==``) delivered from the old one meanwhile, which the successor's queue may
+    hold too.
+    """
+
+    def __init__(self, node: Node, subscription: Any) -> None:
+        self.node = node
+        self.subscription = subscription
+        self.seen: deque = deque(maxlen=SEEN_DURING_MOVE)
+
+    def unseen(self, items: Iterable) -> list[int]:
+        """Positions in ``items`` of those not delivered by the old reader meanwhile."""
+        seen = self.seen
+        try:
+            lookup: Any = set(seen)
+        except TypeError:  # deserialised messages are not hashable
+            lookup = list(seen)
+        return [k for k, item in enumerate(items) if item not in lookup]
 
 
 #: A node's readers: fixed, or a callable returning the current ones (a recorder's grow).
@@ -130,8 +189,8 @@ class MovableSubscription:
     """An ordinary (deserialising) subscription that :class:`DeafReaders` can move.
 
     What :class:`amb_tools.backlog.BacklogReader` offers for the raw streams, for a node's
-    low-rate reader (the plant's commands): ``poll`` delivers what is queued now, ``move_to``
-    subscribes the same topic from another node and destroys the subscription held until then.
+    low-rate reader (the plant's commands): ``poll`` delivers what is queued now;
+    ``subscribe_on``, ``switch`` and ``cancel`` move it to another node (:class:`StreamReader`).
     """
 
     def __init__(
@@ -141,27 +200,61 @@ class MovableSubscription:
         self._msg_type = msg_type
         self._callback = callback
         self._qos = qos
-        self.subscription = node.create_subscription(msg_type, name, callback, qos)
+        self._move: PendingMove | None = None
+        self.subscription = node.create_subscription(msg_type, name, self._deliver, qos)
+
+    def _deliver(self, msg: object) -> None:
+        if self._move is not None:
+            self._move.seen.append(msg)
+        self._callback(msg)
+
+    def _take(self, subscription: Any) -> list:
+        taken = []
+        with subscription.handle:
+            while (item := subscription.handle.take_message(self._msg_type, False)) is not None:
+                taken.append(item[0])
+        return taken
 
     def poll(self) -> None:
         """Deliver, in order, every message queued now."""
-        taken = []
-        with self.subscription.handle:
-            while (
-                item := self.subscription.handle.take_message(self._msg_type, False)
-            ) is not None:
-                taken.append(item[0])
-        for msg in taken:
-            self._callback(msg)
+        for msg in self._take(self.subscription):
+            self._deliver(msg)
 
-    def move_to(self, node: Node) -> None:
-        """Subscribe the same (resolved) topic from ``node``; destroy the old subscription."""
-        topic = self.subscription.topic_name
-        self._node.destroy_subscription(self.subscription)
-        self._node = node
-        self.subscription = node.create_subscription(
-            self._msg_type, topic, self._callback, self._qos
+    def subscribe_on(self, node: Node) -> Any:
+        """Subscribe the same (resolved) topic from ``node`` as the pending successor."""
+        self.cancel()
+        new = node.create_subscription(
+            self._msg_type, self.subscription.topic_name, self._deliver, self._qos
         )
+        self._move = PendingMove(node, new)
+        return new
+
+    def switch(self) -> None:
+        """Drain and destroy the subscription; go on from the successor (less what was seen)."""
+        move = self._move
+        if move is None:
+            return
+        self.poll()
+        self._node.destroy_subscription(self.subscription)
+        self._node, self.subscription, self._move = move.node, move.subscription, None
+        queued = self._take(self.subscription)
+        for k in move.unseen(queued):
+            self._callback(queued[k])
+
+    def cancel(self) -> None:
+        """Destroy the pending successor, if any."""
+        if self._move is not None:
+            self._move.node.destroy_subscription(self._move.subscription)
+            self._move = None
+
+
+class _Move(NamedTuple):
+    """A move under way: the new participant, the readers given a successor there, since when."""
+
+    participant: ReaderParticipant
+    readers: list[StreamReader]
+    successor: Any  # the watched reader's new subscription
+    silent_for: float  # s of silence that began it
 
 
 class DeafReaders:
@@ -170,8 +263,11 @@ class DeafReaders:
     Deaf: the first reader's stream (the measurements; the plant's commands) has brought nothing
     for ``after`` s, its writer is still matched, and the readers' queues, emptied first, held
     nothing (a process let go after a stop has its backlog there). Once per silence: a new
-    renewal needs a message first. A writer that merely paused costs one participant (module
-    docstring).
+    renewal needs a message first. The move is made before the old readers are broken (module
+    docstring): each reader gets a successor on a new, unspun participant; once the watched
+    successor has matched its writer, the readers switch over and the participant is spun. A
+    message on the old watched reader before that calls the move off: the writer had only
+    paused.
 
     Parameters
     ----------
@@ -193,7 +289,9 @@ class DeafReaders:
     Attributes
     ----------
     renewals : int
-        Renewals so far (``readers_renewed`` on the node's ``/diagnostics``).
+        Moves completed so far (``readers_renewed`` on the node's ``/diagnostics``).
+    called_off : int
+        Moves called off because the old watched reader got a message first.
     """
 
     def __init__(
@@ -208,11 +306,12 @@ class DeafReaders:
         self._readers_of = readers if callable(readers) else (lambda fixed=tuple(readers): fixed)
         self._progress = progress
         self.after = after
-        self.renewals = 0
+        self.renewals = self.called_off = 0
         self._seen = progress()
         self._seen_at = time.monotonic()
         self._heard = False  # a message since the start or the last renewal
         self._participant: ReaderParticipant | None = None
+        self._move: _Move | None = None
         if after > 0 and (callable(readers) or self._readers()):
             node.create_timer(period, self.check)
 
@@ -224,10 +323,17 @@ class DeafReaders:
         """The node the stream readers are on now: the owner's, or the newest participant's."""
         return self._node if self._participant is None else self._participant.node
 
+    @property
+    def moving(self) -> bool:
+        """A move is under way (successors made, not yet switched to)."""
+        return self._move is not None
+
     def check(self) -> str | None:
-        """Move the readers if they are deaf; return what was logged then, else None."""
+        """Begin, complete or call off a move; return what was logged at a warning, else None."""
         now = time.monotonic()
         value = self._progress()
+        if self._move is not None:
+            return self._advance(now, value)
         if value != self._seen:
             self._seen, self._seen_at, self._heard = value, now, True
             return None
@@ -241,24 +347,70 @@ class DeafReaders:
         if self._progress() != self._seen:
             return None  # the queue had messages after all (taken now)
         fresh = ReaderParticipant(self._node)
-        for reader in readers:
-            reader.move_to(fresh.node)
-        old, self._participant = self._participant, fresh
+        successors = [reader.subscribe_on(fresh.node) for reader in readers]
+        self._move = _Move(fresh, readers, successors[0], now - self._seen_at)
+        self._node.get_logger().info(
+            f"nothing on {readers[0].subscription.topic_name} for {now - self._seen_at:.2f} s "
+            f"while its writer is still matched: readers made on a new participant "
+            f"({fresh.node.get_name()}), to take over once they match"
+        )
+        return None
+
+    def _advance(self, now: float, value: object) -> str | None:
+        move = self._move
+        assert move is not None
+        watched = move.readers[0]
+        if value == self._seen:
+            if watched.subscription.get_publisher_count() == 0:
+                return self._call_off(move, "its writer is gone")
+            if move.successor.get_publisher_count() == 0:
+                return None  # the successor has not matched its writer yet
+            for reader in move.readers:  # what the old readers hold, delivered before the switch
+                reader.poll()
+            value = self._progress()
+        if value != self._seen:
+            self._seen, self._seen_at, self._heard = value, now, True
+            return self._call_off(move, "its reader got a message: the writer had paused")
+        late = [r for r in self._readers() if r not in move.readers]  # subscribed meanwhile
+        for reader in late:
+            reader.subscribe_on(move.participant.node)
+        for reader in [*move.readers, *late]:
+            reader.switch()
+        move.participant.start()
+        old, self._participant, self._move = self._participant, move.participant, None
         if old is not None:
             old.close()
         self.renewals += 1
         self._heard = False
-        topic = readers[0].subscription.topic_name
+        topic = watched.subscription.topic_name
         text = (
-            f"nothing on {topic} for {now - self._seen_at:.2f} s while its writer is still "
-            f"matched: the stream readers moved to a new participant ({fresh.node.get_name()}; "
-            'docs/history.md, "A reader the transport stopped feeding")'
+            f"nothing on {topic} for {move.silent_for:.2f} s while its writer is still "
+            f"matched: the stream readers moved to a new participant "
+            f'({self.readers_node.get_name()}; docs/history.md, "A reader the transport '
+            'stopped feeding")'
         )
         self._node.get_logger().warning(text)
         return text
 
+    def _call_off(self, move: _Move, why: str) -> None:
+        text = (
+            f"move of the readers of {move.readers[0].subscription.topic_name} to "
+            f"{move.participant.node.get_name()} called off: {why}"
+        )
+        for reader in move.readers:
+            reader.cancel()
+        move.participant.close()
+        self._move = None
+        self.called_off += 1
+        self._node.get_logger().info(text)
+
     def close(self) -> None:
-        """Close the readers' own participant, if one was made."""
+        """Close the readers' own participant and a pending one, if made."""
+        if self._move is not None:
+            for reader in self._move.readers:
+                reader.cancel()
+            self._move.participant.close()
+            self._move = None
         if self._participant is not None:
             self._participant.close()
             self._participant = None

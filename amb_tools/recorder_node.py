@@ -79,7 +79,7 @@ from amb_common import topics
 from amb_tools.bag_writer import STORAGE_PLUGINS, BagWriter, QueuedBagWriter, header_stamp_ns
 from amb_tools.local_bus import LocalBus
 from amb_tools.node_main import ConfigurationError, descriptor, run_node
-from amb_tools.reader_participant import ClosesReaderParticipant, watch_readers
+from amb_tools.reader_participant import ClosesReaderParticipant, PendingMove, watch_readers
 
 STAMP_SOURCES = ("receive", "header")
 
@@ -108,9 +108,10 @@ class DrainedGroup(CallbackGroup):
 class RecordedSubscription:
     """One recorded topic's DDS subscription: drained into the bag, and movable.
 
-    ``poll`` writes every message queued now; ``move_to`` subscribes the same topic, QoS and
-    callback group from another node (a participant of the recorder's own,
-    :class:`amb_tools.reader_participant.DeafReaders`) and destroys the subscription held so far.
+    ``poll`` writes every message queued now; ``subscribe_on``, ``switch`` and ``cancel`` move
+    it to another node (a participant of the recorder's own,
+    :class:`amb_tools.reader_participant.DeafReaders`): the same topic, QoS and callback group,
+    the old subscription drained and destroyed, nothing written twice.
     """
 
     def __init__(
@@ -124,27 +125,58 @@ class RecordedSubscription:
         write: Callable[[bytes, dict], None],
     ) -> None:
         self._node = node
-        self._args = (msg_class, topic, callback, qos)
+        self._callback = callback
+        self._args = (msg_class, topic, self._on_raw, qos)
         self._group = group
         self._write = write
+        self._move: PendingMove | None = None
         self.subscription = node.create_subscription(*self._args, callback_group=group, raw=True)
+
+    def _on_raw(self, raw: bytes) -> None:
+        if self._move is not None:
+            self._move.seen.append(raw)
+        self._callback(raw)
+
+    def _take(self) -> list[tuple[bytes, dict]]:
+        sub, taken = self.subscription, []
+        with sub.handle:
+            while (item := sub.handle.take_message(sub.msg_type, True)) is not None:
+                taken.append(item)
+        return taken
 
     def poll(self) -> int:
         """Write every message queued now to the bag; return how many."""
-        sub, n = self.subscription, 0
-        with sub.handle:
-            while (taken := sub.handle.take_message(sub.msg_type, True)) is not None:
-                self._write(*taken)
-                n += 1
-        return n
+        taken = self._take()
+        if self._move is not None:
+            self._move.seen.extend(raw for raw, _info in taken)
+        for raw, info in taken:
+            self._write(raw, info)
+        return len(taken)
 
-    def move_to(self, node: Node) -> None:
-        """Subscribe the same topic from ``node``; destroy the old subscription."""
+    def subscribe_on(self, node: Node) -> Any:
+        """Subscribe the same topic from ``node`` as the pending successor; return it."""
+        self.cancel()
+        new = node.create_subscription(*self._args, callback_group=self._group, raw=True)
+        self._move = PendingMove(node, new)
+        return new
+
+    def switch(self) -> None:
+        """Drain and destroy the subscription; write the successor's queue less what was seen."""
+        move = self._move
+        if move is None:
+            return
+        self.poll()
         self._node.destroy_subscription(self.subscription)
-        self._node = node
-        self.subscription = node.create_subscription(
-            *self._args, callback_group=self._group, raw=True
-        )
+        self._node, self.subscription, self._move = move.node, move.subscription, None
+        taken = self._take()
+        for k in move.unseen(raw for raw, _info in taken):
+            self._write(*taken[k])
+
+    def cancel(self) -> None:
+        """Destroy the pending successor, if any."""
+        if self._move is not None:
+            self._move.node.destroy_subscription(self._move.subscription)
+            self._move = None
 
 
 def import_message_class(msgtype: str) -> type:

@@ -21,7 +21,7 @@ import pytest
 import yaml
 from amb_msgs.msg import ControlCommand, Measurement
 from rclpy.serialization import deserialize_message
-from reliability_helpers import Diagnostics, subscribed_by
+from reliability_helpers import Diagnostics, missing_runs, subscribed_by
 from rosbags.rosbag2 import Reader
 
 from amb_tools.conversions import to_float_array
@@ -173,3 +173,62 @@ def test_the_plants_command_reader_moves_when_the_commands_stop_with_the_writer_
     # the commands come through the new reader: lock step resumed, the last periods controlled
     assert "commands resumed" in plant.log(), plant.log()
     assert not missing & set(range(n // SPR - 10, n // SPR)), (sorted(missing), plant.log())
+
+
+def test_a_move_loses_nothing_and_writes_nothing_twice(ros, node_process, tmp_path) -> None:
+    """The recorder's measurements pause beyond ``reader_renewal_after`` while its command
+    stream runs on at 100 Hz: its readers move (the measurement writer stays matched), and the
+    command reader, fed all along, hands over with messages queued on both its old and its new
+    subscription. Every command is in the bag once and in order, and so is every measurement.
+    (The move that destroyed the old reader before the new one matched lost what was published
+    in between, stop 53: 56 samples of a test observer.)"""
+    bag = tmp_path / "bag"
+    proc = node_process(
+        "recorder",
+        params={"samples_per_rev": SPR, "reader_renewal_after": 1.0, "status_period": 0.2,
+                "output": str(bag)},
+    )  # fmt: skip
+    node = ros.node("amb_test_renewal_handover")
+    diagnostics = Diagnostics(node)
+    measurements = node.create_publisher(Measurement, "/amb/measurement", stream_qos(SPR))
+    commands = node.create_publisher(ControlCommand, "/amb/control/command", COMMAND_QOS)
+    assert ros.spin_until(
+        lambda: measurements.get_subscription_count() > 0 and commands.get_subscription_count() > 0,
+        30.0,
+    ), proc.log()
+    ros.spin_for(0.5)  # the recorder's readers matched our writers (its own view may lag ours)
+    sent = {"commands": 0}
+
+    def command() -> None:
+        c = ControlCommand(period_index=sent["commands"], samples_per_period=SPR)
+        commands.publish(c)
+        sent["commands"] += 1
+
+    timer = node.create_timer(0.01, command)
+    for i in range(2 * SPR):
+        measurements.publish(_measurement(i))
+    assert ros.spin_until(lambda: MOVED in proc.log(), 30.0), proc.log()
+    ros.spin_for(0.5)
+    for i in range(2 * SPR, 6 * SPR):
+        measurements.publish(_measurement(i))
+    node.destroy_timer(timer)
+    assert ros.spin_until(
+        lambda: (
+            _progress(diagnostics, "recorder", "/amb/measurement", 6 * SPR - 1)
+            and diagnostics.get("recorder", "/amb/control/command") == str(sent["commands"])
+        ),
+        30.0,
+    ), (sent, diagnostics.values.get("recorder"), proc.log())
+    assert proc.stop() == 0, proc.log()
+    assert proc.log().count(MOVED) == 1, proc.log()
+    recorded: dict[str, list[int]] = {"/amb/measurement": [], "/amb/control/command": []}
+    with Reader(bag) as reader:
+        for conn, _t, raw in reader.messages():
+            if conn.topic == "/amb/measurement":
+                recorded[conn.topic].append(deserialize_message(raw, Measurement).sample_index)
+            elif conn.topic == "/amb/control/command":
+                recorded[conn.topic].append(deserialize_message(raw, ControlCommand).period_index)
+    assert recorded["/amb/measurement"] == list(range(6 * SPR))
+    assert recorded["/amb/control/command"] == list(range(sent["commands"])), missing_runs(
+        recorded["/amb/control/command"], sent["commands"]
+    )
