@@ -64,7 +64,7 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile
 
 from amb_tools.node_main import descriptor
-from amb_tools.reader_participant import PendingMove
+from amb_tools.reader_participant import MovableReader, PendingMove
 from amb_tools.throttled_log import ThrottledWarnings
 
 __all__ = [
@@ -169,7 +169,7 @@ def declare_catch_up(node: Node) -> CatchUp:
     )
 
 
-class BacklogReader:
+class BacklogReader(MovableReader):
     """
     A raw DDS subscription that hands over its messages in order, dropping a long backlog.
 
@@ -211,6 +211,13 @@ class BacklogReader:
         Messages kept at the wake being delivered (1 outside a wake): more than one, and the
         reader is behind its stream (:class:`amb_tools.local_bus.LocalBus` then serves the
         control path first).
+
+    Notes
+    -----
+    Movable to another participant (:class:`amb_tools.reader_participant.MovableReader`): a
+    reader the transport stopped feeding is moved by
+    :class:`amb_tools.reader_participant.DeafReaders`; counts and the age estimate carry over
+    (the writer is the same).
     """
 
     def __init__(
@@ -240,45 +247,19 @@ class BacklogReader:
         self._warnings = ThrottledWarnings(node.get_logger(), period=5.0)
         self._qos = qos
         self._node = node
-        self._move: PendingMove | None = None
         self.subscription = node.create_subscription(
             msg_type, name, self._on_message, qos, raw=True
         )
 
-    def subscribe_on(self, node: Node) -> Any:
-        """Subscribe the same topic from ``node`` as the pending successor; return it.
-
-        For a reader the transport stopped feeding: ``node`` is in another participant, not
-        spun yet (:class:`amb_tools.reader_participant.DeafReaders`). Until :meth:`switch` or
-        :meth:`cancel`, the messages taken here are remembered.
-        """
-        self.cancel()
-        new = node.create_subscription(
+    def _subscribe(self, node: Node) -> Any:
+        return node.create_subscription(
             self._msg_type, self.subscription.topic_name, self._on_message, self._qos, raw=True
         )
-        self._move = PendingMove(node, new)
-        return new
 
-    def switch(self) -> None:
-        """Drain and destroy the subscription; go on from the successor, less what was seen.
-
-        Counts and the age estimate carry over (the writer is the same).
-        """
-        move = self._move
-        if move is None:
-            return
-        self._on_message(None)
-        self._node.destroy_subscription(self.subscription)
-        self._node, self.subscription, self._move = move.node, move.subscription, None
+    def _hand_over(self, move: PendingMove) -> None:
         taken = self._take()
         keep = move.unseen(taken[0])
         self._process(None, *([column[k] for k in keep] for column in taken))
-
-    def cancel(self) -> None:
-        """Destroy the pending successor, if any."""
-        if self._move is not None:
-            self._move.node.destroy_subscription(self._move.subscription)
-            self._move = None
 
     def poll(self) -> None:
         """Take and deliver, as at a wake, whatever is queued now.
@@ -320,8 +301,7 @@ class BacklogReader:
         batch = taken if raw is None else [raw, *taken]
         if not batch:
             return
-        if self._move is not None:  # the successor's queue may hold these too
-            self._move.seen.extend(batch)
+        self._seen(batch)  # while a move is pending: the successor's queue may hold these too
         self._received += len(batch)
         queued = max(len(batch) - self.max_backlog, 0) if self.max_backlog else 0
         old = 0

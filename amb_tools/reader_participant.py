@@ -45,6 +45,7 @@ __all__ = [
     "SEEN_DURING_MOVE",
     "ClosesReaderParticipant",
     "DeafReaders",
+    "MovableReader",
     "MovableSubscription",
     "PendingMove",
     "ReaderParticipant",
@@ -181,16 +182,70 @@ class PendingMove:
         return [k for k, item in enumerate(items) if item not in lookup]
 
 
+class MovableReader:
+    """The two-step move of :class:`StreamReader` for a reader holding ``subscription``.
+
+    A subclass sets ``_node`` and ``subscription``, delivers through :meth:`_seen` while a move
+    is pending (via its ``poll`` and its callback), and says how to subscribe the same topic
+    from another node (:meth:`_subscribe`) and how to deliver the successor's queue less what
+    was seen (:meth:`_hand_over`).
+    """
+
+    _node: Node
+    subscription: Any
+    _move: PendingMove | None = None
+
+    def poll(self) -> object:
+        """Deliver, in order, every message queued now."""
+        raise NotImplementedError
+
+    def _subscribe(self, node: Node) -> Any:
+        """The same topic, QoS and callback, subscribed from ``node``."""
+        raise NotImplementedError
+
+    def _hand_over(self, move: PendingMove) -> None:
+        """Deliver what :attr:`subscription` (the successor now) holds, less ``move.seen``."""
+        raise NotImplementedError
+
+    def _seen(self, items: Iterable) -> None:
+        """Remember ``items`` as delivered while a move is pending (nothing otherwise)."""
+        if self._move is not None:
+            self._move.seen.extend(items)
+
+    def subscribe_on(self, node: Node) -> Any:
+        """Subscribe the same topic from ``node`` as the pending successor; return it."""
+        self.cancel()
+        new = self._subscribe(node)
+        self._move = PendingMove(node, new)
+        return new
+
+    def switch(self) -> None:
+        """Drain and destroy the subscription; go on from the successor, less what was seen."""
+        move = self._move
+        if move is None:
+            return
+        self.poll()
+        self._node.destroy_subscription(self.subscription)
+        self._node, self.subscription, self._move = move.node, move.subscription, None
+        self._hand_over(move)
+
+    def cancel(self) -> None:
+        """Destroy the pending successor, if any."""
+        if self._move is not None:
+            self._move.node.destroy_subscription(self._move.subscription)
+            self._move = None
+
+
 #: A node's readers: fixed, or a callable returning the current ones (a recorder's grow).
 Readers = Sequence[StreamReader | None] | Callable[[], Sequence[StreamReader | None]]
 
 
-class MovableSubscription:
+class MovableSubscription(MovableReader):
     """An ordinary (deserialising) subscription that :class:`DeafReaders` can move.
 
     What :class:`amb_tools.backlog.BacklogReader` offers for the raw streams, for a node's
     low-rate reader (the plant's commands): ``poll`` delivers what is queued now;
-    ``subscribe_on``, ``switch`` and ``cancel`` move it to another node (:class:`StreamReader`).
+    ``subscribe_on``, ``switch`` and ``cancel`` move it to another node (:class:`MovableReader`).
     """
 
     def __init__(
@@ -200,52 +255,33 @@ class MovableSubscription:
         self._msg_type = msg_type
         self._callback = callback
         self._qos = qos
-        self._move: PendingMove | None = None
         self.subscription = node.create_subscription(msg_type, name, self._deliver, qos)
 
     def _deliver(self, msg: object) -> None:
-        if self._move is not None:
-            self._move.seen.append(msg)
+        self._seen((msg,))
         self._callback(msg)
 
-    def _take(self, subscription: Any) -> list:
-        taken = []
-        with subscription.handle:
-            while (item := subscription.handle.take_message(self._msg_type, False)) is not None:
+    def _take(self) -> list:
+        taken, sub = [], self.subscription
+        with sub.handle:
+            while (item := sub.handle.take_message(self._msg_type, False)) is not None:
                 taken.append(item[0])
         return taken
 
     def poll(self) -> None:
         """Deliver, in order, every message queued now."""
-        for msg in self._take(self.subscription):
+        for msg in self._take():
             self._deliver(msg)
 
-    def subscribe_on(self, node: Node) -> Any:
-        """Subscribe the same (resolved) topic from ``node`` as the pending successor."""
-        self.cancel()
-        new = node.create_subscription(
+    def _subscribe(self, node: Node) -> Any:
+        return node.create_subscription(
             self._msg_type, self.subscription.topic_name, self._deliver, self._qos
         )
-        self._move = PendingMove(node, new)
-        return new
 
-    def switch(self) -> None:
-        """Drain and destroy the subscription; go on from the successor (less what was seen)."""
-        move = self._move
-        if move is None:
-            return
-        self.poll()
-        self._node.destroy_subscription(self.subscription)
-        self._node, self.subscription, self._move = move.node, move.subscription, None
-        queued = self._take(self.subscription)
+    def _hand_over(self, move: PendingMove) -> None:
+        queued = self._take()
         for k in move.unseen(queued):
             self._callback(queued[k])
-
-    def cancel(self) -> None:
-        """Destroy the pending successor, if any."""
-        if self._move is not None:
-            self._move.node.destroy_subscription(self._move.subscription)
-            self._move = None
 
 
 class _Move(NamedTuple):

@@ -79,7 +79,12 @@ from amb_common import topics
 from amb_tools.bag_writer import STORAGE_PLUGINS, BagWriter, QueuedBagWriter, header_stamp_ns
 from amb_tools.local_bus import LocalBus
 from amb_tools.node_main import ConfigurationError, descriptor, run_node
-from amb_tools.reader_participant import ClosesReaderParticipant, PendingMove, watch_readers
+from amb_tools.reader_participant import (
+    ClosesReaderParticipant,
+    MovableReader,
+    PendingMove,
+    watch_readers,
+)
 
 STAMP_SOURCES = ("receive", "header")
 
@@ -105,7 +110,7 @@ class DrainedGroup(CallbackGroup):
         return None
 
 
-class RecordedSubscription:
+class RecordedSubscription(MovableReader):
     """One recorded topic's DDS subscription: drained into the bag, and movable.
 
     ``poll`` writes every message queued now; ``subscribe_on``, ``switch`` and ``cancel`` move
@@ -129,12 +134,10 @@ class RecordedSubscription:
         self._args = (msg_class, topic, self._on_raw, qos)
         self._group = group
         self._write = write
-        self._move: PendingMove | None = None
         self.subscription = node.create_subscription(*self._args, callback_group=group, raw=True)
 
     def _on_raw(self, raw: bytes) -> None:
-        if self._move is not None:
-            self._move.seen.append(raw)
+        self._seen((raw,))
         self._callback(raw)
 
     def _take(self) -> list[tuple[bytes, dict]]:
@@ -147,36 +150,18 @@ class RecordedSubscription:
     def poll(self) -> int:
         """Write every message queued now to the bag; return how many."""
         taken = self._take()
-        if self._move is not None:
-            self._move.seen.extend(raw for raw, _info in taken)
+        self._seen(raw for raw, _info in taken)
         for raw, info in taken:
             self._write(raw, info)
         return len(taken)
 
-    def subscribe_on(self, node: Node) -> Any:
-        """Subscribe the same topic from ``node`` as the pending successor; return it."""
-        self.cancel()
-        new = node.create_subscription(*self._args, callback_group=self._group, raw=True)
-        self._move = PendingMove(node, new)
-        return new
+    def _subscribe(self, node: Node) -> Any:
+        return node.create_subscription(*self._args, callback_group=self._group, raw=True)
 
-    def switch(self) -> None:
-        """Drain and destroy the subscription; write the successor's queue less what was seen."""
-        move = self._move
-        if move is None:
-            return
-        self.poll()
-        self._node.destroy_subscription(self.subscription)
-        self._node, self.subscription, self._move = move.node, move.subscription, None
+    def _hand_over(self, move: PendingMove) -> None:
         taken = self._take()
         for k in move.unseen(raw for raw, _info in taken):
             self._write(*taken[k])
-
-    def cancel(self) -> None:
-        """Destroy the pending successor, if any."""
-        if self._move is not None:
-            self._move.node.destroy_subscription(self._move.subscription)
-            self._move = None
 
 
 def import_message_class(msgtype: str) -> type:
