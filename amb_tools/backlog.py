@@ -301,7 +301,7 @@ class BacklogReader(MovableReader):
         batch = taken if raw is None else [raw, *taken]
         if not batch:
             return
-        self._seen(batch)  # while a move is pending: the successor's queue may hold these too
+        self._seen(batch)  # a successor made for a move may hold these too
         self._received += len(batch)
         queued = max(len(batch) - self.max_backlog, 0) if self.max_backlog else 0
         old = 0

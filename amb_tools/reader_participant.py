@@ -16,7 +16,8 @@ readers' queues hold nothing (:class:`DeafReaders`), so that a healthy run never
 The move is made before the old readers are broken. The new participant's readers are made
 beside the old ones and left unspun; once the watched one has matched its writer, the old
 readers are drained once more, destroyed, and the new ones take over from their queues, minus
-any message an old reader delivered meanwhile. If the old watched reader delivers a message
+the messages the old ones delivered last (the overlap, and what a writer resends from its
+history to a reader it newly matched). If the old watched reader delivers a message
 first, the stream was only paused (a writer held, not a deaf port) and the move is called off
 (``docs/history.md``, "A reader move made before the old readers are broken"). The new
 participant costs one discovery (its readers match the writers within tens of ms idle); in a
@@ -41,8 +42,8 @@ from rclpy.signals import SignalHandlerOptions
 from amb_tools.node_main import descriptor
 
 __all__ = [
+    "RECENT_MESSAGES",
     "RENEWAL_AFTER",
-    "SEEN_DURING_MOVE",
     "ClosesReaderParticipant",
     "DeafReaders",
     "MovableReader",
@@ -55,9 +56,12 @@ __all__ = [
     "watch_readers",
 ]
 
-#: Messages an old reader delivered while its successor was pending that are remembered, to be
-#: dropped from the successor's queue at the switch (a stream's queue is at most this deep).
-SEEN_DURING_MOVE = 1 << 16
+#: Messages a movable reader remembers having delivered (its newest), to be dropped from its
+#: successor's queue at a switch: the overlap of the two, and what a writer resends to a newly
+#: matched reader from its history (seen: a command writer's 16 in a loaded suite). A stream's
+#: history is at most 1024 messages deep. A new message byte for byte equal to one of these
+#: would be dropped too; the streams' messages carry their sample index or stamp.
+RECENT_MESSAGES = 4096
 
 #: Parameter: s of silence, with the writer matched, before the readers move (0 = never).
 RENEWAL_AFTER = "reader_renewal_after"
@@ -159,18 +163,17 @@ class StreamReader(Protocol):
 
 
 class PendingMove:
-    """A reader's pending successor and what the reader delivered since it was made.
+    """A reader's pending successor and the messages the reader delivered last.
 
     The part of a two-step move (:class:`StreamReader`) that every reader shares: the new
-    subscription and its node, and the messages (CDR bytes, or deserialised messages: any
-    values with ``==``) delivered from the old one meanwhile, which the successor's queue may
-    hold too.
+    subscription and its node, and the newest messages delivered from the old one (CDR bytes,
+    or deserialised messages: any values with ``==``), which the successor's queue may hold too.
     """
 
-    def __init__(self, node: Node, subscription: Any) -> None:
+    def __init__(self, node: Node, subscription: Any, seen: deque) -> None:
         self.node = node
         self.subscription = subscription
-        self.seen: deque = deque(maxlen=SEEN_DURING_MOVE)
+        self.seen = seen
 
     def unseen(self, items: Iterable) -> list[int]:
         """Positions in ``items`` of those not delivered by the old reader meanwhile."""
@@ -185,15 +188,16 @@ class PendingMove:
 class MovableReader:
     """The two-step move of :class:`StreamReader` for a reader holding ``subscription``.
 
-    A subclass sets ``_node`` and ``subscription``, delivers through :meth:`_seen` while a move
-    is pending (via its ``poll`` and its callback), and says how to subscribe the same topic
-    from another node (:meth:`_subscribe`) and how to deliver the successor's queue less what
-    was seen (:meth:`_hand_over`).
+    A subclass sets ``_node`` and ``subscription``, passes what it delivers to :meth:`_seen`
+    (from its ``poll`` and its callback), and says how to subscribe the same topic from another
+    node (:meth:`_subscribe`) and how to deliver the successor's queue less what was seen
+    (:meth:`_hand_over`).
     """
 
     _node: Node
     subscription: Any
     _move: PendingMove | None = None
+    _recent: deque | None = None
 
     def poll(self) -> object:
         """Deliver, in order, every message queued now."""
@@ -208,15 +212,18 @@ class MovableReader:
         raise NotImplementedError
 
     def _seen(self, items: Iterable) -> None:
-        """Remember ``items`` as delivered while a move is pending (nothing otherwise)."""
-        if self._move is not None:
-            self._move.seen.extend(items)
+        """Remember ``items`` as delivered (the newest :data:`RECENT_MESSAGES`)."""
+        if self._recent is None:
+            self._recent = deque(maxlen=RECENT_MESSAGES)
+        self._recent.extend(items)
 
     def subscribe_on(self, node: Node) -> Any:
         """Subscribe the same topic from ``node`` as the pending successor; return it."""
         self.cancel()
         new = self._subscribe(node)
-        self._move = PendingMove(node, new)
+        if self._recent is None:
+            self._recent = deque(maxlen=RECENT_MESSAGES)
+        self._move = PendingMove(node, new, self._recent)
         return new
 
     def switch(self) -> None:
@@ -281,7 +288,7 @@ class MovableSubscription(MovableReader):
     def _hand_over(self, move: PendingMove) -> None:
         queued = self._take()
         for k in move.unseen(queued):
-            self._callback(queued[k])
+            self._deliver(queued[k])
 
 
 class _Move(NamedTuple):

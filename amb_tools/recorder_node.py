@@ -160,8 +160,10 @@ class RecordedSubscription(MovableReader):
 
     def _hand_over(self, move: PendingMove) -> None:
         taken = self._take()
-        for k in move.unseen(raw for raw, _info in taken):
-            self._write(*taken[k])
+        kept = [taken[k] for k in move.unseen(raw for raw, _info in taken)]
+        self._seen(raw for raw, _info in kept)
+        for raw, info in kept:
+            self._write(raw, info)
 
 
 def import_message_class(msgtype: str) -> type:
