@@ -198,6 +198,8 @@ class MovableReader:
     subscription: Any
     _move: PendingMove | None = None
     _recent: deque | None = None
+    #: Messages remembered (a subclass holding large deserialised messages keeps fewer).
+    recent_size: int = RECENT_MESSAGES
 
     def poll(self) -> object:
         """Deliver, in order, every message queued now."""
@@ -212,9 +214,9 @@ class MovableReader:
         raise NotImplementedError
 
     def _seen(self, items: Iterable) -> None:
-        """Remember ``items`` as delivered (the newest :data:`RECENT_MESSAGES`)."""
+        """Remember ``items`` as delivered (the newest :attr:`recent_size`)."""
         if self._recent is None:
-            self._recent = deque(maxlen=RECENT_MESSAGES)
+            self._recent = deque(maxlen=self.recent_size)
         self._recent.extend(items)
 
     def subscribe_on(self, node: Node) -> Any:
@@ -222,7 +224,7 @@ class MovableReader:
         self.cancel()
         new = self._subscribe(node)
         if self._recent is None:
-            self._recent = deque(maxlen=RECENT_MESSAGES)
+            self._recent = deque(maxlen=self.recent_size)
         self._move = PendingMove(node, new, self._recent)
         return new
 
@@ -254,6 +256,9 @@ class MovableSubscription(MovableReader):
     low-rate reader (the plant's commands): ``poll`` delivers what is queued now;
     ``subscribe_on``, ``switch`` and ``cancel`` move it to another node (:class:`MovableReader`).
     """
+
+    #: the plant's commands: a writer keeps 16 (``COMMAND_QOS``); each holds its force samples
+    recent_size = 256
 
     def __init__(
         self, node: Node, msg_type: type, name: str, callback: Callable[[object], None], qos
