@@ -256,7 +256,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                 print(f"== wavelet {w}")
             print(_table(summary, res))
     if fig_dir is not None:
-        named = {(res[0].wavelet if res else str(w)): part for w, part in parts.items()}
+        # each part's own results name its wavelet (not the loop variable of the summaries)
+        named = {(part[1][0].wavelet if part[1] else str(w)): part for w, part in parts.items()}
         written.append(eval_figures.summary_figure(named, fig_dir / "summary.png"))
         out = sys.stderr if args.json else sys.stdout
         print("figures written:", file=out)

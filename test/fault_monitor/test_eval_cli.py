@@ -79,9 +79,20 @@ def test_fault_inside_the_calibration_window_is_flagged(tmp_path, capsys):
     assert end is None or end > match["true_onset_sample"]
 
 
-def test_eval_cli_figures_are_written_and_readable(tmp_path, capsys):
+def test_eval_cli_figures_are_written_and_readable(tmp_path, capsys, monkeypatch):
     """--figures: one PNG per scenario and wavelet plus summary.png, listed on stdout; the
-    exit status and the tables are those of a run without figures."""
+    exit status and the tables are those of a run without figures. The summary draws every
+    wavelet (it once drew only the last one, under every wavelet's name)."""
+    from amb_apps import eval_figures
+
+    drawn = []
+    real_summary = eval_figures.summary_figure
+
+    def summary_figure(parts, path):
+        drawn.append({w: [r.wavelet for r in res] for w, (_summary, res) in parts.items()})
+        return real_summary(parts, path)
+
+    monkeypatch.setattr(eval_figures, "summary_figure", summary_figure)
     fig_dir = tmp_path / "figures"
     status = main(
         [
@@ -104,6 +115,7 @@ def test_eval_cli_figures_are_written_and_readable(tmp_path, capsys):
         fig_dir / "summary.png",
     ]
     assert sorted(fig_dir.iterdir()) == sorted(expected)
+    assert drawn == [{"haar": ["haar"], "db2": ["db2"]}]
     for png in expected:
         assert str(png) in out
         image = mpimg.imread(png)
