@@ -44,7 +44,8 @@ def test_reproduce_runs_checks_and_writes_the_index(tmp_path) -> None:
                              "relative_to": "PID only", "op": "<=", "value": 0.5,
                              "what": "halved"},
                             {"run": "transient", "metric": "settling", "op": "<=",
-                             "value": 0, "what": "impossible bound"},
+                             "value": 0, "what": "impossible bound",
+                             "why_not": "a response takes  time\n to settle"},
                         ],
                     }
                 ]
@@ -54,36 +55,99 @@ def test_reproduce_runs_checks_and_writes_the_index(tmp_path) -> None:
     out = tmp_path / "out"
     assert main(["--out", str(out), "--manifest", str(manifest), "--skip-faults"]) == 0
     index = (out / "index.md").read_text()
-    assert "| [small mass loss](#small) | 1 of 2 |" in index
+    # the summary names the check not reproduced and its reason, on one line
+    why = "**impossible bound**: a response takes time to settle"
+    assert f"| [small mass loss](#small) | 1 of 2 | {why} |" in index
     assert "| halved |" in index and "| yes |" in index
     assert "| impossible bound |" in index and "| NO |" in index
     assert (out / "small" / "report" / "displacement.png").is_file()
     assert (out / "small" / "model.npz").is_file()
 
 
+def _sensor(ratio, final, measured_s, predicted_s) -> dict:
+    return {"amplitude_ratio": ratio, "measured_final_1x": final,
+            "measured_settling_s": measured_s, "predicted_settling_s": predicted_s}  # fmt: skip
+
+
 def test_prediction_metrics_read_amb_predictions_summary() -> None:
     # a summary as amb-prediction writes it: the worst sensor's amplitude error, and the lead
-    # of the prediction over the measured response (both settling times from the step)
+    # of the prediction over the measured response (each sensor's settling times from the step)
     from amb_apps.reproduce import prediction_metrics
 
     summary = {
         "sensors": {
-            "x1": {"amplitude_ratio": 1.04, "measured_final_1x": 400e-6},
-            "x2": {"amplitude_ratio": 0.93, "measured_final_1x": 100e-6},
-            # near a node (2 % of the largest): its ratio is left out
-            "x3": {"amplitude_ratio": 2.3, "measured_final_1x": 8e-6},
+            "x1": _sensor(1.04, 400e-6, 0.25, 0.30),
+            "x2": _sensor(0.93, 100e-6, 0.40, 0.35),
+            # near a node (2 % of the largest): its ratio and its slow settling are left out
+            "x3": _sensor(2.3, 8e-6, 1.5, 0.4),
         },
-        "measured_settling_s": 1.5,
-        "predicted_settling_s": 0.4,
     }
     m = prediction_metrics(summary)
     assert m["amplitude_error"] == pytest.approx(0.07, abs=1e-12)
-    assert m["settling_lead_s"] == pytest.approx(1.1, abs=1e-12)
+    # the slowest of x1 and x2: measured 0.40 s, predicted 0.35 s
+    assert m["measured_settling_s"] == 0.40 and m["predicted_settling_s"] == 0.35
+    assert m["settling_lead_s"] == pytest.approx(0.05, abs=1e-12)
     # never settled, or no measured amplitude: the checks must fail, not pass on a None
-    m = prediction_metrics(
-        {"sensors": {"x1": {"amplitude_ratio": None, "measured_final_1x": 0.0}},
-         "measured_settling_s": 1.0,
-         "predicted_settling_s": None}
-    )  # fmt: skip
+    m = prediction_metrics({"sensors": {"x1": _sensor(None, 0.0, 1.0, None)}})
     assert m["amplitude_error"] == float("inf")
     assert m["settling_lead_s"] == float("-inf")
+
+
+def test_rebound_is_the_rise_after_the_first_fall() -> None:
+    from amb_apps.reproduce import rebound
+
+    assert rebound([1.0, 3.0, 2.0, 1.5, 1.0]) == 0.0  # falls without rising again
+    assert rebound([1.0, 2.0, 3.0, 3.0]) == 0.0  # grows to its peak and stays
+    # peak 4; falls to 1, climbs back to 3: half the peak
+    assert rebound([2.0, 4.0, 1.0, 3.0, 2.0]) == pytest.approx(0.5, abs=1e-15)
+    # the rise counts from the lowest point before it, not from the peak
+    assert rebound([4.0, 2.0, 3.0, 1.0, 2.5]) == pytest.approx(0.375, abs=1e-15)
+    assert rebound([]) == 0.0 and rebound([0.0, 0.0]) == 0.0
+
+
+def test_index_says_why_a_check_failed_and_prints_bounds_in_their_unit(tmp_path) -> None:
+    from amb_apps.reproduce import _checks, fault_metrics
+    from amb_apps.reproduce_index import write_index
+
+    exp = {
+        "id": "ex", "title": "an experiment", "figures": "8.1", "thesis": "it works",
+        "checks": [
+            {"run": "a", "metric": "steady_1x_inner", "op": "<=", "value": 1e-5,
+             "what": "below 10 um", "why_not": "never here"},
+            {"run": "a", "metric": "peak_inner", "op": "<=", "value": 1e-3,
+             "what": "below 1 mm", "why_not": "shown only if it fails"},
+        ],
+    }  # fmt: skip
+    faults = {
+        "id": "f", "kind": "faults", "title": "faults", "figures": "5.1", "thesis": "found",
+        "checks": [
+            {"run": "haar", "metric": "misclassified", "op": "<=", "value": 0, "what": "all"},
+            {"run": "haar", "metric": "false_alarms", "op": "<=", "value": 0, "what": "none"},
+        ],
+    }  # fmt: skip
+    results = {"a": {"steady_1x_inner": 2.9e-5, "peak_inner": 1.1e-4, "settling": 15,
+                     "rebound": 0.01, "peak_wavelet_force": 44.0, "contacts": 0,
+                     "model_radius": None}}  # fmt: skip
+    summary = {  # one wavelet's part of amb-fault-eval --json, two of three mass losses right
+        "total": 3, "correct": 2, "false_alarms": 1, "simulated_s": 12.0,
+        "confusion": {"MASS_LOSS": {"MASS_LOSS": 2, "SENSOR_FAULT": 1}},
+        "delays": {"MASS_LOSS": {"detection_ms_median": 2.5, "detection_revs_max": 0.1,
+                                 "decision_revs_median": 8.0, "decision_revs_max": 9.5,
+                                 "onset_error_abs_supports_max": 1.0}},
+    }  # fmt: skip
+    assert fault_metrics(summary) == {"misclassified": 1, "false_alarms": 1}
+    done = {
+        "ex": {"results": results, "checks": _checks(exp, results), "folder": tmp_path / "ex"},
+        "f": {"results": {"haar": fault_metrics(summary)},
+              "checks": _checks(faults, {"haar": fault_metrics(summary)}),
+              "folder": tmp_path / "f", "summaries": {"haar": summary}},
+    }  # fmt: skip
+    index = write_index(tmp_path, {"experiments": [exp, faults]}, done).read_text()
+    assert "| [an experiment](#ex) | 1 of 2 | **below 10 um**: never here |" in index
+    assert "shown only if it fails" not in index
+    assert "| below 10 um | 29.0 µm | <= 10.0 µm | NO |" in index
+    why = "**all**: no reason recorded<br>**none**: no reason recorded"
+    assert f"| [faults](#f) | 0 of 2 | {why} |" in index
+    row = "| haar | MASS_LOSS | 3 | 2 | 2.5 ms / 0.10 rev | 8.0 / 9.5 rev | 1.0 supports |"
+    assert row in index
+    assert "false alarms: 1 in 12 s" in index
