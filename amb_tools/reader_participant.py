@@ -53,6 +53,7 @@ __all__ = [
     "Readers",
     "StreamReader",
     "declare_reader_renewal",
+    "take_queued",
     "watch_readers",
 ]
 
@@ -185,6 +186,22 @@ class PendingMove:
         return [k for k, item in enumerate(items) if item not in lookup]
 
 
+def take_queued(subscription: Any, msg_type: type, raw: bool) -> list[tuple[Any, dict]]:
+    """Take every message queued on ``subscription`` now, as rclpy's executors take them.
+
+    Returns
+    -------
+    list of (message, info)
+        The message (CDR bytes if ``raw``, else deserialised) and its message info, oldest
+        first.
+    """
+    taken = []
+    with subscription.handle:
+        while (item := subscription.handle.take_message(msg_type, raw)) is not None:
+            taken.append(item)
+    return taken
+
+
 class MovableReader:
     """The two-step move of :class:`StreamReader` for a reader holding ``subscription``.
 
@@ -213,19 +230,21 @@ class MovableReader:
         """Deliver what :attr:`subscription` (the successor now) holds, less ``move.seen``."""
         raise NotImplementedError
 
-    def _seen(self, items: Iterable) -> None:
-        """Remember ``items`` as delivered (the newest :attr:`recent_size`)."""
+    def _record(self) -> deque:
+        """The newest :attr:`recent_size` messages delivered (made at the first use)."""
         if self._recent is None:
             self._recent = deque(maxlen=self.recent_size)
-        self._recent.extend(items)
+        return self._recent
+
+    def _seen(self, items: Iterable) -> None:
+        """Remember ``items`` as delivered."""
+        self._record().extend(items)
 
     def subscribe_on(self, node: Node) -> Any:
         """Subscribe the same topic from ``node`` as the pending successor; return it."""
         self.cancel()
         new = self._subscribe(node)
-        if self._recent is None:
-            self._recent = deque(maxlen=self.recent_size)
-        self._move = PendingMove(node, new, self._recent)
+        self._move = PendingMove(node, new, self._record())
         return new
 
     def switch(self) -> None:
@@ -274,11 +293,7 @@ class MovableSubscription(MovableReader):
         self._callback(msg)
 
     def _take(self) -> list:
-        taken, sub = [], self.subscription
-        with sub.handle:
-            while (item := sub.handle.take_message(self._msg_type, False)) is not None:
-                taken.append(item[0])
-        return taken
+        return [msg for msg, _info in take_queued(self.subscription, self._msg_type, False)]
 
     def poll(self) -> None:
         """Deliver, in order, every message queued now."""

@@ -83,6 +83,7 @@ from amb_tools.reader_participant import (
     ClosesReaderParticipant,
     MovableReader,
     PendingMove,
+    take_queued,
     watch_readers,
 )
 
@@ -140,30 +141,23 @@ class RecordedSubscription(MovableReader):
         self._seen((raw,))
         self._callback(raw)
 
-    def _take(self) -> list[tuple[bytes, dict]]:
-        sub, taken = self.subscription, []
-        with sub.handle:
-            while (item := sub.handle.take_message(sub.msg_type, True)) is not None:
-                taken.append(item)
-        return taken
-
-    def poll(self) -> int:
-        """Write every message queued now to the bag; return how many."""
-        taken = self._take()
+    def _write_all(self, taken: list[tuple[bytes, dict]]) -> None:
         self._seen(raw for raw, _info in taken)
         for raw, info in taken:
             self._write(raw, info)
+
+    def poll(self) -> int:
+        """Write every message queued now to the bag; return how many."""
+        taken = take_queued(self.subscription, self.subscription.msg_type, True)
+        self._write_all(taken)
         return len(taken)
 
     def _subscribe(self, node: Node) -> Any:
         return node.create_subscription(*self._args, callback_group=self._group, raw=True)
 
     def _hand_over(self, move: PendingMove) -> None:
-        taken = self._take()
-        kept = [taken[k] for k in move.unseen(raw for raw, _info in taken)]
-        self._seen(raw for raw, _info in kept)
-        for raw, info in kept:
-            self._write(raw, info)
+        taken = take_queued(self.subscription, self.subscription.msg_type, True)
+        self._write_all([taken[k] for k in move.unseen(raw for raw, _info in taken)])
 
 
 def import_message_class(msgtype: str) -> type:
