@@ -186,3 +186,19 @@ def test_calibration_refuses_more_non_structural_mass_than_the_text_s_shaft(rig)
         calibrate(rig, max_nonstructural_mass=25.0)
     with pytest.raises(ValueError, match="expected 'least_squares' or 'minimax'"):
         calibrate(rig, objective="max")
+
+
+def test_calibration_errors_put_the_critical_speeds_after_the_natural_frequencies(rig):
+    from amb_plant_sim.calibrate import frequency_errors
+    from amb_plant_sim.modal import critical_speeds, natural_frequencies
+
+    natural = natural_frequencies(rig, 4)
+    critical = critical_speeds(rig, 3)
+    rel, achieved, stable = frequency_errors(rig, (11.0, 18.0, 29.0, 67.0), (11.0, 18.0, 29.0))
+    assert stable
+    np.testing.assert_allclose(achieved, natural + critical, rtol=1e-12)
+    want = np.r_[natural, critical] / np.array([11.0, 18.0, 29.0, 67.0, 11.0, 18.0, 29.0]) - 1
+    np.testing.assert_allclose(rel, want, rtol=1e-12)
+    # inside a fit the critical speeds are iterated to 1 mHz only
+    _rel, fit, _stable = frequency_errors(rig, (11.0,), (11.0, 18.0), fit=True)
+    np.testing.assert_allclose(fit[1:], critical[:2], atol=2e-3)
