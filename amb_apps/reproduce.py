@@ -312,7 +312,7 @@ def main(argv: list[str] | None = None) -> int:
     manifest = yaml.safe_load((args.manifest or config_file("reproduce.yaml")).read_text())
     only = {s for s in args.only.split(",") if s}
     args.out.mkdir(parents=True, exist_ok=True)
-    done, failed = {}, []
+    done, failed = {}, {}
     chosen = [e for e in manifest["experiments"] if not only or e["id"] in only]
     # the fault suite runs its scenarios in parallel itself, after the other experiments
     faults = [e for e in chosen if e.get("kind") == "faults" and not args.skip_faults]
@@ -327,9 +327,9 @@ def main(argv: list[str] | None = None) -> int:
         if numbers is not None:
             done[exp["id"]] = numbers
         else:
-            failed.append(exp["id"])
+            failed[exp["id"]] = error
             print(f"[reproduce] {exp['id']} failed: {error}", file=sys.stderr)
-    index = write_index(args.out, manifest, done)
+    index = write_index(args.out, manifest, done, failed)
     n_checks = sum(len(d["checks"]) for d in done.values())
     n_ok = sum(c["ok"] for d in done.values() for c in d["checks"])
     print(f"[reproduce] {n_ok} of {n_checks} thesis checks reproduced; index: {index}")

@@ -142,7 +142,7 @@ def _figures(exp: dict, d: dict, rel: Path) -> list[str]:
     return lines
 
 
-def write_index(out: Path, manifest: dict, done: dict) -> Path:
+def write_index(out: Path, manifest: dict, done: dict, failed: dict | None = None) -> Path:
     """
     Write ``OUT/index.md``.
 
@@ -155,6 +155,8 @@ def write_index(out: Path, manifest: dict, done: dict) -> Path:
     done : dict
         Experiment id -> ``{"results", "checks", "folder"}`` (and ``"summaries"`` for the
         fault suite) of the experiments that ran.
+    failed : dict, optional
+        Experiment id -> the error of a run that failed: listed in the summary with it.
 
     Returns
     -------
@@ -174,12 +176,17 @@ def write_index(out: Path, manifest: dict, done: dict) -> Path:
         "| experiment | checks reproduced | not reproduced, and why |",
         "|---|---|---|",
     ]
+    failed = failed or {}
     ran = [exp for exp in manifest["experiments"] if exp["id"] in done]
-    for exp in ran:
-        checks = done[exp["id"]]["checks"]
-        why = "<br>".join(not_reproduced(checks)) or "-"
-        n_ok = sum(c["ok"] for c in checks)
-        lines.append(f"| [{exp['title']}](#{exp['id']}) | {n_ok} of {len(checks)} | {why} |")
+    for exp in manifest["experiments"]:
+        if exp["id"] in failed:
+            error = " ".join(str(failed[exp["id"]]).split())
+            lines.append(f"| {exp['title']} | run failed | {error} |")
+        elif exp["id"] in done:
+            checks = done[exp["id"]]["checks"]
+            why = "<br>".join(not_reproduced(checks)) or "-"
+            n_ok = sum(c["ok"] for c in checks)
+            lines.append(f"| [{exp['title']}](#{exp['id']}) | {n_ok} of {len(checks)} | {why} |")
     for exp in ran:
         d = done[exp["id"]]
         lines += ["", f"## {exp['title']}", "", f'<a id="{exp["id"]}"></a>', ""]

@@ -142,7 +142,11 @@ def test_index_says_why_a_check_failed_and_prints_bounds_in_their_unit(tmp_path)
               "checks": _checks(faults, {"haar": fault_metrics(summary)}),
               "folder": tmp_path / "f", "summaries": {"haar": summary}},
     }  # fmt: skip
-    index = write_index(tmp_path, {"experiments": [exp, faults]}, done).read_text()
+    broken = {"id": "b", "title": "a broken run", "figures": "7.1", "thesis": "-", "checks": []}
+    manifest = {"experiments": [exp, faults, broken]}
+    index = write_index(tmp_path, manifest, done, {"b": "amb-sim failed (1);\n see b.log"})
+    index = index.read_text()
+    assert "| a broken run | run failed | amb-sim failed (1); see b.log |" in index
     assert "| [an experiment](#ex) | 1 of 2 | **below 10 um**: never here |" in index
     assert "shown only if it fails" not in index
     assert "| below 10 um | 29.0 µm | <= 10.0 µm | NO |" in index
