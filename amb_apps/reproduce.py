@@ -44,6 +44,9 @@ import yaml
 from amb_apps.parallel import add_jobs_argument, run_jobs
 from amb_apps.reproduce_index import write_index
 from amb_common.paths import config_file
+from amb_common.rig import load_rig
+from amb_plant_sim.calibrate import TARGETS_HZ
+from amb_plant_sim.modal import critical_speeds, natural_frequencies
 
 INNER = ("x2", "y2", "x3", "y3")
 #: prediction checks: sensors whose final 1 x is below this fraction of the largest are near a
@@ -98,6 +101,23 @@ def rebound(peaks) -> float:
         return 0.0
     after = p[int(np.argmax(p)) :]
     return float(np.max(after - np.minimum.accumulate(after)) / after[0])
+
+
+def model_frequencies() -> dict[str, tuple[list[float], list[float]]]:
+    """The rig model's frequencies beside the thesis's, for the index's first table.
+
+    Returns
+    -------
+    dict
+        ``natural`` (the four PID-supported zero-speed frequencies) and ``critical`` (the
+        first three critical speeds), each ``(thesis, model)`` in Hz, for ``config/rig.yaml``
+        (the rig ``amb-sim`` runs by default).
+    """
+    rig = load_rig()
+    return {
+        "natural": (list(TARGETS_HZ), natural_frequencies(rig, len(TARGETS_HZ))),
+        "critical": (list(TARGETS_HZ[:3]), critical_speeds(rig, 3)),
+    }
 
 
 def _slug(label: str) -> str:
@@ -329,7 +349,7 @@ def main(argv: list[str] | None = None) -> int:
         else:
             failed[exp["id"]] = error
             print(f"[reproduce] {exp['id']} failed: {error}", file=sys.stderr)
-    index = write_index(args.out, manifest, done, failed)
+    index = write_index(args.out, manifest, done, failed, model_frequencies())
     n_checks = sum(len(d["checks"]) for d in done.values())
     n_ok = sum(c["ok"] for d in done.values() for c in d["checks"])
     print(f"[reproduce] {n_ok} of {n_checks} thesis checks reproduced; index: {index}")

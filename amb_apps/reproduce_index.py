@@ -142,7 +142,27 @@ def _figures(exp: dict, d: dict, rel: Path) -> list[str]:
     return lines
 
 
-def write_index(out: Path, manifest: dict, done: dict, failed: dict | None = None) -> Path:
+def _frequency_table(frequencies: dict) -> list[str]:
+    """The model's natural frequencies and critical speeds against the thesis's (markdown)."""
+    lines = ["| rig model (Hz) | thesis | this model | model / thesis - 1 |", "|---|---|---|---|"]
+    names = {"natural": "PID-supported natural frequencies", "critical": "critical speeds"}
+    for key, (thesis, model) in frequencies.items():
+        cells = [
+            " / ".join(f"{v:g}" for v in thesis),
+            " / ".join(f"{v:.2f}" for v in model),
+            " / ".join(f"{100 * (m / t - 1):+.1f} %" for m, t in zip(model, thesis, strict=True)),
+        ]
+        lines.append(f"| {names.get(key, key)} | {' | '.join(cells)} |")
+    return [*lines, ""]
+
+
+def write_index(
+    out: Path,
+    manifest: dict,
+    done: dict,
+    failed: dict | None = None,
+    frequencies: dict | None = None,
+) -> Path:
     """
     Write ``OUT/index.md``.
 
@@ -157,6 +177,9 @@ def write_index(out: Path, manifest: dict, done: dict, failed: dict | None = Non
         fault suite) of the experiments that ran.
     failed : dict, optional
         Experiment id -> the error of a run that failed: listed in the summary with it.
+    frequencies : dict, optional
+        ``{name: (thesis, model)}`` in Hz (:func:`amb_apps.reproduce.model_frequencies`):
+        a table before the summary, since every experiment runs at the model's own speeds.
 
     Returns
     -------
@@ -173,6 +196,7 @@ def write_index(out: Path, manifest: dict, done: dict, failed: dict | None = Non
         "contact onsets: simulator truth). The rig speeds 11, 18 and 29 Hz are the model's own "
         "first three critical speeds.",
         "",
+        *(_frequency_table(frequencies) if frequencies else []),
         "| experiment | checks reproduced | not reproduced, and why |",
         "|---|---|---|",
     ]

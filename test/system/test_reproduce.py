@@ -144,8 +144,10 @@ def test_index_says_why_a_check_failed_and_prints_bounds_in_their_unit(tmp_path)
     }  # fmt: skip
     broken = {"id": "b", "title": "a broken run", "figures": "7.1", "thesis": "-", "checks": []}
     manifest = {"experiments": [exp, faults, broken]}
-    index = write_index(tmp_path, manifest, done, {"b": "amb-sim failed (1);\n see b.log"})
+    freq = {"critical": ([11.0, 18.0], [9.9, 18.9])}
+    index = write_index(tmp_path, manifest, done, {"b": "amb-sim failed (1);\n see b.log"}, freq)
     index = index.read_text()
+    assert "| critical speeds | 11 / 18 | 9.90 / 18.90 | -10.0 % / +5.0 % |" in index
     assert "| a broken run | run failed | amb-sim failed (1); see b.log |" in index
     assert "| [an experiment](#ex) | 1 of 2 | **below 10 um**: never here |" in index
     assert "shown only if it fails" not in index
@@ -155,3 +157,14 @@ def test_index_says_why_a_check_failed_and_prints_bounds_in_their_unit(tmp_path)
     row = "| haar | MASS_LOSS | 3 | 2 | 2.5 ms / 0.10 rev | 8.0 / 9.5 rev | 1.0 supports |"
     assert row in index
     assert "false alarms: 1 in 12 s" in index
+
+
+def test_model_frequencies_are_the_rig_model_s_own() -> None:
+    from amb_apps.reproduce import model_frequencies
+    from amb_common.rig import load_rig
+    from amb_plant_sim.modal import critical_speeds, natural_frequencies
+
+    got = model_frequencies()
+    rig = load_rig()
+    assert got["natural"] == ([11.0, 18.0, 29.0, 67.0], natural_frequencies(rig, 4))
+    assert got["critical"] == ([11.0, 18.0, 29.0], critical_speeds(rig, 3))
