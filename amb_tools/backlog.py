@@ -64,7 +64,7 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile
 
 from amb_tools.node_main import descriptor
-from amb_tools.reader_participant import MovableReader, PendingMove
+from amb_tools.reader_participant import MovableReader
 from amb_tools.throttled_log import ThrottledWarnings
 
 __all__ = [
@@ -256,11 +256,6 @@ class BacklogReader(MovableReader):
             self._msg_type, self.subscription.topic_name, self._on_message, self._qos, raw=True
         )
 
-    def _hand_over(self, move: PendingMove) -> None:
-        taken = self._take()
-        keep = move.unseen(taken[0])
-        self._process(None, *([column[k] for k in keep] for column in taken))
-
     def poll(self) -> None:
         """Take and deliver, as at a wake, whatever is queued now.
 
@@ -301,6 +296,14 @@ class BacklogReader(MovableReader):
         batch = taken if raw is None else [raw, *taken]
         if not batch:
             return
+        first = self._fresh_from(batch)  # after a move: less what the old reader delivered
+        if first:
+            cut = first - (raw is not None)  # the executor's message has no info columns
+            raw = None
+            batch = batch[first:]
+            sent, received, sequence = sent[cut:], received[cut:], sequence[cut:]
+            if not batch:
+                return
         self._seen(batch)  # a successor made for a move may hold these too
         self._received += len(batch)
         queued = max(len(batch) - self.max_backlog, 0) if self.max_backlog else 0

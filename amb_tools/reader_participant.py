@@ -14,7 +14,9 @@ stream silent for ``reader_renewal_after`` s while the stream's writer is still 
 readers' queues hold nothing (:class:`DeafReaders`), so that a healthy run never has it.
 
 The move is made before the old readers are broken. The new participant's readers are made
-beside the old ones and left unspun; once the watched one has matched its writer, the old
+beside the old ones and left unspun; once the watched one has matched its writer, and every
+other one whose old reader was fed meanwhile holds a message too (its writer sends to it: a
+stream that runs on through the move, :meth:`MovableReader.ready`), the old
 readers are drained once more, destroyed, and the new ones take over from their queues, minus
 the messages the old ones delivered last (the overlap, and what a writer resends from its
 history to a reader it newly matched). If the old watched reader delivers a message
@@ -36,12 +38,14 @@ from collections.abc import Callable, Iterable, Sequence
 from typing import Any, NamedTuple, Protocol
 
 import rclpy
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
 from amb_tools.node_main import descriptor
 
 __all__ = [
+    "MATCH_WAIT",
     "RECENT_MESSAGES",
     "RENEWAL_AFTER",
     "ClosesReaderParticipant",
@@ -53,16 +57,22 @@ __all__ = [
     "Readers",
     "StreamReader",
     "declare_reader_renewal",
+    "has_queued",
     "take_queued",
     "watch_readers",
 ]
 
-#: Messages a movable reader remembers having delivered (its newest), to be dropped from its
-#: successor's queue at a switch: the overlap of the two, and what a writer resends to a newly
-#: matched reader from its history (seen: a command writer's 16 in a loaded suite). A stream's
-#: history is at most 1024 messages deep. A new message byte for byte equal to one of these
-#: would be dropped too; the streams' messages carry their sample index or stamp.
+#: Messages a movable reader remembers having delivered (its newest), to be skipped from its
+#: successor's first deliveries after a switch: the overlap of the two, and what a writer
+#: resends to a newly matched reader from its history (seen: a command writer's 16 in a loaded
+#: suite). A stream's history is at most 1024 messages deep. A new message byte for byte equal
+#: to one of these would be dropped too; the streams' messages carry their sample index or
+#: stamp.
 RECENT_MESSAGES = 4096
+
+#: s a move waits at least, once the watched successor has matched, for the others to match
+#: their writers (:meth:`MovableReader.ready`) before it switches over all the same.
+MATCH_WAIT = 1.0
 
 #: Parameter: s of silence, with the writer matched, before the readers move (0 = never).
 RENEWAL_AFTER = "reader_renewal_after"
@@ -156,6 +166,9 @@ class StreamReader(Protocol):
         remembers what it delivers.
         """
 
+    def ready(self) -> bool:
+        """The pending successor can take over without a gap (:meth:`MovableReader.ready`)."""
+
     def switch(self) -> None:
         """Drain and destroy the subscription; deliver the successor's queue less what was seen."""
 
@@ -167,23 +180,38 @@ class PendingMove:
     """A reader's pending successor and the messages the reader delivered last.
 
     The part of a two-step move (:class:`StreamReader`) that every reader shares: the new
-    subscription and its node, and the newest messages delivered from the old one (CDR bytes,
-    or deserialised messages: any values with ``==``), which the successor's queue may hold too.
+    subscription and its node, the newest messages delivered from the old one (CDR bytes,
+    or deserialised messages: any values with ``==``), which the successor's queue may hold too,
+    and how many the old one had delivered when the successor was made.
     """
 
-    def __init__(self, node: Node, subscription: Any, seen: deque) -> None:
+    def __init__(self, node: Node, subscription: Any, seen: deque, delivered: int = 0) -> None:
         self.node = node
         self.subscription = subscription
         self.seen = seen
+        self.delivered = delivered
 
-    def unseen(self, items: Iterable) -> list[int]:
-        """Positions in ``items`` of those not delivered by the old reader meanwhile."""
-        seen = self.seen
+    def lookup(self) -> Any:
+        """The messages the old reader delivered last, for ``in`` (a set where hashable)."""
         try:
-            lookup: Any = set(seen)
+            return set(self.seen)
         except TypeError:  # deserialised messages are not hashable
-            lookup = list(seen)
-        return [k for k, item in enumerate(items) if item not in lookup]
+            return list(self.seen)
+
+
+def has_queued(subscription: Any, context: rclpy.Context) -> bool:
+    """Whether ``subscription`` (of a node in ``context``) holds a message now; none is taken.
+
+    A wait set of the one subscription, waited on for no time: what rclpy's executors ask
+    before they take (``Executor._wait_for_ready_callbacks``), for a subscription no executor
+    spins.
+    """
+    with context.handle, subscription.handle:
+        wait_set = _rclpy.WaitSet(1, 0, 0, 0, 0, 0, context.handle)
+        wait_set.clear_entities()
+        wait_set.add_subscription(subscription.handle)
+        wait_set.wait(0)
+        return subscription.handle.pointer in wait_set.get_ready_entities("subscription")
 
 
 def take_queued(subscription: Any, msg_type: type, raw: bool) -> list[tuple[Any, dict]]:
@@ -205,16 +233,21 @@ def take_queued(subscription: Any, msg_type: type, raw: bool) -> list[tuple[Any,
 class MovableReader:
     """The two-step move of :class:`StreamReader` for a reader holding ``subscription``.
 
-    A subclass sets ``_node`` and ``subscription``, passes what it delivers to :meth:`_seen`
-    (from its ``poll`` and its callback), and says how to subscribe the same topic from another
-    node (:meth:`_subscribe`) and how to deliver the successor's queue less what was seen
-    (:meth:`_hand_over`).
+    A subclass sets ``_node`` and ``subscription``, says how to subscribe the same topic from
+    another node (:meth:`_subscribe`), and on each of its delivery paths (its ``poll`` and its
+    callback) delivers only the messages from :meth:`_fresh_from` on and passes those to
+    :meth:`_seen`. After a switch the successor's first messages are the ones the old reader
+    delivered too (its queue, and what was still on its way to it when the old one was drained
+    for the last time): :meth:`_fresh_from` drops them, up to the first the old one did not
+    deliver.
     """
 
     _node: Node
     subscription: Any
     _move: PendingMove | None = None
     _recent: deque | None = None
+    _delivered: int = 0  # messages delivered so far
+    _catching_up: Any = None  # after a switch: the old reader's last deliveries, for ``in``
     #: Messages remembered (a subclass holding large deserialised messages keeps fewer).
     recent_size: int = RECENT_MESSAGES
 
@@ -226,36 +259,77 @@ class MovableReader:
         """The same topic, QoS and callback, subscribed from ``node``."""
         raise NotImplementedError
 
-    def _hand_over(self, move: PendingMove) -> None:
-        """Deliver what :attr:`subscription` (the successor now) holds, less ``move.seen``."""
-        raise NotImplementedError
-
     def _record(self) -> deque:
         """The newest :attr:`recent_size` messages delivered (made at the first use)."""
         if self._recent is None:
             self._recent = deque(maxlen=self.recent_size)
         return self._recent
 
+    def _fresh_from(self, items: Sequence) -> int:
+        """Index of the first of ``items`` (next to be delivered, in order) to deliver.
+
+        0 but after a switch, while the successor delivers what the old reader delivered: those
+        are skipped, up to the first the old one did not deliver, from which on all are new.
+        """
+        lookup = self._catching_up
+        if lookup is None:
+            return 0
+        for k, item in enumerate(items):
+            if item not in lookup:
+                self._catching_up = None
+                return k
+        return len(items)
+
     def _seen(self, items: Iterable) -> None:
         """Remember ``items`` as delivered."""
+        items = list(items)
         self._record().extend(items)
+        self._delivered += len(items)
 
     def subscribe_on(self, node: Node) -> Any:
         """Subscribe the same topic from ``node`` as the pending successor; return it."""
         self.cancel()
         new = self._subscribe(node)
-        self._move = PendingMove(node, new, self._record())
+        self._move = PendingMove(node, new, self._record(), self._delivered)
         return new
 
+    def ready(self) -> bool:
+        """The pending successor can take over without a gap (True without one).
+
+        It has matched as many writers as the subscription, and, if the subscription delivered
+        a message since the successor was made, the successor holds one too. The second is the
+        writers' side of the match, which a reader's publisher count does not show: a writer
+        sends to a reader only once it has matched it in turn, and what it sends before then
+        reaches the old reader alone. Switched over in between, a stream that runs on through
+        the move (a recorder's commands, while its measurements pause) lost the messages of
+        the gap (one command of 188 in a loaded suite, stop 58's CI). Asked a while after the
+        successor was made (:class:`DeafReaders`: a check period later), so that a stream that
+        runs on has delivered meanwhile; a stream silent that long is switched over once
+        matched.
+        """
+        move = self._move
+        if move is None:
+            return True
+        if move.subscription.get_publisher_count() < self.subscription.get_publisher_count():
+            return False
+        if self._delivered == move.delivered:
+            return True  # nothing since the successor was made: nothing it could have missed
+        return has_queued(move.subscription, move.node.context)
+
     def switch(self) -> None:
-        """Drain and destroy the subscription; go on from the successor, less what was seen."""
+        """Drain and destroy the subscription; go on from the successor, less what was seen.
+
+        Every message the successor delivers from then on that the old reader delivered is
+        skipped (:meth:`_fresh_from`), up to the first it did not.
+        """
         move = self._move
         if move is None:
             return
         self.poll()
         self._node.destroy_subscription(self.subscription)
         self._node, self.subscription, self._move = move.node, move.subscription, None
-        self._hand_over(move)
+        self._catching_up = move.lookup()
+        self.poll()
 
     def cancel(self) -> None:
         """Destroy the pending successor, if any."""
@@ -289,6 +363,8 @@ class MovableSubscription(MovableReader):
         self.subscription = node.create_subscription(msg_type, name, self._deliver, qos)
 
     def _deliver(self, msg: object) -> None:
+        if self._fresh_from((msg,)):
+            return  # delivered by the reader this one succeeded
         self._seen((msg,))
         self._callback(msg)
 
@@ -305,11 +381,6 @@ class MovableSubscription(MovableReader):
             self._msg_type, self.subscription.topic_name, self._deliver, self._qos
         )
 
-    def _hand_over(self, move: PendingMove) -> None:
-        queued = self._take()
-        for k in move.unseen(queued):
-            self._deliver(queued[k])
-
 
 class _Move(NamedTuple):
     """A move under way: the new participant, the readers given a successor there, since when."""
@@ -318,6 +389,7 @@ class _Move(NamedTuple):
     readers: list[StreamReader]
     successor: Any  # the watched reader's new subscription
     silent_for: float  # s of silence that began it
+    began: float  # time.monotonic() when it began
 
 
 class DeafReaders:
@@ -328,7 +400,9 @@ class DeafReaders:
     nothing (a process let go after a stop has its backlog there). Once per silence: a new
     renewal needs a message first. The move is made before the old readers are broken (module
     docstring): each reader gets a successor on a new, unspun participant; once the watched
-    successor has matched its writer, the readers switch over and the participant is spun. A
+    successor has matched its writer and the others are ready (:meth:`MovableReader.ready`;
+    at most ``max(after, MATCH_WAIT)`` s after the move began), the readers switch over and the
+    participant is spun. A
     message on the old watched reader before that calls the move off: the writer had only
     paused.
 
@@ -411,7 +485,7 @@ class DeafReaders:
             return None  # the queue had messages after all (taken now)
         fresh = ReaderParticipant(self._node)
         successors = [reader.subscribe_on(fresh.node) for reader in readers]
-        self._move = _Move(fresh, readers, successors[0], now - self._seen_at)
+        self._move = _Move(fresh, readers, successors[0], now - self._seen_at, now)
         self._node.get_logger().info(
             f"nothing on {readers[0].subscription.topic_name} for {now - self._seen_at:.2f} s "
             f"while its writer is still matched: readers made on a new participant "
@@ -434,6 +508,15 @@ class DeafReaders:
         if value != self._seen:
             self._seen, self._seen_at, self._heard = value, now, True
             return self._call_off(move, "its reader got a message: the writer had paused")
+        waiting = [r.subscription.topic_name for r in move.readers if not r.ready()]
+        if waiting:
+            if now - move.began < max(self.after, MATCH_WAIT):
+                return None  # a stream running on through the move: not yet sent to its successor
+            self._node.get_logger().warning(
+                f"readers moving to {move.participant.node.get_name()}: the successors of "
+                f"{waiting} have not matched their writers in {now - move.began:.2f} s; "
+                "switched over all the same (what those writers sent meanwhile is lost)"
+            )
         late = [r for r in self._readers() if r not in move.readers]  # subscribed meanwhile
         for reader in late:
             reader.subscribe_on(move.participant.node)

@@ -82,7 +82,6 @@ from amb_tools.node_main import ConfigurationError, descriptor, run_node
 from amb_tools.reader_participant import (
     ClosesReaderParticipant,
     MovableReader,
-    PendingMove,
     take_queued,
     watch_readers,
 )
@@ -138,10 +137,13 @@ class RecordedSubscription(MovableReader):
         self.subscription = node.create_subscription(*self._args, callback_group=group, raw=True)
 
     def _on_raw(self, raw: bytes) -> None:
+        if self._fresh_from((raw,)):
+            return  # written from the reader this one succeeded
         self._seen((raw,))
         self._callback(raw)
 
     def _write_all(self, taken: list[tuple[bytes, dict]]) -> None:
+        taken = taken[self._fresh_from([raw for raw, _info in taken]) :]
         self._seen(raw for raw, _info in taken)
         for raw, info in taken:
             self._write(raw, info)
@@ -154,10 +156,6 @@ class RecordedSubscription(MovableReader):
 
     def _subscribe(self, node: Node) -> Any:
         return node.create_subscription(*self._args, callback_group=self._group, raw=True)
-
-    def _hand_over(self, move: PendingMove) -> None:
-        taken = take_queued(self.subscription, self.subscription.msg_type, True)
-        self._write_all([taken[k] for k in move.unseen(raw for raw, _info in taken)])
 
 
 def import_message_class(msgtype: str) -> type:

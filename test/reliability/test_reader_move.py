@@ -22,9 +22,12 @@ import sys
 import time
 
 import pytest
+from rclpy.qos import QoSProfile
 from rclpy.serialization import deserialize_message
 from std_msgs.msg import String
 from writer_process import writer_script
+
+from amb_tools.reader_participant import MovableSubscription, ReaderParticipant, has_queued
 
 pytestmark = [pytest.mark.ros]
 
@@ -80,4 +83,51 @@ def test_a_move_during_a_stopped_writer_loses_nothing(ros) -> None:
         f"{outcome}; received {len(data)} of {MESSAGES}: lost "
         f"{sorted(set(range(MESSAGES)) - set(data))[:20]}, repeated "
         f"{len(data) - len(set(data))}"
+    )
+
+
+def test_a_stream_running_through_a_move_is_handed_over_without_a_gap(ros) -> None:
+    """A reader fed all along moves to a new participant as soon as it is ready, and its stream
+    (100 Hz from a writer process) arrives once, in order, across the switch. Ready
+    (:meth:`MovableReader.ready`) came only with a message in the successor's queue: the
+    writer's side of the match, which the successor's publisher count does not show (stop 58's
+    CI lost a recorder's command there)."""
+    node = ros.node("amb_test_reader_handover")
+    got: list[int] = []
+    reader = MovableSubscription(
+        node, String, TOPIC, lambda msg: got.append(int(msg.data)), QoSProfile(depth=100)
+    )
+    writer = subprocess.Popen(
+        [sys.executable, "-c", WRITER], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
+    participant = None
+    try:
+        assert ros.spin_until_progress(lambda: len(got) >= 100, lambda: len(got), stall=60.0)
+        participant = ReaderParticipant(node)  # made at the move, as DeafReaders makes it
+        reader.subscribe_on(participant.node)
+        at_start = len(got)
+        successor = reader._move.subscription
+        # asked from the successor's own match on (reader side; its writer's may lag 0.3 s)
+        assert ros.spin_until(lambda: successor.get_publisher_count() > 0, 30.0, step=0.005)
+        ready = ros.spin_until(reader.ready, 10.0, step=0.005)
+        queued = has_queued(successor, participant.node.context)
+        fed = len(got) - at_start
+        reader.switch()
+        switched_at = len(got)
+        participant.start()
+        ros.spin_until_progress(lambda: len(got) >= MESSAGES, lambda: len(got), stall=5.0)
+        ros.spin_until(lambda: writer.poll() is not None, 60.0)  # the writer's acks come in
+    finally:
+        if participant is not None:
+            participant.close()
+        if writer.poll() is None:
+            writer.kill()
+        out, err = writer.communicate()
+    assert writer.returncode == 0, f"writer failed:\n{out}\n{err}"
+    assert ready, "the successor was not ready in 10 s"
+    assert fed > 0 and queued, f"ready with {fed} messages delivered meanwhile, queued {queued}"
+    assert got == list(range(MESSAGES)), (
+        f"received {len(got)} of {MESSAGES}: lost {sorted(set(range(MESSAGES)) - set(got))[:20]}, "
+        f"repeated {len(got) - len(set(got))}; switched after {switched_at}: "
+        f"{got[max(switched_at - 10, 0) : switched_at + 30]}"
     )
