@@ -156,6 +156,8 @@ def frequency_errors(
     f = f + [0.0] * (len(targets) - len(f))
     if critical_targets and stable:
         opts = {"tol_hz": FIT_CRITICAL_TOL_HZ, "max_iter": FIT_CRITICAL_ITERATIONS} if fit else {}
+        if len(f) >= len(critical_targets):  # the iterations start at the frequencies found
+            opts["start_hz"] = f[: len(critical_targets)]
         f += critical_speeds(rig, len(critical_targets), **opts)
     f = f + [0.0] * (len(targets) + len(critical_targets) - len(f))
     achieved = np.asarray(f)
@@ -371,6 +373,19 @@ def write_calibration(path: Path, rig: Rig, record: dict) -> None:
     path.write_text(text + "\n".join(lines) + "\n", encoding="utf-8")
 
 
+def _hz_list(text: str) -> tuple[float, ...]:
+    """Frequencies given as ``11,18,29`` (Hz), each positive; a clear error otherwise."""
+    try:
+        values = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"{text!r}: expected frequencies in Hz, comma separated (11,18,29)"
+        ) from None
+    if not all(v > 0 for v in values):
+        raise argparse.ArgumentTypeError(f"{text!r}: every frequency must be > 0 Hz")
+    return values
+
+
 def main(argv: list[str] | None = None) -> int:
     """Command line: fit, print the record as JSON, optionally write it into the rig file."""
     ap = argparse.ArgumentParser(prog="python -m amb_plant_sim.calibrate", description=__doc__)
@@ -384,7 +399,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     ap.add_argument(
         "--targets",
-        type=lambda t: tuple(float(v) for v in t.split(",")),
+        type=_hz_list,
         default=TARGETS_HZ,
         help="zero-speed target frequencies, Hz, comma separated (default 11,18,29,67)",
     )
@@ -397,7 +412,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--regularisation", type=float, default=0.02)
     ap.add_argument(
         "--critical-speeds",
-        type=lambda t: tuple(float(v) for v in t.split(",")),
+        type=_hz_list,
         default=(),
         help="also fit these critical speeds, Hz, comma separated (the thesis's: 11,18,29)",
     )

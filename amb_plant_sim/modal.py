@@ -11,6 +11,7 @@ and ``|v_x - j v_y|`` the backward component, summed over the nodes.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -193,6 +194,7 @@ def critical_speeds(
     rotor: RotorModel | None = None,
     tol_hz: float = 1e-4,
     max_iter: int = 50,
+    start_hz: Sequence[float] | None = None,
 ) -> list[float]:
     """
     Return the critical speeds (Hz) of the PID closed loop.
@@ -213,6 +215,9 @@ def critical_speeds(
         Convergence tolerance, Hz.
     max_iter : int
         Iteration limit.
+    start_hz : sequence of float, optional
+        The first ``count`` zero-speed frequencies (:func:`natural_frequencies`), Hz, where the
+        caller has them already (a fit's trial): the iterations start there. None: computed.
 
     Returns
     -------
@@ -220,7 +225,7 @@ def critical_speeds(
         Critical speeds, Hz, increasing.
     """
     rot = build_rotor(rig) if rotor is None else rotor
-    f0 = natural_frequencies(rig, count, rotor=rot)
+    f0 = natural_frequencies(rig, count, rotor=rot) if start_hz is None else start_hz[:count]
     out = []
     for f_start in f0:
         f = f_start

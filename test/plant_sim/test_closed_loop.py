@@ -188,6 +188,23 @@ def test_calibration_refuses_more_non_structural_mass_than_the_text_s_shaft(rig)
         calibrate(rig, objective="max")
 
 
+@pytest.mark.parametrize(
+    ("option", "value", "says"),
+    [
+        ("--critical-speeds", "11,x,29", "expected frequencies in Hz, comma separated"),
+        ("--targets", "11,-18", "every frequency must be > 0 Hz"),
+    ],
+)
+def test_calibrate_refuses_a_frequency_list_it_cannot_read(capsys, option, value, says):
+    from amb_plant_sim.calibrate import main
+
+    with pytest.raises(SystemExit) as exit_:
+        main([option, value])
+    assert exit_.value.code == 2
+    err = capsys.readouterr().err
+    assert says in err and option in err, err
+
+
 def test_calibration_errors_put_the_critical_speeds_after_the_natural_frequencies(rig):
     from amb_plant_sim.calibrate import frequency_errors
     from amb_plant_sim.modal import critical_speeds, natural_frequencies
