@@ -34,7 +34,7 @@ from __future__ import annotations
 import itertools
 import time
 from collections import deque
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Sequence
 from typing import Any, NamedTuple, Protocol
 
 import rclpy
@@ -177,26 +177,17 @@ class StreamReader(Protocol):
 
 
 class PendingMove:
-    """A reader's pending successor and the messages the reader delivered last.
+    """A reader's pending successor.
 
     The part of a two-step move (:class:`StreamReader`) that every reader shares: the new
-    subscription and its node, the newest messages delivered from the old one (CDR bytes,
-    or deserialised messages: any values with ``==``), which the successor's queue may hold too,
-    and how many the old one had delivered when the successor was made.
+    subscription and its node, and how many messages the old one had delivered when the
+    successor was made.
     """
 
-    def __init__(self, node: Node, subscription: Any, seen: deque, delivered: int = 0) -> None:
+    def __init__(self, node: Node, subscription: Any, delivered: int = 0) -> None:
         self.node = node
         self.subscription = subscription
-        self.seen = seen
         self.delivered = delivered
-
-    def lookup(self) -> Any:
-        """The messages the old reader delivered last, for ``in`` (a set where hashable)."""
-        try:
-            return set(self.seen)
-        except TypeError:  # deserialised messages are not hashable
-            return list(self.seen)
 
 
 def has_queued(subscription: Any, context: rclpy.Context) -> bool:
@@ -280,17 +271,26 @@ class MovableReader:
                 return k
         return len(items)
 
-    def _seen(self, items: Iterable) -> None:
+    def _seen(self, items: Sequence) -> None:
         """Remember ``items`` as delivered."""
-        items = list(items)
         self._record().extend(items)
         self._delivered += len(items)
+
+    def _lookup(self) -> Any:
+        """The newest messages delivered, for ``in`` (a set where they are hashable).
+
+        CDR bytes, or deserialised messages: any values with ``==``.
+        """
+        try:
+            return set(self._record())
+        except TypeError:  # deserialised messages are not hashable
+            return list(self._record())
 
     def subscribe_on(self, node: Node) -> Any:
         """Subscribe the same topic from ``node`` as the pending successor; return it."""
         self.cancel()
         new = self._subscribe(node)
-        self._move = PendingMove(node, new, self._record(), self._delivered)
+        self._move = PendingMove(node, new, self._delivered)
         return new
 
     def ready(self) -> bool:
@@ -328,7 +328,7 @@ class MovableReader:
         self.poll()
         self._node.destroy_subscription(self.subscription)
         self._node, self.subscription, self._move = move.node, move.subscription, None
-        self._catching_up = move.lookup()
+        self._catching_up = self._lookup()
         self.poll()
 
     def cancel(self) -> None:

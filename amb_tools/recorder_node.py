@@ -143,9 +143,10 @@ class RecordedSubscription(MovableReader):
         self._callback(raw)
 
     def _write_all(self, taken: list[tuple[bytes, dict]]) -> None:
-        taken = taken[self._fresh_from([raw for raw, _info in taken]) :]
-        self._seen(raw for raw, _info in taken)
-        for raw, info in taken:
+        raws = [raw for raw, _info in taken]
+        first = self._fresh_from(raws)
+        self._seen(raws[first:])
+        for raw, info in taken[first:]:
             self._write(raw, info)
 
     def poll(self) -> int:

@@ -90,8 +90,7 @@ def main() -> int:
         print(f"writer every {args.period * 1e3:.1f} ms; ms after the new subscription:")
         for trial in range(args.trials):
             participant = ReaderParticipant(node)
-            reader.subscribe_on(participant.node)
-            successor = reader._move.subscription
+            successor = reader.subscribe_on(participant.node)
             t0 = time.monotonic()
             matched = first = None
             while time.monotonic() - t0 < 10.0 and first is None:

@@ -104,9 +104,8 @@ def test_a_stream_running_through_a_move_is_handed_over_without_a_gap(ros) -> No
     try:
         assert ros.spin_until_progress(lambda: len(got) >= 100, lambda: len(got), stall=60.0)
         participant = ReaderParticipant(node)  # made at the move, as DeafReaders makes it
-        reader.subscribe_on(participant.node)
+        successor = reader.subscribe_on(participant.node)
         at_start = len(got)
-        successor = reader._move.subscription
         # asked from the successor's own match on (reader side; its writer's may lag 0.3 s)
         assert ros.spin_until(lambda: successor.get_publisher_count() > 0, 30.0, step=0.005)
         ready = ros.spin_until(reader.ready, 10.0, step=0.005)
