@@ -114,9 +114,10 @@ def model_frequencies() -> dict[str, tuple[list[float], list[float]]]:
         (the rig ``amb-sim`` runs by default).
     """
     rig = load_rig()
+    natural = natural_frequencies(rig, len(TARGETS_HZ))
     return {
-        "natural": (list(TARGETS_HZ), natural_frequencies(rig, len(TARGETS_HZ))),
-        "critical": (list(TARGETS_HZ[:3]), critical_speeds(rig, 3)),
+        "natural": (list(TARGETS_HZ), natural),
+        "critical": (list(TARGETS_HZ[:3]), critical_speeds(rig, 3, start_hz=natural)),
     }
 
 
