@@ -500,6 +500,7 @@ class PlantSimulator(EventInputs, StepByStepIntegration):
         theta = 2 * math.pi * ((n0 + np.arange(L)) % spr) / spr
         W = inp["W0"][None, :] * np.exp(1j * theta)[:, None]
         if inp["noisy"]:
+            drawn_from = self._rng.bit_generator.state
             n_pid, n_pub = self._draw_noise(L, d.n_sub, inp["sigma"])
         else:
             n_pid, n_pub = np.zeros((L, 4 * d.n_sub)), np.zeros((L, 8))
@@ -548,6 +549,11 @@ class PlantSimulator(EventInputs, StepByStepIntegration):
         if k_bad < L:
             # contact or saturation: shorter chunks until the loop is linear again
             self._chunk_hint = max(2, k_bad)
+            if inp["noisy"]:
+                # give back the draws of the samples not taken (after k_bad + 1): the noise of
+                # each sample must not depend on how the caller splits its advance calls
+                self._rng.bit_generator.state = drawn_from
+                self._draw_noise(k_bad + 1, d.n_sub, inp["sigma"])
             self._one_sample(s + k_bad, wf[s + k_bad], rec, (n_pid[k_bad], n_pub[k_bad]))
             return k_bad + 1
         self._chunk_hint = min(self._max_chunk, 2 * self._chunk_hint)

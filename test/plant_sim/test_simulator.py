@@ -4,6 +4,7 @@ contract, streaming (chunked equals batch), faults and speed profiles.
 """
 
 import dataclasses
+import itertools
 import math
 
 import numpy as np
@@ -96,6 +97,27 @@ def test_chunked_equals_batch_and_reset_repeats(rig):
     np.testing.assert_array_equal(again.displacement, whole.displacement)
     other = PlantSimulator(rig, sc, 64, seed=4).advance(300, wf)
     assert not np.array_equal(other.displacement, whole.displacement)  # noise is seeded
+
+
+def test_chunked_equals_batch_through_contact_with_noise(rig):
+    """A contact cuts the linear chunks short: the noise drawn for the samples after the cut
+    is given back, so each sample's noise, and the run, do not depend on the calls' lengths."""
+    sc = scenario_from_dict(
+        {"speed": {"hz": 15.0}, "duration": 1.0, "events": [UNB], "measurement_noise": 1e-6},
+        rig,
+    )
+    sim = PlantSimulator(rig, sc, 32, seed=5)
+    wf = np.zeros((320, 4))
+    wf[64:, 0] = 900.0  # pushes the rotor onto auxiliary bearing 1 along x
+    whole = sim.advance(320, wf)
+    assert whole.truth["contact"].any()  # the premise: the run touches
+    sim.reset()
+    cuts = (0, 3, 70, 71, 150, 200, 320)
+    parts = [sim.advance(b - a, wf[a:b]) for a, b in itertools.pairwise(cuts)]
+    joined = np.concatenate([p.displacement for p in parts])
+    ref = whole.displacement
+    # same arithmetic but for matrix products over other row counts (last bits)
+    np.testing.assert_allclose(joined, ref, rtol=0, atol=1e-12 * np.abs(ref).max())
 
 
 def test_mass_loss_changes_the_response_only_after_onset(rig):
