@@ -2,23 +2,26 @@
 
 The soak run's false contact rebuilt on the plant core (late_command.py: 67 Hz, the soak's
 unbalance, a synchronous wavelet force nulling the inner sensors' 1 x response, found from the
-plant's own responses, not from the monitor). One late command answers a period with zero
-force: the inner sensors jump from about 0.5 to 27 um and back with no contact (simulator
-truth). Told nothing, the monitor calls it a contact with each wavelet (the soak's
-AUX_BEARING_CONTACT); told the applied force, it reports nothing and counts one control
-transient. A real contact (the suite's AB1 contact at 29 Hz) is still found when the monitor
-is fed the (zero) wavelet force the simulation applied.
+plant's own responses, not from the monitor; it is the force the soak's transient controller
+settles to on the same plant). One late command answers a period with zero force: the inner
+sensors jump from under 2 um to over 20 um and back with no contact (simulator truth). Told
+nothing, the monitor calls it a contact with each wavelet (the soak's AUX_BEARING_CONTACT);
+told the applied force, it reports nothing and counts one control transient. A real contact
+(the suite's AB1 contact at 29 Hz) is still found when the monitor is fed the (zero) wavelet
+force the simulation applied.
 """
 
 from pathlib import Path
 
 import numpy as np
 import pytest
-from late_command import HZ, SPR, late_command_run, synchronous
+from late_command import HZ, NOISE, SPR, UNBALANCE, late_command_run, synchronous
 
+from amb_apps.closed_loop import fe_model, run_closed_loop
 from amb_apps.evaluation import load_case, simulate_case
 from amb_common.faults import FaultType
 from amb_common.rig import load_rig
+from amb_controller.config import ControllerConfig
 from amb_fault_monitor.config import MonitorConfig
 from amb_fault_monitor.monitor import FaultMonitor
 from amb_fault_monitor.records import FilterbankAdapter
@@ -53,13 +56,48 @@ def _run(
     return monitor, events
 
 
+def _soak_controller_force() -> np.ndarray:
+    """
+    1 x amplitude (N) per axis of the wavelet force the soak's controller settles to.
+
+    The soak's wavelet controller (``bench/reliability.py``: the transient law, its model from
+    the FE closed loop, every other setting its default) on the plant core in lock step
+    (:func:`~amb_apps.closed_loop.run_closed_loop`, what the nodes do), the soak's scenario
+    (late_command.py), over the last 20 of 3 s. On the rig model before issue 16 its peak was
+    65 N, the soak's.
+    """
+    rig = load_rig()
+    scenario = scenario_from_dict(
+        {
+            "name": "soak",
+            "speed": {"hz": HZ},
+            "duration": 3.0,
+            "samples_per_rev": SPR,
+            "measurement_noise": NOISE,
+            "events": [{"kind": "unbalance", "time": 0.0, "disk": "D1", "me": UNBALANCE}],
+        },
+        rig,
+    )
+    config = ControllerConfig.from_dict(
+        {"samples_per_rev": SPR, "controller": "transient"}, capacity=rig.amb.force_limit
+    )
+    run = run_closed_loop(rig, scenario, config, fe_model(rig, 2 * np.pi * HZ, config))
+    force = run.wavelet_force[-20 * SPR :]
+    turn = np.exp(-2j * np.pi * np.arange(force.shape[0]) / SPR)[:, None]
+    return np.abs(2 * (force * turn).mean(axis=0))
+
+
 def test_the_late_command_moves_the_rotor_as_in_the_soak_without_contact(late_command):
     block, force = late_command
     inner = np.hypot(block.displacement[:, 2], block.displacement[:, 3])
     before, after = inner[DROP - SPR : DROP].max(), inner[DROP : DROP + 4 * SPR].max()
     assert before < 2e-6 and after > 20e-6, (before, after)
-    assert 60.0 <= np.abs(force[DROP - SPR : DROP]).max() <= 90.0  # N, the soak's 65 N scale
     assert not block.truth["contact"].any()
+    # the force is the soak's: the 1 x amplitude its controller settles to, per axis, within
+    # 5 % (that controller leaves 1-2 um of the inner sensors' 55 um uncontrolled 1 x, a few
+    # per cent of the force; measured: 0.1-1 % before issue 16, 2-3 % on the current model)
+    amplitude = np.abs(force[DROP - SPR : DROP]).max(axis=0)
+    np.testing.assert_allclose(amplitude, _soak_controller_force(), rtol=0.05)
 
 
 @pytest.mark.parametrize("wavelet", WAVELETS)
