@@ -66,12 +66,21 @@ def test_linear_time_invariant_harmonic_gain_has_complex_structure(rig, first_cr
 
 
 def test_trial_injections_agree_with_the_fe_harmonic_model(rig, first_critical):
+    """The simulated rig's trial injections give the FE model's 1 x influence coefficients.
+
+    The trial force is sized so that the largest response the FE model predicts is 10 % of
+    the auxiliary bearings' clearance (75 um; about 22 N at the first critical speed), in the
+    AMBs' linear range: a fixed 100 N drove y3 to about 350 um there, where the nonlinear
+    bearing law made that coefficient 19 % off. 5 %: measured 2.8 % at most with the sized force.
+    """
     cfg = ControllerConfig(samples_per_rev=N, controller="synchronous")
     fe = complex_gain(
         dc_gain(harmonic_model(rig, 2 * math.pi * first_critical.speed_hz, cfg).markov)
     )
+    clearance = min(c for c in rig.probe_clearance if math.isfinite(c))
+    force = 0.1 * clearance / float(np.abs(fe).max())
     trials = influence_by_trials(
-        rig, first_critical, cfg, BaselineSettings(trial_force=100.0, trial_settle=40)
+        rig, first_critical, cfg, BaselineSettings(trial_force=force, trial_settle=40)
     )
     t = complex_gain(trials.markov[0])
     err = np.abs(t - fe) / np.abs(fe).max()
