@@ -33,7 +33,10 @@ SCENARIO = {
     "measurement_noise": 1.0e-7,
     "events": [
         {"kind": "unbalance", "time": 0.0, "disk": "D1", "me": 1.0e-3, "angle": 0.0},
-        {"kind": "mass_loss", "time": 0.2, "disk": "D1", "me": 4.3e-3, "angle": 1.0},
+        # 200 g cm keeps the loop linear at 20 Hz (a 430 g cm loss, 2 Hz above the second
+        # critical speed, saturates the coils: the plant steps sample by sample, at 0.71 x real
+        # time in one suite run, and the realtime tests would measure that instead)
+        {"kind": "mass_loss", "time": 0.2, "disk": "D1", "me": 2.0e-3, "angle": 1.0},
     ],
 }
 
