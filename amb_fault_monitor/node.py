@@ -78,6 +78,7 @@ range and whether it may change at run time (:mod:`amb_fault_monitor.node_params
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import replace
 
 import numpy as np
@@ -201,6 +202,9 @@ class FaultMonitorNode(ClosesReaderParticipant, Node):
         # so that amb-run stops the monitor only once it has caught up with the plant
         self.last_sample: int | None = None
         self._own_readers = bus is None  # composed, the stack's bus orders the two streams
+        # coefficient messages held until the measurement of their last sample (its control
+        # force) has been processed: _on_coefficients
+        self._held: deque[tuple[CoefficientsView, bytes]] = deque()
         self.last_coefficient_sample: int | None = None
         self.counts = dict.fromkeys(("measurements_rejected", "coefficients_rejected"), 0)
         self._last_reason = ""
@@ -423,6 +427,7 @@ class FaultMonitorNode(ClosesReaderParticipant, Node):
         self._monitor.displacements(n, d)
         for ev in self._trips.step(n, d, float(msg.rotor_angle), self._omega):
             self._emit(ev, msg.header.stamp, n)
+        self._release(n)
 
     def _on_coefficients(self, raw: bytes) -> None:
         try:
@@ -444,6 +449,27 @@ class FaultMonitorNode(ClosesReaderParticipant, Node):
             # up to this sample may wait behind this wake, and a sample's control force should
             # come before the coefficients it completes (FaultMonitor.control_force)
             self._readers[1].poll()
+            if self._held or self.last_sample is None or n > self.last_sample:
+                # its measurement is still on its way (another writer, another path): a
+                # force kink in it would be unknown when a burst at it is tested, and the
+                # burst taken for a contact (control_transients, "Kinks"). Held, in order, up
+                # to two revolutions of messages: a measurement stream that stops does not
+                # hold the monitor back longer.
+                self._held.append((msg, raw))
+                while len(self._held) > self._spr:
+                    self._take_coefficients(*self._held.popleft())
+                return
+        self._take_coefficients(msg, raw)
+
+    def _release(self, last_sample: int) -> None:
+        """Process the held coefficient messages whose samples have all been measured."""
+        held = self._held
+        while held and int(held[0][0].sample_index) <= last_sample:
+            self._take_coefficients(*held.popleft())
+
+    def _take_coefficients(self, msg: CoefficientsView, raw: bytes) -> None:
+        """Sequence one checked coefficient message and process it (and any it releases)."""
+        n = int(msg.sample_index)
         omega = self._omega if self._omega > 0 else UNKNOWN_OMEGA
         index = n // 2
         last = self._coef_seq.last_index
