@@ -78,6 +78,7 @@ range and whether it may change at run time (:mod:`amb_fault_monitor.node_params
 from __future__ import annotations
 
 import math
+import time
 from collections import deque
 from dataclasses import replace
 
@@ -150,6 +151,9 @@ UNKNOWN_OMEGA = 1e-9
 QUEUE_REVS = 256
 #: Sequencer counts of refused messages (the others, gaps and restarts, are confirmed changes).
 REFUSED = ("repeat", "stray", "stamp")
+# s (wall): held coefficients whose measurements have not come in this long are processed
+# without them at the next status (_deliver)
+HELD_TIMEOUT = 1.0
 
 
 class FaultMonitorNode(ClosesReaderParticipant, Node):
@@ -203,8 +207,9 @@ class FaultMonitorNode(ClosesReaderParticipant, Node):
         self.last_sample: int | None = None
         self._own_readers = bus is None  # composed, the stack's bus orders the two streams
         # coefficient messages held until the measurement of their last sample (its control
-        # force) has been processed: _on_coefficients
-        self._held: deque[tuple[CoefficientsView, bytes]] = deque()
+        # force) has been processed: _deliver
+        self._held: deque[tuple[CoefficientsView, bytes, bool]] = deque()
+        self._held_since = 0.0  # s, monotonic: when the oldest held message was held
         self.last_coefficient_sample: int | None = None
         self.counts = dict.fromkeys(("measurements_rejected", "coefficients_rejected"), 0)
         self._last_reason = ""
@@ -449,27 +454,6 @@ class FaultMonitorNode(ClosesReaderParticipant, Node):
             # up to this sample may wait behind this wake, and a sample's control force should
             # come before the coefficients it completes (FaultMonitor.control_force)
             self._readers[1].poll()
-            if self._held or self.last_sample is None or n > self.last_sample:
-                # its measurement is still on its way (another writer, another path): a
-                # force kink in it would be unknown when a burst at it is tested, and the
-                # burst taken for a contact (control_transients, "Kinks"). Held, in order, up
-                # to two revolutions of messages: a measurement stream that stops does not
-                # hold the monitor back longer.
-                self._held.append((msg, raw))
-                while len(self._held) > self._spr:
-                    self._take_coefficients(*self._held.popleft())
-                return
-        self._take_coefficients(msg, raw)
-
-    def _release(self, last_sample: int) -> None:
-        """Process the held coefficient messages whose samples have all been measured."""
-        held = self._held
-        while held and int(held[0][0].sample_index) <= last_sample:
-            self._take_coefficients(*held.popleft())
-
-    def _take_coefficients(self, msg: CoefficientsView, raw: bytes) -> None:
-        """Sequence one checked coefficient message and process it (and any it releases)."""
-        n = int(msg.sample_index)
         omega = self._omega if self._omega > 0 else UNKNOWN_OMEGA
         index = n // 2
         last = self._coef_seq.last_index
@@ -477,7 +461,34 @@ class FaultMonitorNode(ClosesReaderParticipant, Node):
             "coefficients", self._coef_seq, index, (msg, raw), omega, self._readers[0],
             last is not None and index > last + 1 and filterbank_restarted(msg),
         ):  # fmt: skip
-            self._coefficients(m, r, reset)
+            self._deliver(m, r, reset)
+
+    def _deliver(self, msg: CoefficientsView, raw: bytes, reset: bool) -> None:
+        """
+        Process one sequenced coefficient message, or hold it until its samples are measured.
+
+        A message whose last sample's measurement has not reached the monitor (another
+        writer, another path: no poll finds it) would be tested without that sample's control
+        force: a force kink in it unknown, a burst at it taken for a contact (control_transients,
+        "Kinks"). It is held, in order, until the measurement is in (:meth:`_release`), for at
+        most two revolutions of messages: a measurement stream that stops does not hold the
+        monitor back longer, nor (:meth:`_publish_status`) one whose last measurement is lost.
+        """
+        n = int(msg.sample_index)
+        if self._own_readers and (self._held or self.last_sample is None or n > self.last_sample):
+            if not self._held:
+                self._held_since = time.monotonic()
+            self._held.append((msg, raw, reset))
+            while len(self._held) > self._spr:
+                self._coefficients(*self._held.popleft())
+            return
+        self._coefficients(msg, raw, reset)
+
+    def _release(self, last_sample: int) -> None:
+        """Process the held coefficient messages whose samples have all been measured."""
+        held = self._held
+        while held and int(held[0][0].sample_index) <= last_sample:
+            self._coefficients(*held.popleft())
 
     def _coefficients(self, msg: CoefficientsView, raw: bytes, reset: bool) -> None:
         if reset and self._monitor.samples:
@@ -551,6 +562,9 @@ class FaultMonitorNode(ClosesReaderParticipant, Node):
         self.get_logger().warning(f"{ev.fault_type.name}: {ev.description}")
 
     def _publish_status(self) -> None:
+        if self._held and time.monotonic() - self._held_since > HELD_TIMEOUT:
+            while self._held:  # their measurements are lost, not late: process them without
+                self._coefficients(*self._held.popleft())
         statuses = []
         disp, amp = self._trips.displacement, self._trips.amplitude
         for p in range(4):
