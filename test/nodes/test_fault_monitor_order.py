@@ -23,6 +23,21 @@ pytestmark = pytest.mark.ros
 
 SPR = 16
 SAMPLES = 4 * SPR
+# the driver's measurements: 20 Hz, a cosine at each probe, a force ramp (one kink-free slope)
+PUBLISH = f"""
+omega = 2 * math.pi * 20.0
+measurements = []
+for i in range({SAMPLES}):
+    m = Measurement(sample_index=i, samples_per_rev={SPR})
+    m.rotor_speed = omega
+    m.rotor_angle = float((2 * math.pi * i / {SPR}) % (2 * math.pi))
+    m.displacement = list(1e-5 * np.cos(2 * math.pi * i / {SPR} + np.arange(8)))
+    m.wavelet_force = [float(i)] * 4
+    t = i / ({SPR} * 20.0)
+    m.header.stamp.sec, m.header.stamp.nanosec = int(t), int(round((t % 1.0) * 1e9))
+    measurements.append(m)
+    pub.publish(m)
+"""
 SCRIPT = f"""
 import json, math, time
 import numpy as np
@@ -54,16 +69,7 @@ def spin(until, timeout):
 
 assert spin(lambda: pub.get_subscription_count() >= 2, 30.0), "readers not matched"
 time.sleep(0.5)
-omega = 2 * math.pi * 20.0
-for i in range({SAMPLES}):
-    m = Measurement(sample_index=i, samples_per_rev={SPR})
-    m.rotor_speed = omega
-    m.rotor_angle = float((2 * math.pi * i / {SPR}) % (2 * math.pi))
-    m.displacement = list(1e-5 * np.cos(2 * math.pi * i / {SPR} + np.arange(8)))
-    m.wavelet_force = [float(i)] * 4
-    t = i / ({SPR} * 20.0)
-    m.header.stamp.sec, m.header.stamp.nanosec = int(t), int(round((t % 1.0) * 1e9))
-    pub.publish(m)
+{PUBLISH}
 assert pub.wait_for_all_acked(Duration(seconds=30.0)), "measurements not acknowledged"
 assert spin(lambda: len(made) == {SAMPLES} // 2, 30.0), f"{{len(made)}} coefficient messages"
 assert fb._pub.wait_for_all_acked(Duration(seconds=30.0)), "coefficients not acknowledged"
@@ -78,13 +84,18 @@ print(json.dumps({{"seen": seen, "last_sample": fm.last_sample}}), flush=True)
 """
 
 
-def test_coefficients_find_their_measurements_processed(ros_domain_id, tmp_path) -> None:
+def _run(script: str, ros_domain_id: int) -> tuple[subprocess.CompletedProcess, dict]:
+    """Run a driver script in its own process; its output and the JSON of its last line."""
     env = dict(os.environ, ROS_DOMAIN_ID=str(ros_domain_id))
     out = subprocess.run(
-        [sys.executable, "-c", SCRIPT], capture_output=True, text=True, env=env, timeout=180
+        [sys.executable, "-c", script], capture_output=True, text=True, env=env, timeout=180
     )
     assert out.returncode == 0, out.stdout + out.stderr
-    result = json.loads(out.stdout.strip().splitlines()[-1])
+    return out, json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def test_coefficients_find_their_measurements_processed(ros_domain_id, tmp_path) -> None:
+    out, result = _run(SCRIPT, ros_domain_id)
     seen = result["seen"]
     assert [n for n, _ in seen] == list(range(1, SAMPLES, 2)), out.stdout  # all, in order
     late = [(n, last) for n, last in seen if last is None or last < n]
@@ -117,18 +128,7 @@ deadline = time.monotonic() + 30.0
 while pub.get_subscription_count() < 1 and time.monotonic() < deadline:
     front.spin_once(timeout_sec=0.05)
 time.sleep(0.5)
-omega = 2 * math.pi * 20.0
-measurements = []
-for i in range({SAMPLES}):
-    m = Measurement(sample_index=i, samples_per_rev={SPR})
-    m.rotor_speed = omega
-    m.rotor_angle = float((2 * math.pi * i / {SPR}) % (2 * math.pi))
-    m.displacement = list(1e-5 * np.cos(2 * math.pi * i / {SPR} + np.arange(8)))
-    m.wavelet_force = [float(i)] * 4
-    t = i / ({SPR} * 20.0)
-    m.header.stamp.sec, m.header.stamp.nanosec = int(t), int(round((t % 1.0) * 1e9))
-    measurements.append(m)
-    pub.publish(m)
+{PUBLISH}
 deadline = time.monotonic() + 30.0
 while len(made) < {SAMPLES} // 2 and time.monotonic() < deadline:
     front.spin_once(timeout_sec=0.05)
@@ -157,12 +157,7 @@ def test_coefficients_wait_for_a_measurement_still_on_its_way(ros_domain_id) -> 
     all (another writer, another path: no poll can find it) are held and processed, in order,
     once it has; in separate processes the early action's force kink was otherwise unknown
     when the burst at it was tested, and the burst reported as a contact (``make demo``)."""
-    env = dict(os.environ, ROS_DOMAIN_ID=str(ros_domain_id))
-    out = subprocess.run(
-        [sys.executable, "-c", LATE], capture_output=True, text=True, env=env, timeout=180
-    )
-    assert out.returncode == 0, out.stdout + out.stderr
-    result = json.loads(out.stdout.strip().splitlines()[-1])
+    out, result = _run(LATE, ros_domain_id)
     seen = result["seen"]
     assert result["before"] == 0, out.stdout  # none processed without its measurement
     assert [n for n, _ in seen] == list(range(1, SAMPLES, 2)), out.stdout  # all, in order
