@@ -37,7 +37,10 @@ every such run measured). A sample whose second difference of the applied force 
 ``control_kink`` on an axis is a *kink*; a contact burst whose coefficient's support, or as
 many samples before it, holds a kink is the force's response and not counted, in any episode.
 A real contact in such a window is missed once; one that persists is found at its next
-burst.
+burst. Kinks are kept for ``KINK_MEMORY_REVS`` revolutions, not by count: in a node the
+measurements (the forces) may run revolutions ahead of the coefficients they explain, and an
+early action's plan kinks in every sample, so a memory of the last 64 kinks had forgotten the
+plan's first one when the burst at it was tested.
 """
 
 from __future__ import annotations
@@ -49,7 +52,10 @@ import numpy as np
 from amb_common.faults import FaultEvent
 from amb_fault_monitor.onset import Crossing, estimate_onset
 
-__all__ = ["ControlSteps"]
+__all__ = ["KINK_MEMORY_REVS", "ControlSteps"]
+
+#: Revolutions a force kink is remembered after the latest one (module notes, "Kinks").
+KINK_MEMORY_REVS = 32
 
 
 class ControlSteps:
@@ -78,7 +84,8 @@ class ControlSteps:
         self._force = [[0.0] * 4 for _ in range(spr)]
         self._force_at = [-(2**62)] * spr
         self._steps: deque[list] = deque(maxlen=32)  # [first, last, largest change N]
-        self._kinks: deque[int] = deque(maxlen=64)  # samples of a force kink (notes)
+        self._kinks: deque[int] = deque()  # samples of a force kink, ascending (notes)
+        self._kink_memory = KINK_MEMORY_REVS * spr
         self._last2: tuple[int, list, list] | None = None  # (n, force n - 1, force n)
         self.transients = 0
         self.last_transient: dict | None = None
@@ -109,7 +116,12 @@ class ControlSteps:
         if last is not None and last[0] == n - 1:
             kink = max(abs(a - 2.0 * b + c) for a, b, c in zip(f, last[2], last[1], strict=True))
             if kink > self.config.control_kink:
-                self._kinks.append(n)
+                kinks = self._kinks
+                while kinks and kinks[-1] >= n:  # the samples went back: keep them ascending
+                    kinks.pop()
+                while kinks and kinks[0] < n - self._kink_memory:
+                    kinks.popleft()
+                kinks.append(n)
             self._last2 = (n, last[2], f)
         else:
             self._last2 = (n, f, f)  # no sample before: no slope yet
@@ -136,7 +148,12 @@ class ControlSteps:
     def kink_near(self, first: int, last: int) -> bool:
         """True if a kink lies in samples ``first..last`` or as many before (module notes)."""
         start = first - (last - first + 1)
-        return any(start <= k <= last for k in self._kinks)
+        for k in reversed(self._kinks):  # ascending: the latest first, stop before the window
+            if k < start:
+                return False
+            if k <= last:
+                return True
+        return False
 
     def in_window(self, n: int) -> bool:
         """True if sample ``n`` lies in a step run or up to ``control_window_revs`` after it."""

@@ -166,3 +166,26 @@ def test_the_controllers_reaction_to_a_fault_does_not_excuse_it(wavelet):
     ]
     assert loss - SPR // 4 <= events[0].onset_sample_index < step  # the loss, not the step
     assert monitor.control_transients == 0
+
+
+def test_a_kink_is_remembered_while_the_forces_run_revolutions_ahead():
+    """In a node the measurements (forces) may run revolutions ahead of the coefficients they
+    explain, and the early action's plan kinks in every sample: the kink at a plan's start must
+    still be found when its burst is tested. A zigzag of 100 N has a second difference of
+    400 N > ``control_kink`` (2 N) at every sample. A kink older than ``KINK_MEMORY_REVS``
+    before the latest is forgotten (the memory is bounded)."""
+    from amb_fault_monitor.control_transients import KINK_MEMORY_REVS, ControlSteps
+
+    steps = ControlSteps(MonitorConfig(SPR))
+    start = 10 * SPR  # a 300 N step: the plan's first sample
+    ahead = 3 * SPR  # the forces of three revolutions past it are in before the burst's test
+    for n in range(start + ahead + 1):
+        f = 0.0 if n < start else 300.0 + (100.0 if n % 2 else -100.0)
+        steps.record(n, np.full(4, f))
+    assert steps.kink_near(start, start + 1)
+    assert not steps.kink_near(start - 4, start - 3)  # before the step: steady, no kink
+    far = start + (KINK_MEMORY_REVS + 2) * SPR
+    for n in range(start + ahead + 1, far + 1):
+        steps.record(n, np.full(4, 300.0 + (100.0 if n % 2 else -100.0)))
+    assert not steps.kink_near(start, start + 1)
+    assert steps.kink_near(far - 1, far)
