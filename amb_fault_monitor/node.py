@@ -151,8 +151,8 @@ UNKNOWN_OMEGA = 1e-9
 QUEUE_REVS = 256
 #: Sequencer counts of refused messages (the others, gaps and restarts, are confirmed changes).
 REFUSED = ("repeat", "stray", "stamp")
-# s (wall): held coefficients whose measurements have not come in this long are processed
-# without them at the next status (_deliver)
+# s (wall): held coefficients are processed without their measurements at the next status once
+# no measurement has come in this long (the stream stopped: lost, not late; _deliver)
 HELD_TIMEOUT = 1.0
 
 
@@ -209,7 +209,10 @@ class FaultMonitorNode(ClosesReaderParticipant, Node):
         # coefficient messages held until the measurement of their last sample (its control
         # force) has been processed: _deliver
         self._held: deque[tuple[CoefficientsView, bytes, bool]] = deque()
-        self._held_since = 0.0  # s, monotonic: when the oldest held message was held
+        # s, monotonic: when the held queue last moved (a message held into an empty queue, or
+        # a measurement processed while messages were held)
+        self._held_moved = 0.0
+        self.unmatched = 0  # coefficient messages processed without their measurements
         self.last_coefficient_sample: int | None = None
         self.counts = dict.fromkeys(("measurements_rejected", "coefficients_rejected"), 0)
         self._last_reason = ""
@@ -471,24 +474,41 @@ class FaultMonitorNode(ClosesReaderParticipant, Node):
         writer, another path: no poll finds it) would be tested without that sample's control
         force: a force kink in it unknown, a burst at it taken for a contact (control_transients,
         "Kinks"). It is held, in order, until the measurement is in (:meth:`_release`), for at
-        most two revolutions of messages: a measurement stream that stops does not hold the
-        monitor back longer, nor (:meth:`_publish_status`) one whose last measurement is lost.
+        most two revolutions of messages, and for at most ``HELD_TIMEOUT`` after the last
+        measurement (:meth:`_publish_status`): a measurement stream that falls behind or stops
+        does not hold the monitor back longer. Messages processed so are counted
+        (``coefficients_unmatched`` on /diagnostics) and logged.
         """
         n = int(msg.sample_index)
         if self._own_readers and (self._held or self.last_sample is None or n > self.last_sample):
             if not self._held:
-                self._held_since = time.monotonic()
+                self._held_moved = time.monotonic()
             self._held.append((msg, raw, reset))
-            while len(self._held) > self._spr:
-                self._coefficients(*self._held.popleft())
+            if len(self._held) > self._spr:
+                self._unmatched(len(self._held) - self._spr, "two revolutions of messages")
             return
         self._coefficients(msg, raw, reset)
 
     def _release(self, last_sample: int) -> None:
         """Process the held coefficient messages whose samples have all been measured."""
         held = self._held
+        if not held:
+            return
+        self._held_moved = time.monotonic()  # the measurement stream is alive: late, not lost
         while held and int(held[0][0].sample_index) <= last_sample:
             self._coefficients(*held.popleft())
+
+    def _unmatched(self, count: int, why: str) -> None:
+        """Process the ``count`` oldest held messages without their measurements."""
+        first = int(self._held[0][0].sample_index)
+        for _ in range(count):
+            self._coefficients(*self._held.popleft())
+        self.unmatched += count
+        self._warnings.warning(
+            "unmatched",
+            f"{count} coefficient message(s) from sample {first} processed without their "
+            f"measurements (held {why}): a control force kink in them is unknown",
+        )
 
     def _coefficients(self, msg: CoefficientsView, raw: bytes, reset: bool) -> None:
         if reset and self._monitor.samples:
@@ -562,9 +582,8 @@ class FaultMonitorNode(ClosesReaderParticipant, Node):
         self.get_logger().warning(f"{ev.fault_type.name}: {ev.description}")
 
     def _publish_status(self) -> None:
-        if self._held and time.monotonic() - self._held_since > HELD_TIMEOUT:
-            while self._held:  # their measurements are lost, not late: process them without
-                self._coefficients(*self._held.popleft())
+        if self._held and time.monotonic() - self._held_moved > HELD_TIMEOUT:
+            self._unmatched(len(self._held), f"{HELD_TIMEOUT:g} s without a measurement")
         statuses = []
         disp, amp = self._trips.displacement, self._trips.amplitude
         for p in range(4):
@@ -607,6 +626,7 @@ class FaultMonitorNode(ClosesReaderParticipant, Node):
             "control_step_n": self._monitor.config.control_step,
             "last_control_transient": self._last_control or "",
             "coil_explained": self._monitor.coil_explained,
+            "coefficients_unmatched": self.unmatched,
             **{f"contacts_bearing_{b}": c for b, c in sorted(self._log.contacts.items())},
             **self.counts,
             **{f"samples_{k}": v for k, v in self._meas_seq.counts.items()},

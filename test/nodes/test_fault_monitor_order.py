@@ -102,7 +102,7 @@ def test_coefficients_find_their_measurements_processed(ros_domain_id, tmp_path)
     assert not late, late  # (coefficient sample, last measurement) pairs out of order
 
 
-LATE = f"""
+SETUP = f"""
 import json, math, time
 import numpy as np
 import rclpy
@@ -133,6 +133,10 @@ deadline = time.monotonic() + 30.0
 while len(made) < {SAMPLES} // 2 and time.monotonic() < deadline:
     front.spin_once(timeout_sec=0.05)
 assert len(made) == {SAMPLES} // 2, f"{{len(made)}} coefficient messages"
+"""
+LATE = (
+    SETUP
+    + f"""
 fm = FaultMonitorNode()  # made after the stream: its readers hold none of it
 seen = []
 processed = fm._coefficients
@@ -150,6 +154,7 @@ for c in made[{SPR}:]:
     fm._on_coefficients(serialize_message(c))
 print(json.dumps({{"seen": seen, "before": before}}), flush=True)
 """
+)
 
 
 def test_coefficients_wait_for_a_measurement_still_on_its_way(ros_domain_id) -> None:
@@ -163,3 +168,46 @@ def test_coefficients_wait_for_a_measurement_still_on_its_way(ros_domain_id) -> 
     assert [n for n, _ in seen] == list(range(1, SAMPLES, 2)), out.stdout  # all, in order
     late = [(n, last) for n, last in seen if last is None or last < n]
     assert not late, late
+
+
+STEADY = (
+    SETUP
+    + f"""
+import amb_fault_monitor.node as monitor_node
+monitor_node.HELD_TIMEOUT = 0.2  # s: the stream below runs several times longer
+fm = FaultMonitorNode()
+seen = []
+processed = fm._coefficients
+def watched(msg, raw, reset):
+    seen.append((int(msg.sample_index), fm.last_sample))
+    processed(msg, raw, reset)
+fm._coefficients = watched
+# the coefficients run two messages ahead of the measurements all the way (the held queue never
+# empties), with status timer ticks between: late all along, never lost
+fm._on_coefficients(serialize_message(made[0]))
+fm._on_coefficients(serialize_message(made[1]))
+for k in range({SAMPLES} // 2):
+    time.sleep(0.03)
+    fm._publish_status()
+    fm._on_measurement(serialize_message(measurements[2 * k]))
+    fm._on_measurement(serialize_message(measurements[2 * k + 1]))
+    if k + 2 < {SAMPLES} // 2:
+        fm._on_coefficients(serialize_message(made[k + 2]))
+print(json.dumps({{"seen": seen, "unmatched": fm.unmatched}}), flush=True)
+"""
+)
+
+
+def test_coefficients_steadily_ahead_are_never_processed_without_their_force(
+    ros_domain_id,
+) -> None:
+    """A measurement stream that lags the coefficients for longer than the monitor's timeout,
+    but keeps coming, is late, not lost: no message is processed before its measurement. (The
+    first version timed the hold from its first message, so a queue that never emptied was
+    flushed once a second, and a flush at the early action's kink reported a contact.)"""
+    out, result = _run(STEADY, ros_domain_id)
+    seen = result["seen"]
+    assert [n for n, _ in seen] == list(range(1, SAMPLES, 2)), out.stdout  # all, in order
+    late = [(n, last) for n, last in seen if last is None or last < n]
+    assert not late, late
+    assert result["unmatched"] == 0, out.stdout
