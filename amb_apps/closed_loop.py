@@ -370,9 +370,10 @@ class _Monitor:
         feedback_channels: Sequence[int],
         config: MonitorConfig | None = None,
         plane_bearings: Sequence[int] | None = None,
+        force_limit: float | None = None,
     ) -> None:
         config = config or MonitorConfig(samples_per_rev=samples_per_rev)
-        self.core = FaultMonitor(config, ki, feedback_channels, plane_bearings)
+        self.core = FaultMonitor(config, ki, feedback_channels, plane_bearings, force_limit)
         self.spr = samples_per_rev
         self.wavelet = wavelet
         self.slots = []
@@ -509,7 +510,7 @@ def run_closed_loop(
     if fault_monitor:
         monitor = _Monitor(
             config.samples_per_rev, config.wavelet, rig.amb.Ki, rig.feedback_channels,
-            monitor_config, rig.plane_clearance_bearings,
+            monitor_config, rig.plane_clearance_bearings, rig.amb.force_limit,
         )  # fmt: skip
     loop = _Loop(rig, scenario, config, model, seed, recorder, monitor, baseline)
     loop.engage_on = tuple(int(c) for c in engage_on)

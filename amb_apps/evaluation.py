@@ -214,6 +214,7 @@ class SimulatedCase:
     ki: float = 1.0  # N/A, the rig's current gain (the commanded force over it: the demand)
     feedback_channels: tuple[int, ...] | None = None  # the rig's, for the loop-bias check
     plane_bearings: tuple[int, ...] | None = None  # the rig's, named in contact events
+    force_limit: float | None = None  # N per axis, the rig's: a force kink at it (monitor)
 
 
 def simulate_case(
@@ -259,6 +260,7 @@ def simulate_case(
         ki=rig.amb.Ki,
         feedback_channels=tuple(rig.feedback_channels),
         plane_bearings=rig.plane_clearance_bearings,
+        force_limit=rig.amb.force_limit,
     )
 
 
@@ -313,7 +315,9 @@ def run_case(
     times = block.time  # s, the sample instants (on a speed profile not n / fs)
     t0 = time.perf_counter()
     adapter = FilterbankAdapter(spr, wav)
-    monitor = FaultMonitor(cfg, case.ki, case.feedback_channels, case.plane_bearings)
+    monitor = FaultMonitor(
+        cfg, case.ki, case.feedback_channels, case.plane_bearings, case.force_limit
+    )
     monitor.trace = trace
     events: list[FaultEvent] = []
     for i in range(block.sample_index.size):

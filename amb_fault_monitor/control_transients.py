@@ -37,9 +37,25 @@ every such run measured). A sample whose second difference of the applied force 
 ``control_kink`` on an axis is a *kink*; a contact burst whose coefficient's support, or as
 many samples before it, holds a kink is the force's response and not counted, in any episode.
 A real contact in such a window is missed once; one that persists is found at its next
-burst. Kinks are kept for ``KINK_MEMORY_REVS`` revolutions, not by count: in a node the
-measurements (the forces) may run revolutions ahead of the coefficients they explain, and an
-early action's plan kinks in every sample, so a memory of the last 64 kinks had forgotten the
+burst.
+
+Limits. The bearing force (PID and wavelet force together) bends where it reaches or leaves
+the actuator's limit: the clipped force's slope jumps at that sample. A loss that drives the
+force to its limit for part of each revolution rings the finest level at those samples (the
+430 g cm loss at 28.65 Hz on the calibrated rig: rotating-frame ratios of 10-53 at the first
+entries to the limit, 1.8 revolutions before the first touch, reported as a contact; the touch
+itself rings 10-30). A sample at which an axis reaches or leaves the limit
+(:meth:`ControlSteps.clipped`, fed when the monitor knows the limit) explains a rise of the
+*rotating*-frame finest level in the same window as a kink (:meth:`ControlSteps.limit_near`):
+there the only test is the envelope of the revolution before (:mod:`~amb_fault_monitor.bursts`),
+which a new bend passes. The fixed frame, where the median and step tests apply as well, is not
+excused: no bend rose there in any case measured, every touch did within a few samples, and a
+coil failure's first touch comes with the other coil's force reaching its limit (excusing both
+frames lost that contact with db2 and db4).
+
+Memory. Kinks and bends are kept for ``KINK_MEMORY_REVS`` revolutions, not by count: in a node
+the measurements (the forces) may run revolutions ahead of the coefficients they explain, and
+an early action's plan kinks in every sample, so a memory of the last 64 kinks had forgotten the
 plan's first one when the burst at it was tested.
 """
 
@@ -87,6 +103,8 @@ class ControlSteps:
         self._kinks: deque[int] = deque()  # samples of a force kink, ascending (notes)
         self._kink_memory = KINK_MEMORY_REVS * spr
         self._last2: tuple[int, list, list] | None = None  # (n, force n - 1, force n)
+        self._limits: tuple[int, tuple[bool, ...]] | None = None  # (n, axes at the limit)
+        self._limit_kinks: deque[int] = deque()  # samples an axis reached or left it, ascending
         self.transients = 0
         self.last_transient: dict | None = None
 
@@ -116,15 +134,38 @@ class ControlSteps:
         if last is not None and last[0] == n - 1:
             kink = max(abs(a - 2.0 * b + c) for a, b, c in zip(f, last[2], last[1], strict=True))
             if kink > self.config.control_kink:
-                kinks = self._kinks
-                while kinks and kinks[-1] >= n:  # the samples went back: keep them ascending
-                    kinks.pop()
-                while kinks and kinks[0] < n - self._kink_memory:
-                    kinks.popleft()
-                kinks.append(n)
+                self._remember(self._kinks, n)
             self._last2 = (n, last[2], f)
         else:
             self._last2 = (n, f, f)  # no sample before: no slope yet
+
+    def clipped(self, sample_index: int, at_limit: np.ndarray) -> None:
+        """
+        Record which axes' bearing force is at the actuator's limit during a sample.
+
+        An axis that reaches or leaves the limit between two consecutive samples is a kink at
+        the later one (module notes, "Limits").
+
+        Parameters
+        ----------
+        sample_index : int
+        at_limit : numpy.ndarray
+            Shape ``(4,)``, bool: ``|bearing force| >= force limit`` per axis.
+        """
+        n = int(sample_index)
+        flags = tuple(bool(a) for a in at_limit)
+        last = self._limits
+        if last is not None and last[0] == n - 1 and last[1] != flags:
+            self._remember(self._limit_kinks, n)
+        self._limits = (n, flags)
+
+    def _remember(self, kinks: deque[int], n: int) -> None:
+        while kinks and kinks[-1] > n:  # the samples went back: keep them ascending
+            kinks.pop()
+        while kinks and kinks[0] < n - self._kink_memory:
+            kinks.popleft()
+        if not kinks or kinks[-1] != n:
+            kinks.append(n)
 
     def run_explaining(self, crossings: list[Crossing], start: int) -> list | None:
         """
@@ -147,13 +188,11 @@ class ControlSteps:
 
     def kink_near(self, first: int, last: int) -> bool:
         """True if a kink lies in samples ``first..last`` or as many before (module notes)."""
-        start = first - (last - first + 1)
-        for k in reversed(self._kinks):  # ascending: the latest first, stop before the window
-            if k < start:
-                return False
-            if k <= last:
-                return True
-        return False
+        return _near(self._kinks, first, last)
+
+    def limit_near(self, first: int, last: int) -> bool:
+        """As :meth:`kink_near`, for the samples an axis reached or left the force limit."""
+        return _near(self._limit_kinks, first, last)
 
     def in_window(self, n: int) -> bool:
         """True if sample ``n`` lies in a step run or up to ``control_window_revs`` after it."""
@@ -172,3 +211,14 @@ class ControlSteps:
             "step_n": float(change),
             "classified_as": ev.fault_type.name,
         }
+
+
+def _near(kinks: deque[int], first: int, last: int) -> bool:
+    """True if ascending ``kinks`` hold a sample in ``first..last`` or as many before."""
+    start = first - (last - first + 1)
+    for k in reversed(kinks):  # the latest first: stop before the window
+        if k < start:
+            return False
+        if k <= last:
+            return True
+    return False

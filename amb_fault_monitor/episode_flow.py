@@ -66,8 +66,11 @@ class EpisodeFlow:
             return
         if self._control_run(ep) and self._control.in_window(n):
             return  # the response to a control step (module notes, step 5)
-        if self._control.kink_near(s.first_sample_index, s.last_sample_index):
+        first, last = s.first_sample_index, s.last_sample_index
+        if self._control.kink_near(first, last):
             return  # the force's own kink (step 5, control_transients "Kinks")
+        if frame != "fixed" and self._control.limit_near(first, last):
+            return  # the bend of the force at its limit (control_transients "Limits")
         if ep.decided is not None:
             ep.last_crossing = n
         onset = ep.contacts.onset

@@ -127,6 +127,11 @@ class FaultMonitor(EpisodeFlow):
         Per sensor plane, the clearance bearing nearest it
         (:attr:`amb_common.rig.Rig.plane_clearance_bearings`): a contact event names the one of
         the plane its change was largest at (without it, ``bearing`` 0: not known).
+    force_limit : float, optional
+        The actuator's force limit per axis, N (:attr:`amb_common.rig.AMBParams.force_limit`):
+        with it, a sample at which the bearing force given to :meth:`currents` reaches or leaves
+        the limit is a force kink (step 5, :mod:`~amb_fault_monitor.control_transients`
+        "Limits"), not a contact.
 
     Attributes
     ----------
@@ -166,8 +171,11 @@ class FaultMonitor(EpisodeFlow):
         ki: float | None = None,
         feedback_channels: Sequence[int] | None = None,
         plane_bearings: Sequence[int] | None = None,
+        force_limit: float | None = None,
     ) -> None:
         self._config = config
+        # N: a bearing force this close to the limit is at it (the plant clips to it exactly)
+        self._at_limit = None if force_limit is None else float(force_limit) * (1.0 - 1e-9)
         self._plane_bearings = tuple(int(b) for b in plane_bearings or ())
         self._coils = CoilCheck(config, ki) if ki is not None else None
         self._bias = None
@@ -348,8 +356,11 @@ class FaultMonitor(EpisodeFlow):
         -------
         list of FaultEvent
             ``COIL_FAILURE`` events confirmed at this sample (:mod:`amb_fault_monitor.coil_check`);
-            empty without ``ki``. The commanded force also feeds the loop-bias check (step 7).
+            empty without ``ki``. The commanded force also feeds the loop-bias check (step 7)
+            and, given ``force_limit``, the force kinks at the limit (step 5).
         """
+        if self._at_limit is not None:
+            self._control.clipped(sample_index, np.abs(commanded_force) >= self._at_limit)
         if self._bias is not None:
             self._bias.add(sample_index, commanded_force)
         if self._coils is None:

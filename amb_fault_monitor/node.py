@@ -192,7 +192,7 @@ class FaultMonitorNode(ClosesReaderParticipant, Node):
         )
         self._box = self._blackbox()
         self._monitor = FaultMonitor(
-            config, self._ki, self._feedback_channels, self._plane_bearings
+            config, self._ki, self._feedback_channels, self._plane_bearings, self._force_limit
         )
         self._meas_seq = SampleSequencer(self._spr)
         # coefficient messages every second sample: index // 2 is consecutive (module notes)
@@ -297,6 +297,7 @@ class FaultMonitorNode(ClosesReaderParticipant, Node):
         self._ki = rig.amb.Ki  # N/A: the coil check's demanded current (FaultMonitor.currents)
         self._feedback_channels = rig.feedback_channels  # the loop-bias check's probes
         self._plane_bearings = rig.plane_clearance_bearings  # named in contact events
+        self._force_limit = rig.amb.force_limit  # N: the bearing force's kinks at it
 
     def _blackbox(self) -> BlackBox | None:
         p = self.get_parameter

@@ -189,3 +189,23 @@ def test_a_kink_is_remembered_while_the_forces_run_revolutions_ahead():
         steps.record(n, np.full(4, 300.0 + (100.0 if n % 2 else -100.0)))
     assert not steps.kink_near(start, start + 1)
     assert steps.kink_near(far - 1, far)
+
+
+def test_the_samples_an_axis_reaches_or_leaves_the_limit_are_its_bends():
+    """``clipped`` marks the sample at which an axis's flag changes from the sample before (a
+    gap in the samples gives no slope, so no bend), kept apart from the control force's kinks;
+    ``limit_near`` looks in a coefficient's support and as many samples before."""
+    from amb_fault_monitor.control_transients import ControlSteps
+
+    steps = ControlSteps(MonitorConfig(SPR))
+    flags = np.zeros(4, dtype=bool)
+    for n in range(100):
+        flags[3] = 40 <= n < 47  # b2y at its limit for samples 40..46
+        flags[0] = n >= 70  # b1x from 70, whose sample is missing: 71 has no sample before
+        if n != 70:
+            steps.clipped(n, flags)
+    assert steps.limit_near(40, 41) and steps.limit_near(46, 47)  # reached at 40, left at 47
+    assert steps.limit_near(42, 43)  # 40 is among the two samples before the support
+    assert not steps.limit_near(36, 37) and not steps.limit_near(44, 45)
+    assert not steps.limit_near(71, 72)  # no bend across the gap
+    assert not steps.kink_near(40, 47)  # not a kink of the control force
