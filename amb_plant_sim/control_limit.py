@@ -38,7 +38,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from amb_common.rig import Rig
-from amb_plant_sim.errors import SimulationError
+from amb_plant_sim.errors import BoundExceededError, SimulationError
 from amb_plant_sim.peak_lp import OCTAGON, Family, PeakProgram, octagon_bound
 from amb_plant_sim.scenario import Scenario
 from amb_plant_sim.simulator import MeasurementBlock, PlantSimulator
@@ -208,6 +208,12 @@ def control_limit(
     Returns
     -------
     LimitResult
+
+    Raises
+    ------
+    BoundExceededError
+        A clearance is reached before any added force can act, or no added force within the
+        limits keeps the rotor inside its clearances (the linear program is infeasible).
     """
     if scenario.speed_hz is None or scenario.profile_hz:
         raise SimulationError("control_limit needs a resolved constant-speed scenario")
@@ -231,7 +237,7 @@ def control_limit(
     program = PeakProgram(families, k0, revolutions, tail_revolutions, N, added)
     sol = program.solve()
     if sol is None:
-        raise SimulationError(
+        raise BoundExceededError(
             "no added force within the limits keeps the rotor inside its clearances and the "
             "control force within the force limit (linear program infeasible)"
         )

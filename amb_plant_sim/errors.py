@@ -16,4 +16,10 @@ class SimulationError(ValueError):
 
 
 class BoundExceededError(SimulationError):
-    """A constrained output leaves its bound before any added force can act on it."""
+    """
+    No added force keeps a constrained output within its bound.
+
+    The output leaves it before any force can act, or no force within the force limits can hold
+    it: a physical verdict on the case, not a failure (``amb-bound`` and ``amb-compare`` report
+    it in place of the limit).
+    """

@@ -80,3 +80,21 @@ def test_contact_before_any_force_can_act_is_reported(rig):
     fault = next(e.time for e in sc.events if e.kind == "mass_loss")
     with pytest.raises(BoundExceededError, match="clearance"):
         control_limit(rig, sc, SPR, fault, 2, revolutions=1, tail_revolutions=2, settle=False)
+
+
+def test_no_force_within_the_limits_that_keeps_the_rotor_clear_is_reported(rig):
+    """The 150 N synchronous step at the first critical speed: with PID alone the rotor ends on
+    an auxiliary bearing (simulator truth, the premise); with a 10 N added force no controller
+    can keep it clear, and that is the physical verdict (``BoundExceededError``, which
+    ``amb-compare`` and ``amb-bound`` report as "no limit"), not a failure of the program."""
+    from amb_plant_sim.simulator import PlantSimulator
+
+    sc = load_scenario(SCENARIOS / "sync_force_150N_first_critical.yaml", rig)
+    step = next(e.time for e in sc.events if e.kind == "sync_force")
+    n = round(sc.duration * sc.speed_hz * SPR)
+    assert PlantSimulator(rig, sc, SPR, 0).advance(n).truth["contact"].any()  # the premise
+    with pytest.raises(BoundExceededError, match="infeasible"):
+        control_limit(
+            rig, sc, SPR, step, 2, revolutions=1, tail_revolutions=2, added_limit=10.0,
+            settle=False,
+        )  # fmt: skip
