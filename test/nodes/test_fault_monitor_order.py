@@ -134,16 +134,22 @@ while len(made) < {SAMPLES} // 2 and time.monotonic() < deadline:
     front.spin_once(timeout_sec=0.05)
 assert len(made) == {SAMPLES} // 2, f"{{len(made)}} coefficient messages"
 """
-LATE = (
-    SETUP
-    + f"""
-fm = FaultMonitorNode()  # made after the stream: its readers hold none of it
+# records (coefficient message's sample, the last measurement processed then) per message
+WATCH = """
 seen = []
 processed = fm._coefficients
 def watched(msg, raw, reset):
     seen.append((int(msg.sample_index), fm.last_sample))
     processed(msg, raw, reset)
 fm._coefficients = watched
+"""
+LATE = (
+    SETUP
+    + """
+fm = FaultMonitorNode()  # made after the stream: its readers hold none of it
+"""
+    + WATCH
+    + f"""
 # the coefficients of the first two revolutions come before any measurement reaches the monitor
 for c in made[: {SPR}]:
     fm._on_coefficients(serialize_message(c))
@@ -172,16 +178,13 @@ def test_coefficients_wait_for_a_measurement_still_on_its_way(ros_domain_id) -> 
 
 STEADY = (
     SETUP
-    + f"""
+    + """
 import amb_fault_monitor.node as monitor_node
 monitor_node.HELD_TIMEOUT = 0.2  # s: the stream below runs several times longer
 fm = FaultMonitorNode()
-seen = []
-processed = fm._coefficients
-def watched(msg, raw, reset):
-    seen.append((int(msg.sample_index), fm.last_sample))
-    processed(msg, raw, reset)
-fm._coefficients = watched
+"""
+    + WATCH
+    + f"""
 # the coefficients run two messages ahead of the measurements all the way (the held queue never
 # empties), with status timer ticks between: late all along, never lost
 fm._on_coefficients(serialize_message(made[0]))
