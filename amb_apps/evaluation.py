@@ -214,7 +214,7 @@ class SimulatedCase:
     ki: float = 1.0  # N/A, the rig's current gain (the commanded force over it: the demand)
     feedback_channels: tuple[int, ...] | None = None  # the rig's, for the loop-bias check
     plane_bearings: tuple[int, ...] | None = None  # the rig's, named in contact events
-    force_limit: float | None = None  # N per axis, the rig's: a force kink at it (monitor)
+    force_limit: float | None = None  # N per axis, the rig's: the monitor's bends at it
 
 
 def simulate_case(

@@ -128,10 +128,10 @@ class FaultMonitor(EpisodeFlow):
         (:attr:`amb_common.rig.Rig.plane_clearance_bearings`): a contact event names the one of
         the plane its change was largest at (without it, ``bearing`` 0: not known).
     force_limit : float, optional
-        The actuator's force limit per axis, N (:attr:`amb_common.rig.AMBParams.force_limit`):
+        The actuator's force limit per axis, N (:attr:`amb_common.rig.AmbData.force_limit`):
         with it, a sample at which the bearing force given to :meth:`currents` reaches or leaves
-        the limit is a force kink (step 5, :mod:`~amb_fault_monitor.control_transients`
-        "Limits"), not a contact.
+        the limit is a bend of the force, and a rotating-frame finest-level rise at it is not a
+        contact (step 5, :mod:`~amb_fault_monitor.control_transients` "Limits").
 
     Attributes
     ----------
@@ -357,7 +357,7 @@ class FaultMonitor(EpisodeFlow):
         list of FaultEvent
             ``COIL_FAILURE`` events confirmed at this sample (:mod:`amb_fault_monitor.coil_check`);
             empty without ``ki``. The commanded force also feeds the loop-bias check (step 7)
-            and, given ``force_limit``, the force kinks at the limit (step 5).
+            and, given ``force_limit``, the bends of the force at the limit (step 5).
         """
         if self._at_limit is not None:
             self._control.clipped(sample_index, np.abs(commanded_force) >= self._at_limit)
