@@ -143,8 +143,8 @@ class ControlSteps:
         """
         Record which axes' bearing force is at the actuator's limit during a sample.
 
-        An axis that reaches or leaves the limit between two consecutive samples is a kink at
-        the later one (module notes, "Limits").
+        An axis that reaches or leaves the limit between two consecutive samples is a bend at
+        the later one (module notes, "Limits"); a gap in the samples gives none.
 
         Parameters
         ----------

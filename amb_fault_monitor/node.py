@@ -297,7 +297,7 @@ class FaultMonitorNode(ClosesReaderParticipant, Node):
         self._ki = rig.amb.Ki  # N/A: the coil check's demanded current (FaultMonitor.currents)
         self._feedback_channels = rig.feedback_channels  # the loop-bias check's probes
         self._plane_bearings = rig.plane_clearance_bearings  # named in contact events
-        self._force_limit = rig.amb.force_limit  # N: the bearing force's kinks at it
+        self._force_limit = rig.amb.force_limit  # N: the bearing force bends at it (contacts)
 
     def _blackbox(self) -> BlackBox | None:
         p = self.get_parameter
