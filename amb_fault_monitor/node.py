@@ -79,7 +79,6 @@ from __future__ import annotations
 
 import math
 import time
-from collections import deque
 from dataclasses import replace
 
 import numpy as np
@@ -99,6 +98,7 @@ from amb_common.errors import RigError
 from amb_common.faults import FaultEvent
 from amb_common.rig import load_rig
 from amb_fault_monitor.blackbox import BlackBox
+from amb_fault_monitor.coefficient_hold import CoefficientHold
 from amb_fault_monitor.coefficient_messages import (
     EXTRA_OCTAVES,
     FRAME,
@@ -207,12 +207,8 @@ class FaultMonitorNode(ClosesReaderParticipant, Node):
         self.last_sample: int | None = None
         self._own_readers = bus is None  # composed, the stack's bus orders the two streams
         # coefficient messages held until the measurement of their last sample (its control
-        # force) has been processed: _deliver
-        self._held: deque[tuple[CoefficientsView, bytes, bool]] = deque()
-        # s, monotonic: when the held queue last moved (a message held into an empty queue, or
-        # a measurement processed while messages were held)
-        self._held_moved = 0.0
-        self.unmatched = 0  # coefficient messages processed without their measurements
+        # force) has been processed, two revolutions of messages at most: _deliver
+        self._held = CoefficientHold(self._spr, HELD_TIMEOUT)
         self.last_coefficient_sample: int | None = None
         self.counts = dict.fromkeys(("measurements_rejected", "coefficients_rejected"), 0)
         self._last_reason = ""
@@ -471,44 +467,33 @@ class FaultMonitorNode(ClosesReaderParticipant, Node):
         """
         Process one sequenced coefficient message, or hold it until its samples are measured.
 
-        A message whose last sample's measurement has not reached the monitor (another
-        writer, another path: no poll finds it) would be tested without that sample's control
-        force: a force kink in it unknown, a burst at it taken for a contact (control_transients,
-        "Kinks"). It is held, in order, until the measurement is in (:meth:`_release`), for at
-        most two revolutions of messages, and for at most ``HELD_TIMEOUT`` after the last
-        measurement (:meth:`_publish_status`): a measurement stream that falls behind or stops
-        does not hold the monitor back longer. Messages processed so are counted
+        Held (:mod:`amb_fault_monitor.coefficient_hold`) while its last sample's measurement
+        has not been processed; the messages given back unmatched are counted
         (``coefficients_unmatched`` on /diagnostics) and logged.
         """
-        n = int(msg.sample_index)
-        if self._own_readers and (self._held or self.last_sample is None or n > self.last_sample):
-            if not self._held:
-                self._held_moved = time.monotonic()
-            self._held.append((msg, raw, reset))
-            if len(self._held) > self._spr:
-                self._unmatched(len(self._held) - self._spr, "two revolutions of messages")
+        if self._own_readers and self._held.wants(int(msg.sample_index), self.last_sample):
+            over = self._held.hold((msg, raw, reset), time.monotonic())
+            self._unmatched(over, "two revolutions of messages")
             return
         self._coefficients(msg, raw, reset)
 
     def _release(self, last_sample: int) -> None:
         """Process the held coefficient messages whose samples have all been measured."""
-        held = self._held
-        if not held:
-            return
-        self._held_moved = time.monotonic()  # the measurement stream is alive: late, not lost
-        while held and int(held[0][0].sample_index) <= last_sample:
-            self._coefficients(*held.popleft())
+        if self._held:
+            for item in self._held.release(last_sample, time.monotonic()):
+                self._coefficients(*item)
 
-    def _unmatched(self, count: int, why: str) -> None:
-        """Process the ``count`` oldest held messages without their measurements."""
-        first = int(self._held[0][0].sample_index)
-        for _ in range(count):
-            self._coefficients(*self._held.popleft())
-        self.unmatched += count
+    def _unmatched(self, items: list, why: str) -> None:
+        """Process coefficient messages given back without their measurements."""
+        if not items:
+            return
+        for item in items:
+            self._coefficients(*item)
         self._warnings.warning(
             "unmatched",
-            f"{count} coefficient message(s) from sample {first} processed without their "
-            f"measurements (held {why}): a control force kink in them is unknown",
+            f"{len(items)} coefficient message(s) from sample {int(items[0][0].sample_index)} "
+            f"processed without their measurements (held {why}): a control force kink in them "
+            "is unknown",
         )
 
     def _coefficients(self, msg: CoefficientsView, raw: bytes, reset: bool) -> None:
@@ -583,8 +568,9 @@ class FaultMonitorNode(ClosesReaderParticipant, Node):
         self.get_logger().warning(f"{ev.fault_type.name}: {ev.description}")
 
     def _publish_status(self) -> None:
-        if self._held and time.monotonic() - self._held_moved > HELD_TIMEOUT:
-            self._unmatched(len(self._held), f"{HELD_TIMEOUT:g} s without a measurement")
+        self._unmatched(
+            self._held.expired(time.monotonic()), f"{self._held.timeout:g} s without a measurement"
+        )
         statuses = []
         disp, amp = self._trips.displacement, self._trips.amplitude
         for p in range(4):
@@ -627,7 +613,7 @@ class FaultMonitorNode(ClosesReaderParticipant, Node):
             "control_step_n": self._monitor.config.control_step,
             "last_control_transient": self._last_control or "",
             "coil_explained": self._monitor.coil_explained,
-            "coefficients_unmatched": self.unmatched,
+            "coefficients_unmatched": self._held.unmatched,
             **{f"contacts_bearing_{b}": c for b, c in sorted(self._log.contacts.items())},
             **self.counts,
             **{f"samples_{k}": v for k, v in self._meas_seq.counts.items()},

@@ -196,7 +196,7 @@ for k in range({SAMPLES} // 2):
     fm._on_measurement(serialize_message(measurements[2 * k + 1]))
     if k + 2 < {SAMPLES} // 2:
         fm._on_coefficients(serialize_message(made[k + 2]))
-print(json.dumps({{"seen": seen, "unmatched": fm.unmatched}}), flush=True)
+print(json.dumps({{"seen": seen, "unmatched": fm._held.unmatched}}), flush=True)
 """
 )
 
