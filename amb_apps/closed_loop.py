@@ -37,7 +37,6 @@ pipeline's topics and types (:mod:`amb_apps.run_bag`).
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
@@ -64,6 +63,7 @@ from amb_wavelet.frontend import FRAMES, QUADRATURES, ChannelFrontEnd
 
 if TYPE_CHECKING:
     from amb_apps.run_bag import BagRecorder
+    from amb_common.rig import Rig
 
 __all__ = [
     "RunResult",
@@ -359,21 +359,19 @@ class _Monitor:
     The ``amb_fault_monitor`` core fed as the node feeds it (optional).
 
     The measurement's currents and commanded forces (coil check, loop-bias check, with the
-    rig's ``K_i`` and feedback channels), the applied wavelet force and the filterbank records.
+    rig's data: :meth:`FaultMonitor.from_rig`), the applied wavelet force and the filterbank
+    records.
     """
 
     def __init__(
         self,
         samples_per_rev: int,
         wavelet: str,
-        ki: float,
-        feedback_channels: Sequence[int],
+        rig: Rig,
         config: MonitorConfig | None = None,
-        plane_bearings: Sequence[int] | None = None,
-        force_limit: float | None = None,
     ) -> None:
         config = config or MonitorConfig(samples_per_rev=samples_per_rev)
-        self.core = FaultMonitor(config, ki, feedback_channels, plane_bearings, force_limit)
+        self.core = FaultMonitor.from_rig(config, rig)
         self.spr = samples_per_rev
         self.wavelet = wavelet
         self.slots = []
@@ -508,10 +506,7 @@ def run_closed_loop(
     """
     monitor = None
     if fault_monitor:
-        monitor = _Monitor(
-            config.samples_per_rev, config.wavelet, rig.amb.Ki, rig.feedback_channels,
-            monitor_config, rig.plane_clearance_bearings, rig.amb.force_limit,
-        )  # fmt: skip
+        monitor = _Monitor(config.samples_per_rev, config.wavelet, rig, monitor_config)
     loop = _Loop(rig, scenario, config, model, seed, recorder, monitor, baseline)
     loop.engage_on = tuple(int(c) for c in engage_on)
     if controller is not None:

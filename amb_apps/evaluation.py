@@ -211,10 +211,7 @@ class SimulatedCase:
     monitor: dict[str, Any]
     block: Any
     wall_time: float = 0.0
-    ki: float = 1.0  # N/A, the rig's current gain (the commanded force over it: the demand)
-    feedback_channels: tuple[int, ...] | None = None  # the rig's, for the loop-bias check
-    plane_bearings: tuple[int, ...] | None = None  # the rig's, named in contact events
-    force_limit: float | None = None  # N per axis, the rig's: the monitor's bends at it
+    rig: Any = None  # the rig simulated, whose monitor runs on it (FaultMonitor.from_rig)
 
 
 def simulate_case(
@@ -257,10 +254,7 @@ def simulate_case(
         monitor=mon_d,
         block=block,
         wall_time=time.perf_counter() - t0,
-        ki=rig.amb.Ki,
-        feedback_channels=tuple(rig.feedback_channels),
-        plane_bearings=rig.plane_clearance_bearings,
-        force_limit=rig.amb.force_limit,
+        rig=rig,
     )
 
 
@@ -315,9 +309,7 @@ def run_case(
     times = block.time  # s, the sample instants (on a speed profile not n / fs)
     t0 = time.perf_counter()
     adapter = FilterbankAdapter(spr, wav)
-    monitor = FaultMonitor(
-        cfg, case.ki, case.feedback_channels, case.plane_bearings, case.force_limit
-    )
+    monitor = FaultMonitor.from_rig(cfg, case.rig)
     monitor.trace = trace
     events: list[FaultEvent] = []
     for i in range(block.sample_index.size):

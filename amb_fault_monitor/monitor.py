@@ -84,6 +84,7 @@ plane feature uses the partner channel only) until :meth:`FaultMonitor.reset`.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -105,6 +106,9 @@ from amb_fault_monitor.provisional import ProvisionalClass
 from amb_fault_monitor.records import SampleCoefficients
 from amb_wavelet.analysis import DETAIL
 from amb_wavelet.levels import revolution_level
+
+if TYPE_CHECKING:
+    from amb_common.rig import Rig
 
 __all__ = ["FaultMonitor"]
 
@@ -187,6 +191,33 @@ class FaultMonitor(EpisodeFlow):
         self._early = ProvisionalClass(config)
         self.trace: list[tuple[int, int, str, int, int, np.ndarray]] | None = None
         self.reset()
+
+    @classmethod
+    def from_rig(cls, config: MonitorConfig, rig: Rig) -> FaultMonitor:
+        """
+        The monitor of ``rig``: every check that needs the rig's data switched on.
+
+        The one place the monitor's rig fields are read, for the node, ``amb-fault-eval`` and
+        the in-process loop alike: ``ki`` (:attr:`~amb_common.rig.AmbData.Ki`, A to N),
+        ``feedback_channels``, ``plane_bearings`` (the clearance bearing of each sensor
+        plane) and ``force_limit`` (:attr:`~amb_common.rig.AmbData.force_limit`, N).
+
+        Parameters
+        ----------
+        config : MonitorConfig
+        rig : amb_common.rig.Rig
+
+        Returns
+        -------
+        FaultMonitor
+        """
+        return cls(
+            config,
+            ki=rig.amb.Ki,
+            feedback_channels=rig.feedback_channels,
+            plane_bearings=rig.plane_clearance_bearings,
+            force_limit=rig.amb.force_limit,
+        )
 
     # ------------------------------------------------------------------ public
     @property

@@ -191,9 +191,7 @@ class FaultMonitorNode(ClosesReaderParticipant, Node):
             self._spr,
         )
         self._box = self._blackbox()
-        self._monitor = FaultMonitor(
-            config, self._ki, self._feedback_channels, self._plane_bearings, self._force_limit
-        )
+        self._monitor = FaultMonitor.from_rig(config, self._rig)
         self._meas_seq = SampleSequencer(self._spr)
         # coefficient messages every second sample: index // 2 is consecutive (module notes)
         self._coef_seq = SampleSequencer(self._spr // 2)
@@ -279,7 +277,7 @@ class FaultMonitorNode(ClosesReaderParticipant, Node):
         return tuple(values)
 
     def _rig_levels(self) -> None:
-        """Default trip levels from the clearances of the rig file (``rig`` parameter)."""
+        """Load the rig file (``rig`` parameter): the monitor's rig and the default trip levels."""
         path = self.get_parameter("rig").value
         try:
             rig = load_rig(path or None)
@@ -290,10 +288,7 @@ class FaultMonitorNode(ClosesReaderParticipant, Node):
             self._clearance = clearance_levels(rig, 1.0)  # m, nearest clearance per plane
         except FaultMonitorError as exc:
             raise ConfigurationError(f"parameter 'rig' = {path!r}: {exc}") from exc
-        self._ki = rig.amb.Ki  # N/A: the coil check's demanded current (FaultMonitor.currents)
-        self._feedback_channels = rig.feedback_channels  # the loop-bias check's probes
-        self._plane_bearings = rig.plane_clearance_bearings  # named in contact events
-        self._force_limit = rig.amb.force_limit  # N: the bearing force bends at it (contacts)
+        self._rig = rig  # the monitor's rig fields: FaultMonitor.from_rig
 
     def _blackbox(self) -> BlackBox | None:
         p = self.get_parameter
