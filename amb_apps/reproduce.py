@@ -228,9 +228,9 @@ def run_experiment(exp: dict, out: Path) -> dict:
                "--out", str(run_dir), "--controller", run["controller"],
                "--delay", str(exp.get("delay", 2)),
                "--max-model-radius", "0"]  # fmt: skip
-        for opt in ("w", "v", "linear", "k"):
+        for opt in ("w", "v", "linear", "k", "model_gain", "model_phase"):
             if opt in run:
-                cmd += [f"--{opt}", str(run[opt])]
+                cmd += [f"--{opt.replace('_', '-')}", str(run[opt])]
         cmd += ["--model", str(model) if model.exists() else "identify"]
         t0 = time.monotonic()
         _run(cmd, folder / f"{_slug(label)}.log")

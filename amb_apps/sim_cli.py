@@ -15,7 +15,10 @@ lock-step order of the ROS nodes (:mod:`amb_apps.closed_loop`) and writes
 * ``DIR/metrics.json``: :func:`amb_controller.metrics.compute_metrics` plus the
   configuration, the model source, the run time and the early action's decisions
   (``--early fe|FILE``: :mod:`amb_controller.early_action`);
-* ``DIR/model.npz``: the wavelet model used (identified, FE or copied).
+* ``DIR/model.npz``: the wavelet model (identified, FE or copied), without the deliberate
+  error of ``--model-gain``/``--model-phase`` (:func:`amb_controller.baselines.perturb_model`:
+  the controller's model off by a gain and a 1 x phase, a robustness study on one run; the
+  error is in ``metrics.json``'s ``model_error``).
 
 Exit status 0 on success, 2 on invalid arguments or configuration.
 """
@@ -38,7 +41,7 @@ from amb_apps.report_metrics import json_default
 from amb_apps.run_bag import BagRecorder
 from amb_common.config_fields import default_of
 from amb_common.rig import load_rig
-from amb_controller.baselines import BaselineSettings
+from amb_controller.baselines import BaselineSettings, perturb_model
 from amb_controller.config import CONTROLLERS, OUTPUT_BASES, ControllerConfig
 from amb_controller.early_model import EarlyModelBank
 from amb_controller.metrics import compute_metrics, inner_summary
@@ -121,6 +124,20 @@ def build_parser() -> argparse.ArgumentParser:
         "goes ACTIVE (else the run is PID only and says why); 0 = off",
     )
     ap.add_argument("--model", default="fe", help="identify | fe | FILE (.npz)")
+    ap.add_argument(
+        "--model-gain",
+        type=float,
+        default=1.0,
+        help="a deliberate model error: the controller's model scaled by this factor (> 0) at "
+        "every measured quadrature pair; model.npz stays the model without it",
+    )
+    ap.add_argument(
+        "--model-phase",
+        type=float,
+        default=0.0,
+        help="a deliberate model error: the controller's model rotated by this many degrees at "
+        "every measured quadrature pair (with --model-gain: perturb_model)",
+    )
     ap.add_argument(
         "--window", type=int, default=2, help="synchronous: periods per influence update"
     )
@@ -228,6 +245,12 @@ def run(args) -> dict:
             model = WaveletModel.load(args.model)
             source = str(args.model)
         model.save(out / "model.npz")
+    error = {"gain": float(args.model_gain), "phase_deg": float(args.model_phase)}
+    if error != {"gain": 1.0, "phase_deg": 0.0}:
+        if model is None:
+            raise ValueError("--model-gain/--model-phase need a controller with a model")
+        model = perturb_model(model, error["gain"], math.radians(error["phase_deg"]))
+        source = model.source
     early = None
     if args.early == "fe":
         early = early_action_model(rig, scenario, spr)
@@ -259,6 +282,7 @@ def run(args) -> dict:
             "scenario_name": scenario.name,
             "controller": config.to_dict(),
             "model_source": source,
+            "model_error": error,
             "seed": args.seed,
             "bag": None if recorder is None else str(out / "bag"),
             "bag_counts": None if recorder is None else dict(recorder.writer.counts),

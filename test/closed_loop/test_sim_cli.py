@@ -9,6 +9,7 @@ import pytest
 from rosbags.rosbag2 import Reader
 
 from amb_apps import sim_cli
+from amb_controller.model_file import WaveletModel
 from amb_tools.bag_types import typestore
 
 SCENARIO = Path(__file__).resolve().parents[2] / "config/scenarios/mass_loss_first_critical.yaml"
@@ -101,6 +102,34 @@ def test_a_controller_its_own_model_says_diverges_is_reported_and_the_check_can_
     assert sim_cli.main([*common, "--max-model-radius", "0", "--out", str(tmp_path / "off")]) == 0
     off = json.loads((tmp_path / "off" / "metrics.json").read_text())
     assert off["refused"] == "" and off["model_radius"] == checked["model_radius"]
+
+
+def test_a_deliberate_model_error_reaches_the_controller_and_not_the_model_file(tmp_path, capsys):
+    """``--model-gain``/``--model-phase``: the controller runs on the perturbed model,
+    ``model.npz`` stays the model (a run that reuses it gets no error), and the error is in
+    metrics.json."""
+    common = ["--scenario", str(SCENARIO), "--samples-per-rev", str(SPR), "--duration", "0.5",
+              "--no-bag", "--controller", "transient"]  # fmt: skip
+    assert sim_cli.main([*common, "--out", str(tmp_path / "exact")]) == 0
+    off = ["--model-gain", "0.7", "--model-phase", "-45"]
+    assert sim_cli.main([*common, *off, "--out", str(tmp_path / "off")]) == 0
+    exact = json.loads((tmp_path / "exact" / "metrics.json").read_text())
+    wrong = json.loads((tmp_path / "off" / "metrics.json").read_text())
+    assert exact["model_error"] == {"gain": 1.0, "phase_deg": 0.0}
+    assert wrong["model_error"] == {"gain": 0.7, "phase_deg": -45.0}
+    # a model with 0.7 of the plant's gain asks ~1 / 0.7 of the force for the same residual
+    # unbalance (the loop converges on it from the start); its own-model loop is unchanged
+    force = [m["bearings"]["1"]["peak_wavelet_force"] for m in (exact, wrong)]
+    assert force[0] > 1.0 and force[1] > 1.2 * force[0]
+    assert wrong["model_source"] == exact["model_source"] + " x0.7 -45deg"
+    assert wrong["model_radius"] == pytest.approx(exact["model_radius"], rel=1e-6)
+    a, b = (WaveletModel.load(tmp_path / d / "model.npz") for d in ("exact", "off"))
+    assert np.array_equal(a.markov, b.markov) and a.source == b.source
+    none = ["--scenario", str(SCENARIO), "--duration", "0.2", "--no-bag", "--controller", "none"]
+    assert sim_cli.main([*none, "--model-gain", "0.7", "--out", str(tmp_path / "x")]) == 2
+    assert "need a controller with a model" in capsys.readouterr().err
+    assert sim_cli.main([*common, "--model-gain", "0", "--out", str(tmp_path / "y")]) == 2
+    assert "gain must be > 0" in capsys.readouterr().err
 
 
 def test_the_predictive_options_reach_its_configuration(tmp_path, capsys):
