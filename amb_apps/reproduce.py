@@ -66,7 +66,9 @@ def key_metrics(metrics: dict) -> dict[str, float]:
         (:func:`rebound` of the per-revolution inner peaks), ``peak_wavelet_force`` (N,
         largest over the bearings), ``contacts`` (contact onsets, simulator truth) and
         ``model_radius`` (spectral radius of the controller's loop on its own model; None
-        without a model-based controller).
+        without a model-based controller) and ``radius_without_error`` (with a deliberate
+        model error, ``model_gain``/``model_phase``: the radius of the loop closed around the
+        model without it, :func:`amb_apps.sim_cli.radius_without_error`; else None).
     """
     sensors = metrics["sensors"]
     return {
@@ -77,6 +79,7 @@ def key_metrics(metrics: dict) -> dict[str, float]:
         "peak_wavelet_force": max(b["peak_wavelet_force"] for b in metrics["bearings"].values()),
         "contacts": metrics["contact_count"],
         "model_radius": metrics.get("model_radius"),
+        "radius_without_error": metrics.get("radius_without_model_error"),
     }
 
 

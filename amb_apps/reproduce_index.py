@@ -64,6 +64,8 @@ def _run_table(results: dict) -> list[str]:
                 "model_radius",
             )
         ]
+        if r.get("radius_without_error") is not None:  # a run with a deliberate model error
+            cells[-1] += f" ({fmt('model_radius', r['radius_without_error'])} without the error)"
         lines.append(f"| {label} | {' | '.join(cells)} |")
     return lines
 

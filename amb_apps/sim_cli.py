@@ -42,10 +42,17 @@ from amb_apps.run_bag import BagRecorder
 from amb_common.config_fields import default_of
 from amb_common.rig import load_rig
 from amb_controller.baselines import BaselineSettings, perturb_model
-from amb_controller.config import CONTROLLERS, OUTPUT_BASES, ControllerConfig
+from amb_controller.config import (
+    BASELINE_CONTROLLERS,
+    CONTROLLERS,
+    OUTPUT_BASES,
+    ControllerConfig,
+)
 from amb_controller.early_model import EarlyModelBank
 from amb_controller.metrics import compute_metrics, inner_summary
 from amb_controller.model_file import WaveletModel
+from amb_controller.pipeline import ControllerPipeline
+from amb_controller.stability import own_model_radius
 from amb_plant_sim.scenario import load_scenario, resolve_samples_per_rev
 
 #: The controller's defaults (ControllerConfig's fields), the options' defaults.
@@ -202,6 +209,24 @@ def config_from_args(args, spr: int, capacity: float):
     return ControllerConfig.from_dict(d, capacity=capacity)
 
 
+def radius_without_error(
+    config: ControllerConfig, capacity: float, exact: WaveletModel, perturbed: WaveletModel
+) -> float | None:
+    """
+    The spectral radius of the controller built on ``perturbed``, closed around ``exact``.
+
+    The loop the run's plant sees if ``exact`` is the plant (the controller's own-model
+    radius, ``model_radius``, does not change with a gain or phase error: the controller
+    inverts its own model). None for the 1 x baselines (no realisation on this model).
+    """
+    if config.controller in BASELINE_CONTROLLERS:
+        return None
+    pipeline = ControllerPipeline(config, capacity)
+    pipeline.set_model(perturbed)
+    controller = pipeline.supervisor.controller
+    return None if controller is None else own_model_radius(exact.markov, controller)
+
+
 def run(args) -> dict:
     """Run ``amb-sim`` with parsed arguments; return the metrics written."""
     t0 = time.perf_counter()
@@ -246,11 +271,14 @@ def run(args) -> dict:
             source = str(args.model)
         model.save(out / "model.npz")
     error = {"gain": float(args.model_gain), "phase_deg": float(args.model_phase)}
+    error_radius = None
     if error != {"gain": 1.0, "phase_deg": 0.0}:
         if model is None:
             raise ValueError("--model-gain/--model-phase need a controller with a model")
+        exact = model
         model = perturb_model(model, error["gain"], math.radians(error["phase_deg"]))
         source = model.source
+        error_radius = radius_without_error(config, rig.amb.force_limit, exact, model)
     early = None
     if args.early == "fe":
         early = early_action_model(rig, scenario, spr)
@@ -283,6 +311,7 @@ def run(args) -> dict:
             "controller": config.to_dict(),
             "model_source": source,
             "model_error": error,
+            "radius_without_model_error": error_radius,
             "seed": args.seed,
             "bag": None if recorder is None else str(out / "bag"),
             "bag_counts": None if recorder is None else dict(recorder.writer.counts),
