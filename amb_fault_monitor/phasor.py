@@ -17,6 +17,14 @@ ring-down fails the second test). Table 5.1 asks for the new *steady state*: dec
 fixed delay while the transient still rings confuses the two. The threshold of each plane is
 the calibrated one, or ``sync_relative_floor`` of the reference's 1 x level if larger.
 
+Coherent: a new level is also a change of the *mean* phasor. Both "settled" and the trend at
+the end of the wait need the mean of the latest ``settle_revs`` changes ``P_k - P_ref``
+(complex, per channel) to be at least ``sync_change`` thresholds on some plane. A mode ringing
+near running speed beats against 1 x: the magnitude of each change stays above the threshold
+while its phase turns or jumps from one revolution to the next, and the mean averages out
+(the AB2 rub at 67.64 Hz, with the 68.7 Hz mode ringing: ``docs/fault_monitor_notes.md``,
+"The 1 x level after a rub").
+
 The level is *moving* (:meth:`SynchronousLevel.moving`) while ``s_k >= sync_change`` on all of
 the latest ``2 settle_revs`` phasors: it has not returned and still moves (a large loss whose
 contacts keep it ringing), so the decision waits on up to ``decision_max_revs``. If it is
@@ -124,12 +132,20 @@ class SynchronousLevel:
         mean_last = ratio[-w:].mean(axis=0)
         if np.all(last < cfg.sync_change):
             return "returned", mean_last, change
+        # the mean phasor of the latest revolutions: a new level moves it; a mode ringing near
+        # 1 x beats against it and its change averages out (module docstring, "Coherent")
+        d_mean = np.mean([(p - p_ref) * mask for p in after[-w:]], axis=0)
+        coherent = bool(
+            np.any(np.hypot(np.abs(d_mean[0::2]), np.abs(d_mean[1::2])) / thr >= cfg.sync_change)
+        )
         sustained = prev.size == 0 or last.mean() >= cfg.sustain * prev.mean()
-        if prev.size and sustained and np.ptp(last) <= cfg.settle_spread * last.mean():
+        steady = prev.size and sustained and np.ptp(last) <= cfg.settle_spread * last.mean()
+        if steady and coherent:
             return "settled", mean_last, change
         if final:
             away = len(s) >= 2 * w and bool(np.all(s[-2 * w :] >= cfg.sync_change))
-            return ("settled" if sustained or away else "returned"), mean_last, change
+            lasting = (sustained or away) and coherent
+            return ("settled" if lasting else "returned"), mean_last, change
         return None, mean_last, change
 
     def moving(self, p_ref: np.ndarray | None, onset: int, mask: np.ndarray) -> bool:
