@@ -33,6 +33,12 @@ all three rises agree: over the ring-down's envelope, over the median and in the
 change. An impulse passes all three; the slope of a slow motion (haar) passes the median alone,
 a rotating-frame ring only the envelope.
 
+A coil failure's episode may begin with the touch itself: after the loss of one coil the
+other pulls the rotor onto its auxiliary bearing within a few samples (0.1 revolution at 11
+Hz), before the rise test starts, and the rotor then rests there. Its landing, a probe plane
+at ``landing_fraction`` of its nearest clearance (:meth:`ContactBursts.land`), is then the
+contact, where the rise test found none.
+
 Bursts closer than ``burst_gap_revs`` are one. If the episode is decided a contact, they add
 to its count; otherwise one ``AUX_BEARING_CONTACT`` event (:meth:`ContactBursts.event`) is
 emitted right after the decision (or at the first contact found in the tail), onset at the
@@ -75,6 +81,9 @@ class ContactBursts:
         Largest ratio per plane (4,) of a burst.
     reported : bool
         True once the bursts were reported (as a contact decision or their own event).
+    landing : numpy.ndarray or None
+        The planes' shares of their clearances (4,) at a landing counted as the contact
+        (:meth:`land`), else None.
     """
 
     def __init__(self, start: int) -> None:
@@ -85,6 +94,7 @@ class ContactBursts:
         self.peak = 0.0
         self.plane_peak = np.zeros(4)
         self.reported = False
+        self.landing: np.ndarray | None = None
         self._last = -1
         self._history: deque = deque()
         self._fixed_history: deque = deque()
@@ -158,6 +168,16 @@ class ContactBursts:
         self.peak = max(self.peak, float(ratio.max()))
         self.plane_peak = np.maximum(self.plane_peak, ratio)
 
+    def land(self, n: int, shares: np.ndarray) -> None:
+        """
+        Count the landing at sample ``n`` as the contact (none found by the rise test).
+
+        ``shares``: each plane's largest radial displacement over its nearest clearance (4,)
+        in the episode so far.
+        """
+        self.count, self.onset, self.detection, self._last = 1, n, n, n
+        self.landing = np.asarray(shares, dtype=float)
+
     def clear(self) -> None:
         """Drop the bursts found so far (they came from a failing sensor, not the rotor)."""
         self.count, self.onset, self.detection = 0, -1, -1
@@ -172,6 +192,8 @@ class ContactBursts:
         transient). Marks the bursts reported.
         """
         self.reported = True
+        if self.landing is not None:
+            return self._landing_event(n, omega, after, config)
         plane = int(np.argmax(self.plane_peak)) + 1
         r = self.peak
         control = after == "CONTROL_TRANSIENT"
@@ -194,6 +216,37 @@ class ContactBursts:
             description=(
                 f"{self.count} contact burst(s) at the finest level above the "
                 f"envelope of the {'control' if control else after.lower()} transient"
+            ),
+        )
+
+    def _landing_event(self, n: int, omega: float, after: str, config) -> FaultEvent:
+        """
+        The contact event of a landing (:meth:`land`).
+
+        Its share over ``landing_fraction`` gives the confidence, as a ratio over its limit
+        does for every event.
+        """
+        plane = int(np.argmax(self.landing)) + 1
+        share = float(self.landing.max())
+        return FaultEvent(
+            FaultType.AUX_BEARING_CONTACT,
+            onset_sample_index=self.onset,
+            detection_sample_index=self.detection,
+            decision_sample_index=n,
+            samples_per_rev=config.samples_per_rev,
+            omega=omega,
+            plane=plane,
+            confidence=ratio_confidence(share / config.landing_fraction),
+            count=1,
+            evidence={
+                "after": after,
+                "bursts": 1,
+                "landing_clearance_share": share,
+                "rule": f"probe plane at >= {config.landing_fraction:g} of its clearance",
+            },
+            description=(
+                f"plane {plane} reached {share:.2f} of its auxiliary bearing's clearance after "
+                f"the {after.lower()}: the rotor landed on the bearing"
             ),
         )
 

@@ -100,6 +100,11 @@ class MonitorConfig:
         A burst needs a finest-level ratio of at least ``confirm_ratio``, or of at least this
         in the fixed frame with all three rises above (ring-down envelope, median, change):
         a light touch of a rotor already ringing (:mod:`amb_fault_monitor.bursts`).
+    landing_fraction : float
+        A probe plane whose radial displacement reaches this fraction of its nearest auxiliary
+        bearing's radial clearance in a coil failure's episode has landed on that bearing: a
+        contact, counted when the rise test found none in the episode (monitor notes, step 6;
+        needs the clearances, :meth:`FaultMonitor.from_rig`).
     dead_fraction, dead_revs
         Stuck/zero channel test (:mod:`amb_fault_monitor.dead_channels`).
     control_step : float
@@ -208,6 +213,7 @@ class MonitorConfig:
         floats=(1.0, 100.0),
     )
     weak_burst_ratio: float = 1.5
+    landing_fraction: float = 0.9
     dead_fraction: float = 0.02
     dead_revs: float = 1.0
     control_step: float = param(
@@ -255,8 +261,9 @@ class MonitorConfig:
         positive = (
             "calibration_revs", "settle_ratio", "k", "confirm_ratio", "confirm_revs", "quiet_revs",
             "decision_revs", "max_tail_revs", "isolation", "sync_change", "burst_gap_revs",
-            "tail_rise", "tail_rise_median", "weak_burst_ratio", "dead_revs", "base_coherence",
-            "base_dominance", "rearm_revs", "control_step", "control_kink", "control_window_revs",
+            "tail_rise", "tail_rise_median", "weak_burst_ratio", "landing_fraction", "dead_revs",
+            "base_coherence", "base_dominance", "rearm_revs", "control_step", "control_kink",
+            "control_window_revs",
             "coil_floor", "coil_factor", "coil_confirm_revs", "bias_floor", "bias_factor",
             "bias_steady", "provisional_ratio", "provisional_residual", "jump_factor",
             "jump_isolation", "jump_lasting",

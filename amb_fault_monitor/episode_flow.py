@@ -119,6 +119,7 @@ class EpisodeFlow:
                     ep.explained = FaultType.COIL_FAILURE.name
                     self.coil_explained += 1
                     events += ep.withdrawal(ep.explained)
+                    self._landed(ep)
                     if ep.contacts.count:
                         self._report_contacts(ep, n, events)
                     if quiet:
@@ -154,6 +155,11 @@ class EpisodeFlow:
             self._report_contacts(ep, n, events)
         if quiet or n - ep.decided.decision_sample_index >= cfg.max_tail_revs * spr:
             self._end_tail(n, events)
+
+    def _landed(self, ep: Episode) -> None:
+        """A coil failure's episode without a contact burst: its landing is the contact (step 6)."""
+        if not ep.contacts.count and ep.landing is not None:
+            ep.contacts.land(*ep.landing)
 
     def _provisional(self, n: int, ep: Episode, onset: int, events: list[FaultEvent]) -> None:
         """

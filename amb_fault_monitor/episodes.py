@@ -56,6 +56,10 @@ class Episode:
         The contact bursts found in it.
     explained : str
         The fault it is the consequence of (``COIL_FAILURE``: monitor notes, step 6), or "".
+    landing : tuple or None
+        ``(sample, shares)``: the first sample of the episode at which a probe plane reached
+        ``landing_fraction`` of its clearance, and each plane's largest share of its clearance
+        (4,) since (:meth:`FaultMonitor.displacements`); None before.
     provisional : FaultEvent or None
         Its provisional class, once published (monitor notes, step 3).
     provisional_due : bool
@@ -89,6 +93,7 @@ class Episode:
     contacts: ContactBursts = field(init=False)
     first_strongest: Crossing | None = None  # estimate_onset's crossing, kept as they come
     explained: str = ""
+    landing: tuple[int, np.ndarray] | None = None
     provisional: FaultEvent | None = None
     provisional_due: bool = True
 

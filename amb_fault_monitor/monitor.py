@@ -56,7 +56,10 @@ Episodes
    onset within a revolution of the failure's) is its consequence, counted
    (``coil_explained``), not reported as a class of Table 5.1 (the one-sided pull of a lost
    coil changes the 1 x level for good, as a mass loss does). Contacts in it are reported:
-   the rotor does touch.
+   the rotor does touch. Where the touch begins the episode (the remaining coil pulls the
+   rotor onto its auxiliary bearing within a few samples, before the rise test starts) and the
+   rise test finds no burst, a probe plane at ``landing_fraction`` of its nearest clearance
+   (given ``clearances``) is the contact (:mod:`amb_fault_monitor.bursts`).
 7. *Biased probes in the loop*: an episode decided a contact is a ``SENSOR_FAULT`` of the
    bearing-plane probe of the axis whose one-revolution mean force has stepped to a new, held
    level since before the episode (:mod:`amb_fault_monitor.loop_bias`; needs the currents, as
@@ -104,6 +107,7 @@ from amb_fault_monitor.onset import AtomCentres
 from amb_fault_monitor.phasor import SynchronousLevel
 from amb_fault_monitor.provisional import ProvisionalClass
 from amb_fault_monitor.records import SampleCoefficients
+from amb_fault_monitor.trips import clearance_levels
 from amb_wavelet.analysis import DETAIL
 from amb_wavelet.levels import revolution_level
 
@@ -136,6 +140,11 @@ class FaultMonitor(EpisodeFlow):
         with it, a sample at which the bearing force given to :meth:`currents` reaches or leaves
         the limit is a bend of the force, and a rotating-frame finest-level rise at it is not a
         contact (step 5, :mod:`~amb_fault_monitor.control_transients` "Limits").
+    clearances : sequence of float, optional
+        Per sensor plane, the radial clearance of its nearest auxiliary bearing, m
+        (:func:`amb_fault_monitor.trips.clearance_levels`): with it, the displacements given
+        to :meth:`displacements` show a rotor that landed on its bearing after a coil failure
+        (step 6).
 
     Attributes
     ----------
@@ -176,8 +185,10 @@ class FaultMonitor(EpisodeFlow):
         feedback_channels: Sequence[int] | None = None,
         plane_bearings: Sequence[int] | None = None,
         force_limit: float | None = None,
+        clearances: Sequence[float] | None = None,
     ) -> None:
         self._config = config
+        self._clearances = None if clearances is None else np.asarray(clearances, dtype=float)
         # N: a bearing force this close to the limit is at it (the plant clips to it exactly)
         self._at_limit = None if force_limit is None else float(force_limit) * (1.0 - 1e-9)
         self._plane_bearings = tuple(int(b) for b in plane_bearings or ())
@@ -200,7 +211,9 @@ class FaultMonitor(EpisodeFlow):
         The one place the monitor's rig fields are read, for the node, ``amb-fault-eval`` and
         the in-process loop alike: ``ki`` (:attr:`~amb_common.rig.AmbData.Ki`, A to N),
         ``feedback_channels``, ``plane_bearings`` (the clearance bearing of each sensor
-        plane) and ``force_limit`` (:attr:`~amb_common.rig.AmbData.force_limit`, N).
+        plane), ``force_limit`` (:attr:`~amb_common.rig.AmbData.force_limit`, N) and
+        ``clearances`` (that bearing's radial clearance, m; none for a rig without clearance
+        bearings).
 
         Parameters
         ----------
@@ -217,6 +230,7 @@ class FaultMonitor(EpisodeFlow):
             feedback_channels=rig.feedback_channels,
             plane_bearings=rig.plane_clearance_bearings,
             force_limit=rig.amb.force_limit,
+            clearances=clearance_levels(rig, 1.0) if rig.clearance_bearings else None,
         )
 
     # ------------------------------------------------------------------ public
@@ -402,15 +416,26 @@ class FaultMonitor(EpisodeFlow):
 
     def displacements(self, sample_index: int, displacement: np.ndarray) -> None:
         """
-        Record one sample's probe readings (8,), m, for the provisional class.
+        Record one sample's probe readings (8,), m: the provisional class and landings.
 
         From the measurement, for the jump test and the change's shape
-        (:mod:`amb_fault_monitor.provisional`); without them the
-        provisional class comes from the coefficients alone. Nothing is done (nor costs) while
-        ``provisional_revs`` is 0.
+        (:mod:`amb_fault_monitor.provisional`; without them the provisional class comes from
+        the coefficients alone, and nothing is done for it while ``provisional_revs`` is 0),
+        and, given the clearances, for a landing on an auxiliary bearing in an open episode
+        (step 6: :attr:`Episode.landing`).
         """
         if self._config.provisional_revs > 0:
             self._early.add(sample_index, displacement)
+        ep = self._episode
+        if self._clearances is None or ep is None or ep.decided is not None:
+            return
+        d = np.asarray(displacement, dtype=float)
+        planes = self._mask[0::2] & self._mask[1::2]
+        shares = np.hypot(d[0::2], d[1::2]) * planes / self._clearances
+        if ep.landing is not None:
+            ep.landing = (ep.landing[0], np.maximum(ep.landing[1], shares))
+        elif shares.max() >= self._config.landing_fraction:
+            ep.landing = (int(sample_index), shares)
 
     def step(self, record: SampleCoefficients) -> list[FaultEvent]:
         """
