@@ -189,65 +189,46 @@ class ContactBursts:
         The ``AUX_BEARING_CONTACT`` event of the bursts so far, decided at sample ``n``.
 
         ``after`` names the episode's class (``"CONTROL_TRANSIENT"`` for a control
-        transient). Marks the bursts reported.
+        transient). Marks the bursts reported. A landing (:meth:`land`) has its share over
+        ``landing_fraction`` for the confidence, as a ratio over its limit does for every event.
         """
         self.reported = True
         if self.landing is not None:
-            return self._landing_event(n, omega, after, config)
-        plane = int(np.argmax(self.plane_peak)) + 1
-        r = self.peak
-        control = after == "CONTROL_TRANSIENT"
-        return FaultEvent(
-            FaultType.AUX_BEARING_CONTACT,
-            onset_sample_index=self.onset,
-            detection_sample_index=self.detection,
-            decision_sample_index=n,
-            samples_per_rev=config.samples_per_rev,
-            omega=omega,
-            plane=plane,
-            confidence=ratio_confidence(r),
-            count=self.count,
-            evidence={
-                "after": after,
-                "bursts": self.count,
-                "peak_ratio_finest_level": r,
-                "rule": f"finest level >= {config.tail_rise:g} x its ring-down envelope",
-            },
-            description=(
-                f"{self.count} contact burst(s) at the finest level above the "
-                f"envelope of the {'control' if control else after.lower()} transient"
-            ),
-        )
-
-    def _landing_event(self, n: int, omega: float, after: str, config) -> FaultEvent:
-        """
-        The contact event of a landing (:meth:`land`).
-
-        Its share over ``landing_fraction`` gives the confidence, as a ratio over its limit
-        does for every event.
-        """
-        plane = int(np.argmax(self.landing)) + 1
-        share = float(self.landing.max())
-        return FaultEvent(
-            FaultType.AUX_BEARING_CONTACT,
-            onset_sample_index=self.onset,
-            detection_sample_index=self.detection,
-            decision_sample_index=n,
-            samples_per_rev=config.samples_per_rev,
-            omega=omega,
-            plane=plane,
-            confidence=ratio_confidence(share / config.landing_fraction),
-            count=1,
-            evidence={
-                "after": after,
-                "bursts": 1,
+            plane = int(np.argmax(self.landing)) + 1
+            share = float(self.landing.max())
+            confidence = ratio_confidence(share / config.landing_fraction)
+            evidence = {
                 "landing_clearance_share": share,
                 "rule": f"probe plane at >= {config.landing_fraction:g} of its clearance",
-            },
-            description=(
+            }
+            description = (
                 f"plane {plane} reached {share:.2f} of its auxiliary bearing's clearance after "
                 f"the {after.lower()}: the rotor landed on the bearing"
-            ),
+            )
+        else:
+            plane = int(np.argmax(self.plane_peak)) + 1
+            confidence = ratio_confidence(self.peak)
+            evidence = {
+                "peak_ratio_finest_level": self.peak,
+                "rule": f"finest level >= {config.tail_rise:g} x its ring-down envelope",
+            }
+            control = after == "CONTROL_TRANSIENT"
+            description = (
+                f"{self.count} contact burst(s) at the finest level above the "
+                f"envelope of the {'control' if control else after.lower()} transient"
+            )
+        return FaultEvent(
+            FaultType.AUX_BEARING_CONTACT,
+            onset_sample_index=self.onset,
+            detection_sample_index=self.detection,
+            decision_sample_index=n,
+            samples_per_rev=config.samples_per_rev,
+            omega=omega,
+            plane=plane,
+            confidence=confidence,
+            count=self.count,
+            evidence={"after": after, "bursts": self.count, **evidence},
+            description=description,
         )
 
 
