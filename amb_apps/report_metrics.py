@@ -49,6 +49,10 @@ NOT_IN_BAG = {
     "(closed_loop_radius) of a node run, not in amb-sim's bag",
     "refused": "a refusal to go ACTIVE is in the ControllerStatus message text, not a field",
     "early_detections": "the early action's decisions are in the controller's log, not published",
+    "model_error": "a deliberate model error (amb-sim --model-gain/--model-phase) is amb-sim's "
+    "own; the controller's model is not published",
+    "radius_without_model_error": "computed by amb-sim from the model without its deliberate "
+    "error, which is not published",
     "controller": "only controller name, mode, delay, wavelet and periods are published "
     "(ControllerStatus, ControlCommand, WaveletCoefficients); gains are not",
 }
