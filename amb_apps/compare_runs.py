@@ -516,8 +516,9 @@ def robustness(matrix: Matrix, progress=None, jobs: int | None = 1) -> dict:
     Every controller with its model off by +-30 % gain, +-30 deg phase, and at +-10 % speed.
 
     On the first-critical mass loss; the coefficient model stays the one of the nominal speed
-    (the early action's bank, :meth:`Matrix.early_model`, spans +-12 % of it). ``jobs`` as in
-    :func:`comparison`.
+    (the early action's bank, :meth:`Matrix.early_model`, spans +-12 % of it), and at another
+    speed the fault falls at the same sample of the same revolution
+    (:func:`~amb_apps.compare_cases.at_speed`). ``jobs`` as in :func:`comparison`.
     """
     runs = [(name, case) for name in ROBUSTNESS_ROWS for case in ROBUSTNESS_CASES]
 

@@ -19,7 +19,8 @@ early action's force path perturbed as the coefficient model
 (:func:`amb_apps.compare_runs.perturb_early_model`). ``faults``: every constant-speed
 scenario of ``config/scenarios/faults`` with ``predictive_i1`` and ``predictive_early_i1``:
 peaks, contact samples and what the early action decided. ``speeds``: ``mass_loss_1st`` with
-the plant's speed moved by each factor, ``amb-compare``'s bank of early models (+-12 %): the
+the plant's speed moved by each factor (the fault at the same sample of the same revolution,
+:func:`amb_apps.compare_cases.at_speed`), ``amb-compare``'s bank of early models (+-12 %): the
 peak with and without the early action, its decision, and a count. Deterministic (seeded
 noise).
 """
