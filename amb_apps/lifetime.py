@@ -17,7 +17,8 @@ they should (``amb-run`` and the test harness use the main thread).
 The parent's side (:func:`catch_stop_signals`): SIGTERM (what ``kill``, ``timeout``, systemd and
 container runtimes send) and SIGHUP (the terminal closed) ended ``amb-run`` at once, by
 Python's default, without the cleanup that stops the nodes and lets the recorder write the
-last messages; under :func:`catch_stop_signals` they stop the run as Ctrl-C does.
+last messages; under :func:`catch_stop_signals` they stop the run as Ctrl-C does, at the next
+point where the run checks for them.
 """
 
 from __future__ import annotations
@@ -90,12 +91,54 @@ class RunStopped(Exception):  # noqa: N818 (a request, not an error)
 STOP_SIGNALS = (signal.SIGTERM, signal.SIGHUP)
 
 
-def catch_stop_signals(notice: Callable[[str], None] = print) -> Callable[[], None]:
-    """Make SIGTERM and SIGHUP raise :class:`RunStopped` in the main thread, until restored.
+class StopSignals:
+    """SIGTERM and SIGHUP recorded as a stop request, raised where the caller checks for it.
 
-    The first one raises, so that the caller's ``finally`` stops what it started; later ones
-    only call ``notice`` (the cleanup is under way and should not be cut short). Off the main
-    thread (where Python cannot set handlers) nothing changes.
+    The handler only records the signal. An exception raised *from* a handler comes out of
+    whatever the main thread was running when the signal arrived; inside rclpy's C++ (an
+    executor's ``spin_once`` taking a message) pybind11 turned it into a ``RuntimeError``
+    ("Unable to convert call argument '0'"), ``amb-run`` ended with status 1 and a traceback
+    instead of its stop. The caller's wait loops call :meth:`check` between their spins
+    (every 50 ms in ``amb-run``), in Python, where :class:`RunStopped` stays itself.
+
+    Off the main thread (where Python cannot set handlers) nothing is caught.
+
+    Parameters
+    ----------
+    notice : callable
+        Told about a signal that comes after the first (the cleanup is under way and should
+        not be cut short).
+    """
+
+    def __init__(self, notice: Callable[[str], None] = print) -> None:
+        self.signum: int | None = None
+        self._raised = False
+        self._notice = notice
+        self._previous: dict[int, object] = {}
+        if threading.current_thread() is threading.main_thread():
+            self._previous = {s: signal.signal(s, self._handler) for s in STOP_SIGNALS}
+
+    def _handler(self, signum: int, _frame) -> None:
+        if self.signum is not None:
+            self._notice(f"{signal.Signals(signum).name} again: already stopping")
+            return
+        self.signum = signum
+
+    def check(self) -> None:
+        """Raise :class:`RunStopped` for the first recorded signal, once; else do nothing."""
+        if self.signum is not None and not self._raised:
+            self._raised = True
+            raise RunStopped(self.signum)
+
+    def restore(self) -> None:
+        """Put the previous handlers back (call it when the cleanup is done)."""
+        for s, h in self._previous.items():
+            signal.signal(s, h)
+        self._previous = {}
+
+
+def catch_stop_signals(notice: Callable[[str], None] = print) -> StopSignals:
+    """Record SIGTERM and SIGHUP as a stop request until restored (:class:`StopSignals`).
 
     Parameters
     ----------
@@ -104,25 +147,9 @@ def catch_stop_signals(notice: Callable[[str], None] = print) -> Callable[[], No
 
     Returns
     -------
-    callable
-        Puts the previous handlers back (call it when the cleanup is done).
+    StopSignals
+        Its :meth:`~StopSignals.check` raises :class:`RunStopped` once a signal came, so that
+        the caller's ``finally`` stops what it started; :meth:`~StopSignals.restore` puts the
+        previous handlers back.
     """
-    if threading.current_thread() is not threading.main_thread():
-        return lambda: None
-    raised = False
-
-    def handler(signum: int, _frame) -> None:
-        nonlocal raised
-        if raised:
-            notice(f"{signal.Signals(signum).name} again: already stopping")
-            return
-        raised = True
-        raise RunStopped(signum)
-
-    previous = {s: signal.signal(s, handler) for s in STOP_SIGNALS}
-
-    def restore() -> None:
-        for s, h in previous.items():
-            signal.signal(s, h)
-
-    return restore
+    return StopSignals(notice)

@@ -78,7 +78,7 @@ import yaml
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.executors import SingleThreadedExecutor
 
-from amb_apps.lifetime import RunStopped, catch_stop_signals
+from amb_apps.lifetime import RunStopped, StopSignals, catch_stop_signals
 from amb_apps.run_end import DRAIN_TIMEOUT, drain, plant_samples, settle_recording
 from amb_apps.run_processes import (
     NICENESS,
@@ -253,6 +253,9 @@ class _Progress:
 
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
+        #: Stop signals checked between spins; set by :func:`run` once its handlers are in
+        #: place (after ``rclpy.init``, which installs handlers of its own).
+        self.stop: StopSignals | None = None
 
     def _on_diag(self, msg) -> None:
         for s in msg.status:
@@ -275,6 +278,8 @@ class _Progress:
     def spin(self, seconds: float) -> None:
         deadline = time.monotonic() + seconds
         while time.monotonic() < deadline:
+            if self.stop is not None:
+                self.stop.check()
             self.executor.spin_once(timeout_sec=0.05)
 
     def graph(self, names: dict[str, int]) -> dict[str, int]:
@@ -415,7 +420,7 @@ def run(args: argparse.Namespace) -> int:
     progress = _Progress(namespace)
     status = 0
     t0 = time.monotonic()
-    restore_signals = catch_stop_signals(lambda m: print(f"[amb-run] {m}", file=sys.stderr))
+    progress.stop = catch_stop_signals(lambda m: print(f"[amb-run] {m}", file=sys.stderr))
     try:
         plant = next(r for r in runs if r.name == "plant_sim")
         for r in runs:
@@ -498,7 +503,7 @@ def run(args: argparse.Namespace) -> int:
 
         for r in sorted(runs, key=records):  # the recorder (or the stack holding it) last
             codes[r.name] = r.stop()
-        restore_signals()
+        progress.stop.restore()
     wall = time.monotonic() - t0
     bad = {n: c for n, c in codes.items() if c != 0}
     if bad:
