@@ -196,8 +196,9 @@ class EarlyAction:
 
     Notes
     -----
-    A plan is applied only if the displacement it predicts at every sensor (the reference's
-    peak plus the planned residual change), raised by ``1 + gain_margin``, stays inside the
+    A plan is applied only if the displacement it predicts at every sensor (the reference
+    periods' measured motion, periodic, plus the planned residual change, sample by sample),
+    raised by ``1 + gain_margin``, stays inside the
     model's ``clearance``. Beyond it contacts and the magnets' nonlinearity, which the linear
     model does not hold, decide the motion, and the change is left to the feedback law (on
     the figure-5.27 cases the exact estimate's plan, applied, put the rotor on its bearings
@@ -267,6 +268,8 @@ class EarlyAction:
         n_hist = self._n_hist
         self._forces: deque[np.ndarray] = deque([np.zeros(self.N * 4)] * n_hist, maxlen=n_hist)
         self._z: deque[np.ndarray] = deque(maxlen=self.config.reference_periods + 2)
+        # those periods' measured displacements, (N, n_s) m each (the clearance check)
+        self._y: deque[np.ndarray] = deque(maxlen=self.config.reference_periods + 2)
         self._quiet = 0
         self._history_periods = 0
         self._noise2: float | None = None
@@ -318,6 +321,7 @@ class EarlyAction:
         applied = np.concatenate(self._forces).astype(np.float32)
         z = y.ravel() - (self._t @ applied).astype(float)
         self._z.append(z)
+        self._y.append(y.copy())
         self._history_periods += 1
         R = self.config.reference_periods
         if len(self._z) < R + 2 or self._history_periods < self._n_hist:
@@ -351,11 +355,16 @@ class EarlyAction:
         self._deferred = False
         th = theta[p, k]
         first = period + self.delay
-        plan, predicted, effect = self._plan(p, k, th, period, first)
+        plan, planned, effect = self._plan(p, k, th, period, first)
         if effect < self.config.min_effect * math.sqrt(self._noise2):
             self._update_quiet(zs, ref)
             return None
-        predicted += float(np.max(np.abs(ref)))
+        # on top of what the rotor does now, the feedback law's force included (held by the
+        # pipeline while the plan acts, ``hold_law``), not of ``ref``: ``z`` has the law's
+        # force taken out; k0 starts a period, so the periodic motion lines up sample by sample
+        now = np.mean(list(self._y)[:R], axis=0)
+        reps = -(-self.L // N)
+        predicted = float(np.max(np.abs(planned + np.tile(now, (reps, 1))[: self.L])))
         acted = predicted <= self.safe_displacement
         if acted:
             self._plans.append((first, plan))
@@ -377,6 +386,7 @@ class EarlyAction:
         self.detections.append(det)
         self._quiet = 0  # a new reference after the change
         self._z.clear()
+        self._y.clear()
         return det
 
     def _update_quiet(self, zs: list[np.ndarray], ref: np.ndarray) -> None:
@@ -392,14 +402,15 @@ class EarlyAction:
         else:
             self._quiet = 0
             self._z.clear()
+            self._y.clear()
 
     def _plan(
         self, p: int, k: int, theta: np.ndarray, period: int, first: int
-    ) -> tuple[Plan, float, float]:
+    ) -> tuple[Plan, np.ndarray, float]:
         """(E2)-(E4) for the change at window sample ``k`` in plane ``p``.
 
-        Returns the plan, the planned residual's peak and the change's own predicted peak
-        from ``k0`` on, m.
+        Returns the plan, the planned residual from ``k0`` on (``(L, n_s)``) and the change's
+        own predicted peak from ``k0`` on, m.
         """
         N, L = self.N, self.L
         g = self.model.plane_responses[p]

@@ -155,13 +155,13 @@ class PlanMaker:
             ]
             self._obj = obj
 
-    def make(self, yd: np.ndarray, first: int, force_limit: float) -> tuple[Plan, float]:
+    def make(self, yd: np.ndarray, first: int, force_limit: float) -> tuple[Plan, np.ndarray]:
         """
         The plan against ``yd``, the change's predicted response from ``k0`` (``(L n_s,)``, m).
 
         ``first`` is the plan's first period, ``force_limit`` the per-axis limit of the
-        wavelet force (N; ``config.force_budget`` of it). Returns the plan and the peak of the
-        residual it predicts, m.
+        wavelet force (N; ``config.force_budget`` of it). Returns the plan and the residual it
+        predicts from ``k0``, ``(L, n_s)``, m.
         """
         N = self.N
         w_full = self._steady_gain @ yd[self._tail]  # (E2) before the robust scale
@@ -200,4 +200,4 @@ class PlanMaker:
                 part = df[j : j + N]
                 block[: len(part)] = part
                 plan.transient[first + j // N] = block
-        return plan, float(np.max(np.abs(residual)))
+        return plan, residual.reshape(self.L, -1)

@@ -165,6 +165,39 @@ def test_the_plan_stands_down_when_it_would_reach_the_clearance():
     assert not early.force(22).any()
 
 
+def test_the_clearance_check_reads_the_measured_motion_not_the_forceless_reference():
+    """A feedback force that cancels a large steady unbalance is no motion of the rotor.
+
+    The reference ``z`` has the applied force's response taken out: under a feedback law that
+    cancels a steady unbalance, it is the uncontrolled response, while the rotor barely moves.
+    The check adds the measured motion (contact_case2 of amb-compare: the law held the inner
+    probes at 1 um, its reference was 353 um, and a plan that lowered the peak from 303 to
+    271 um without a contact was refused). Here the force's response is 20 x the change's
+    peak and the clearance only twice the predicted peak with its margin: on the reference
+    the plan would stand down.
+    """
+    model = _synthetic_model()
+    onset, theta = 20 * N + 5, np.array([0.3, -0.2])
+    y = _measure(model, 26, onset, 0, theta)
+    change_peak = float(np.abs(y[onset:]).max())
+    k = np.arange(len(y))
+    force = np.zeros((len(y), 4))
+    force[:, 1] = np.cos(2 * math.pi * k / N)  # steady from the start, periodic in z
+    h = model.bearing_markov
+    unit = max(np.abs(np.convolve(force[:, 1], h[:, s, 1])[: len(y)])[L:].max() for s in range(2))
+    force *= 20 * change_peak / unit
+    free = EarlyAction(model, EarlyActionConfig(), delay=1)
+    (probe,) = _run(free, y, force)  # infinite clearance: always acted
+    assert probe.acted
+    config = EarlyActionConfig()
+    clearance = 2 * (1 + config.gain_margin) * probe.predicted_peak
+    assert clearance < 20 * change_peak  # the forceless reference alone would not fit
+    early = EarlyAction(replace(model, clearance=clearance), config, delay=1)
+    (found,) = _run(early, y, force)
+    assert found.acted and found.predicted_peak < 1.5 * change_peak
+    assert early.force(found.first_period).any()
+
+
 def test_the_stage_flags_the_axes_whose_command_the_limit_cut():
     """The plan added to the law's command may pass the force limit: the stage clips it and says
     on which axes (the command's ``saturated``), and leaves a command it adds nothing to as is.
