@@ -338,14 +338,15 @@ def _fault_report(outs: list[Output], work: Path) -> list[str]:
 
 
 def _compare_commands(work: Path, args) -> list[Command]:
-    return [Command(["amb-compare", "--multilevel", "--out", str(work / "run")])]
+    return [Command(["amb-compare", "--multilevel", "--robustness", "--out", str(work / "run")])]
 
 
 def _compare_report(outs: list[Output], work: Path) -> list[str]:
     path = work / "run" / "comparison.json"
     doc = parse_compare(path.read_text() if path.is_file() else "")
     lines = [
-        "Controllers x scenarios (`amb-compare --multilevel`; rows and metrics defined in "
+        "Controllers x scenarios (`amb-compare --multilevel --robustness`; rows and metrics "
+        "defined in "
         "`amb-compare`'s documentation). Peaks and residuals at the inner sensors, forces per "
         f"bearing axis (limit {_num(doc.get('force_limit'), 'g')} N).",
     ]
@@ -390,8 +391,19 @@ def _compare_report(outs: list[Output], work: Path) -> list[str]:
         )
         for name, why in doc.get("limits_unavailable", {}).get(key, {}).items():
             lines += ["", f"No {name} row: {why}."]
+    robust = doc.get("robustness")
+    if robust:
+        cases = list(next(iter(robust.values())))
+        lines += ["", "Robustness (first-critical mass loss), peak after the fault (µm):", ""]
+        lines += table(
+            ["row", *cases],
+            [
+                [n, *(_num(rows[c]["peak"], ".1f", 1e6) for c in cases)]
+                for n, rows in robust.items()
+            ],
+        )
     lines += compare_targets.markdown(
-        compare_targets.checks(doc["table"], None, doc.get("limits_unavailable")), level=3
+        compare_targets.checks(doc["table"], robust, doc.get("limits_unavailable")), level=3
     )
     lines += ["", "Time for one command (controller step + synthesis + force limit):", ""]
     lines += table(
