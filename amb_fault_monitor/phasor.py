@@ -42,6 +42,11 @@ from amb_fault_monitor.features import normalise
 __all__ = ["SynchronousLevel"]
 
 
+def _plane_size(p: np.ndarray) -> np.ndarray:
+    """Per plane, the size of complex phasors ``(..., 8)`` (x, y pairs): ``(..., 4)``."""
+    return np.hypot(np.abs(p[..., 0::2]), np.abs(p[..., 1::2]))
+
+
 class SynchronousLevel:
     """
     The recent 1 x phasors of the fixed frame and the settling test on them.
@@ -123,8 +128,8 @@ class SynchronousLevel:
         if len(after) < (2 * w if not final else 1):
             return ("returned" if final and len(after) == 0 else None), zero, zero
         thr = self._plane_threshold(p_ref)
-        dev = np.array([np.hypot(np.abs(d[0::2]), np.abs(d[1::2])) for d in
-                        ((p - p_ref) * mask for p in after)])  # fmt: skip
+        d = (np.array(after) - p_ref) * mask
+        dev = _plane_size(d)
         change = dev[-1]
         ratio = dev / thr
         s = ratio.max(axis=1)
@@ -134,10 +139,7 @@ class SynchronousLevel:
             return "returned", mean_last, change
         # the mean phasor of the latest revolutions: a new level moves it; a mode ringing near
         # 1 x beats against it and its change averages out (module docstring, "Coherent")
-        d_mean = np.mean([(p - p_ref) * mask for p in after[-w:]], axis=0)
-        coherent = bool(
-            np.any(np.hypot(np.abs(d_mean[0::2]), np.abs(d_mean[1::2])) / thr >= cfg.sync_change)
-        )
+        coherent = bool(np.any(_plane_size(d[-w:].mean(axis=0)) / thr >= cfg.sync_change))
         sustained = prev.size == 0 or last.mean() >= cfg.sustain * prev.mean()
         steady = prev.size and sustained and np.ptp(last) <= cfg.settle_spread * last.mean()
         if steady and coherent:
@@ -164,9 +166,9 @@ class SynchronousLevel:
             return False
         thr = self._plane_threshold(p_ref)
         d = (np.array(after) - p_ref) * mask
-        s = (np.hypot(np.abs(d[:, 0::2]), np.abs(d[:, 1::2])) / thr).max(axis=1)
+        s = (_plane_size(d) / thr).max(axis=1)
         return bool(np.all(s >= self.config.sync_change))
 
     def _plane_threshold(self, p_ref: np.ndarray) -> np.ndarray:
-        ref_level = np.hypot(np.abs(p_ref[0::2]), np.abs(p_ref[1::2]))
+        ref_level = _plane_size(p_ref)
         return np.maximum(self.threshold, self.config.sync_relative_floor * ref_level)
