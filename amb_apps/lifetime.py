@@ -14,10 +14,10 @@ recorder closes its bag).
 The signal follows the forking *thread*: start children from a thread that lives as long as
 they should (``amb-run`` and the test harness use the main thread).
 
-The parent's side (:func:`catch_stop_signals`): SIGTERM (what ``kill``, ``timeout``, systemd and
+The parent's side (:class:`StopSignals`): SIGTERM (what ``kill``, ``timeout``, systemd and
 container runtimes send) and SIGHUP (the terminal closed) ended ``amb-run`` at once, by
 Python's default, without the cleanup that stops the nodes and lets the recorder write the
-last messages; under :func:`catch_stop_signals` they stop the run as Ctrl-C does, at the next
+last messages; under :class:`StopSignals` they stop the run as Ctrl-C does, at the next
 point where the run checks for them.
 """
 
@@ -79,14 +79,14 @@ def die_with_parent(
 
 
 class RunStopped(Exception):  # noqa: N818 (a request, not an error)
-    """The run was asked to stop by a signal (:func:`catch_stop_signals`)."""
+    """The run was asked to stop by a signal (:class:`StopSignals`)."""
 
     def __init__(self, signum: int) -> None:
         super().__init__(signal.Signals(signum).name)
         self.signum = signum
 
 
-#: Signals :func:`catch_stop_signals` turns into :class:`RunStopped` (SIGINT stays Python's
+#: Signals :class:`StopSignals` turns into :class:`RunStopped` (SIGINT stays Python's
 #: KeyboardInterrupt).
 STOP_SIGNALS = (signal.SIGTERM, signal.SIGHUP)
 
@@ -135,21 +135,3 @@ class StopSignals:
         for s, h in self._previous.items():
             signal.signal(s, h)
         self._previous = {}
-
-
-def catch_stop_signals(notice: Callable[[str], None] = print) -> StopSignals:
-    """Record SIGTERM and SIGHUP as a stop request until restored (:class:`StopSignals`).
-
-    Parameters
-    ----------
-    notice : callable
-        Told about a signal that comes while the run is already stopping.
-
-    Returns
-    -------
-    StopSignals
-        Its :meth:`~StopSignals.check` raises :class:`RunStopped` once a signal came, so that
-        the caller's ``finally`` stops what it started; :meth:`~StopSignals.restore` puts the
-        previous handlers back.
-    """
-    return StopSignals(notice)

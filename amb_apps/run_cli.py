@@ -78,7 +78,7 @@ import yaml
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.executors import SingleThreadedExecutor
 
-from amb_apps.lifetime import RunStopped, StopSignals, catch_stop_signals
+from amb_apps.lifetime import RunStopped, StopSignals
 from amb_apps.run_end import DRAIN_TIMEOUT, drain, plant_samples, settle_recording
 from amb_apps.run_processes import (
     NICENESS,
@@ -420,7 +420,7 @@ def run(args: argparse.Namespace) -> int:
     progress = _Progress(namespace)
     status = 0
     t0 = time.monotonic()
-    progress.stop = catch_stop_signals(lambda m: print(f"[amb-run] {m}", file=sys.stderr))
+    progress.stop = StopSignals(lambda m: print(f"[amb-run] {m}", file=sys.stderr))
     try:
         plant = next(r for r in runs if r.name == "plant_sim")
         for r in runs:

@@ -15,7 +15,7 @@ import time
 
 import pytest
 
-from amb_apps.lifetime import RunStopped, catch_stop_signals
+from amb_apps.lifetime import RunStopped, StopSignals
 
 #: A parent that starts a sleeping child (tied or not), prints the child's pid, then waits.
 PARENT = """
@@ -60,7 +60,7 @@ def test_a_killed_parent_takes_a_tied_child_with_it(tied: bool) -> None:
 def test_sigterm_is_recorded_raised_once_where_checked_then_only_noticed() -> None:
     noticed: list[str] = []
     before = {s: signal.getsignal(s) for s in (signal.SIGTERM, signal.SIGHUP)}
-    stop = catch_stop_signals(noticed.append)
+    stop = StopSignals(noticed.append)
     try:
         stop.check()  # nothing yet
         os.kill(os.getpid(), signal.SIGTERM)
