@@ -10,16 +10,15 @@ Usage (after ``source tools/env.sh``)::
 
 ``phases``: the two mass-loss scenarios of ``amb-compare`` (``--quick`` durations) with the
 fault at its own instant and moved to 0, 1/4, 1/2, 3/4 of its revolution (``amb-bound``'s
-phases); per row the peak inner |x| after the fault (um) and its ratio to the run's own
-floor, the largest inner |x| from the fault's revolution to the first sample a command can
-reach (``(m_f + i) N``), which no force changes; the revolutions after the fault until the
-inner |x| stays below 10 % of PID-only's steady 1 x amplitude at that phase, and the steady
-displacement (1 x and the rest, ``amb-compare``'s columns) against 2 % of it (issue 18's
-targets). ``--monitor`` runs the fault monitor in the
-loop (its AUX_BEARING_CONTACT makes the controller HOLD) and marks the runs it called a
-contact. ``robustness``: ``amb-compare``'s robustness cases (model gain, phase, speed), the
-early action's force path perturbed as the coefficient model
-(:func:`amb_apps.compare_runs.perturb_early_model`). ``faults``: every constant-speed
+phases); per row the peak inner |x| after the fault (um) and its ratio to the run's own floor,
+the largest inner |x| from the fault's revolution to the first sample a command can reach
+(``(m_f + i) N``), which no force changes; the revolutions after the fault until the inner |x|
+stays below 10 % of PID-only's steady 1 x amplitude at that phase, and the steady displacement
+(1 x and the rest, ``amb-compare``'s columns) against 2 % of it (issue 18's targets).
+``--monitor`` runs the fault monitor in the loop (its AUX_BEARING_CONTACT makes the controller
+HOLD) and marks the runs it called a contact. ``robustness``: ``amb-compare``'s robustness
+cases (model gain, phase, speed), the early action's force path perturbed as the coefficient
+model (:func:`amb_apps.compare_runs.perturb_early_model`). ``faults``: every constant-speed
 scenario of ``config/scenarios/faults`` with ``predictive_i1`` and ``predictive_early_i1``:
 peaks, contact samples and what the early action decided. ``speeds``: ``mass_loss_1st`` with
 the plant's speed moved by each factor (the fault at the same sample of the same revolution,

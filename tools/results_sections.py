@@ -346,9 +346,8 @@ def _compare_report(outs: list[Output], work: Path) -> list[str]:
     doc = parse_compare(path.read_text() if path.is_file() else "")
     lines = [
         "Controllers x scenarios (`amb-compare --multilevel --robustness`; rows and metrics "
-        "defined in "
-        "`amb-compare`'s documentation). Peaks and residuals at the inner sensors, forces per "
-        f"bearing axis (limit {_num(doc.get('force_limit'), 'g')} N).",
+        "defined in `amb-compare`'s documentation). Peaks and residuals at the inner sensors, "
+        f"forces per bearing axis (limit {_num(doc.get('force_limit'), 'g')} N).",
     ]
     for key, rows in doc["table"].items():
         lines += ["", f"`{key}` ({doc['speeds_hz'].get(key, float('nan')):.2f} Hz):", ""]
