@@ -124,7 +124,8 @@ def main(argv: list[str] | None = None) -> int:
     at = f"{hz[0]:.3f} Hz" if len(hz) == 1 else f"{len(hz)} speeds {hz[0]:.3f}-{hz[-1]:.3f} Hz"
     print(
         f"{path}: {at}, {spr} samples/rev, planes {', '.join(model.planes)}, "
-        f"{len(model.sensors)} sensors, clearance {model.clearance * 1e6:.0f} um "
+        f"{len(model.sensors)} sensors, clearances "
+        f"{' '.join(f'{c * 1e6:.0f}' for c in model.clearance)} um "
         f"({time.perf_counter() - t0:.1f} s)"
     )
     return 0

@@ -248,7 +248,7 @@ def early_action_model(rig, scenario, samples_per_rev: int, horizon_periods: int
         planes=names,
         sensors=tuple(range(N_SENSORS)),  # displacement's columns [x1, y1, .., x4, y4]
         objective=tuple(rig.feedback_channels),
-        clearance=min(c.radial_clearance for c in rig.clearance_bearings),
+        clearance=rig.probe_nearest_clearance,  # the sensors are the eight channels
         omega=omega,
         slew_rate=rig.amb.force_slew_rate,
         source="fe",

@@ -314,6 +314,24 @@ class Rig:
         return tuple(out)
 
     @property
+    def probe_nearest_clearance(self) -> tuple[float, ...]:
+        """
+        Per probe channel, the clearance (m) of the clearance bearing axially nearest it.
+
+        Channels in ``[x1, y1, ..., x4, y4]`` order; auxiliary bearings and retainers alike
+        (on the Bath rig 0.9 mm at the outer probes, by the retainers, and 0.75 mm at the inner
+        ones); inf where the rig has none. The room a probe's reading has before that bearing
+        is touched, give or take the shaft's slope between them: the early action's check of
+        its plans (:func:`amb_apps.plant_models.early_action_model`). :attr:`probe_clearance`
+        is the guard's: it trips on the auxiliary bearings only.
+        """
+        out: list[float] = []
+        for k in self.plane_clearance_bearings:
+            clearance = self.clearance_bearings[k - 1].radial_clearance if k else math.inf
+            out += [clearance, clearance]
+        return tuple(out)
+
+    @property
     def rigid_bodies(self) -> tuple[RigidDisk, ...]:
         """All rigid bodies on the shaft: disks, AMB cores, collars."""
         return self.disks + self.amb_cores + self.collars

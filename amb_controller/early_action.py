@@ -159,7 +159,10 @@ class Detection:
     """
     One accepted change: period of the decision, onset sample, plane, unbalance.
 
-    Also the plan's smoothing ``mu`` and its largest step per sample, N, after (E4).
+    Also the plan's smoothing ``mu`` and its largest step per sample, N, after (E4), its
+    largest predicted displacement ``predicted_peak`` (m, any sensor) and ``clearance_share``,
+    the largest over the sensors of the predicted displacement, raised by ``1 + gain_margin``,
+    over that sensor's clearance: the plan is applied (``acted``) if it is at most 1.
     """
 
     period: int
@@ -172,6 +175,7 @@ class Detection:
     first_period: int
     acted: bool = True
     predicted_peak: float = 0.0
+    clearance_share: float = 0.0
     smoothing: float = 0.0
     largest_step: float = 0.0
 
@@ -198,7 +202,9 @@ class EarlyAction:
     -----
     A plan is applied only if the displacement it predicts at every sensor (the reference
     periods' measured motion, periodic, plus the planned residual change, sample by sample),
-    raised by ``1 + gain_margin``, stays inside the model's ``clearance``. Beyond it contacts
+    raised by ``1 + gain_margin``, stays inside that sensor's ``clearance`` in the model (the
+    nearest clearance bearing's: on the Bath rig 0.9 mm by the retainers at the shaft's ends,
+    0.75 mm at the inner probes by the auxiliary bearings). Beyond it contacts
     and the magnets' nonlinearity, which the linear model does not hold, decide the motion,
     and the change is left to the feedback law (the 430 g cm losses at 29 and 67 Hz of the
     fault suite: predicted 926-1141 um; acted on anyway, the rotor is on its bearings as
@@ -220,8 +226,9 @@ class EarlyAction:
         self.config = config
         self.delay = int(delay)
         self.force_limit = float(force_limit)
-        # the plan's linear prediction, with the model's relative error, inside the clearance
-        self.safe_displacement = float(model.clearance) / (1.0 + config.gain_margin)
+        # the plan's linear prediction, with the model's relative error, inside each sensor's
+        # clearance, (n_s,) m
+        self.safe_displacement = np.array(model.clearance) / (1.0 + config.gain_margin)
         N = model.samples_per_rev
         self.N = N
         h = model.bearing_markov
@@ -366,8 +373,9 @@ class EarlyAction:
         # force taken out; k0 starts a period, so the periodic motion lines up sample by sample
         now = np.mean(list(self._y)[:R], axis=0)
         reps = -(-self.L // N)
-        predicted = float(np.max(np.abs(planned + np.tile(now, (reps, 1))[: self.L])))
-        acted = predicted <= self.safe_displacement
+        peaks = np.max(np.abs(planned + np.tile(now, (reps, 1))[: self.L]), axis=0)  # (n_s,)
+        share = float(np.max(peaks / self.safe_displacement))
+        acted = share <= 1.0
         if acted:
             self._plans.append((first, plan))
         onset = (period - 1) * N + int(k)
@@ -381,7 +389,8 @@ class EarlyAction:
             residual=float(residual),
             first_period=first,
             acted=acted,
-            predicted_peak=predicted,
+            predicted_peak=float(np.max(peaks)),
+            clearance_share=share,
             smoothing=self.last_smoothing,
             largest_step=self.last_step,
         )

@@ -52,8 +52,9 @@ def decision_message(d: Detection, active: bool) -> str:
     """The line for a decision: what was found and what the action does (``active``: ACTIVE)."""
     if not d.acted:
         what = (
-            f"left to the feedback law (predicted {d.predicted_peak * 1e6:.0f} um: too "
-            "near the clearance for the linear model)"
+            f"left to the feedback law (predicted {d.predicted_peak * 1e6:.0f} um, "
+            f"{d.clearance_share:.2f} x what the clearances allow with the model's error: too "
+            "near them for the linear model)"
         )
     elif active:
         what = (

@@ -11,10 +11,10 @@ stage uses the one nearest the measured speed, and none farther than the early a
 
 File: arrays ``bearing_markov`` and ``plane_responses`` (defined in :class:`EarlyActionModel`)
 stacked over the bank's ``K`` speeds (a leading axis), and a JSON ``meta`` (samples per
-revolution, planes, sensors, objective, clearance, slew rate (absent or null: not bounded), the
-``K`` speeds, source) in an ``.npz``,
-read with ``allow_pickle=False``; a file of format 1 (one model, no leading axis) reads as a
-bank of one. ``amb-early-model`` writes one from the FE route
+revolution, planes, sensors, objective, clearance per sensor (null: none; one number in files
+written before), slew rate (absent or null: not bounded), the ``K`` speeds, source) in an
+``.npz``, read with ``allow_pickle=False``; a file of format 1 (one model, no leading axis)
+reads as a bank of one. ``amb-early-model`` writes one from the FE route
 (:func:`amb_apps.plant_models.early_action_model`); the ``wavelet_controller`` node reads it
 (parameter ``early_model_file``).
 """
@@ -59,8 +59,11 @@ class EarlyActionModel:
         the estimate and the clearance check use them all.
     objective : tuple of int
         Positions in ``sensors`` whose displacement the plan minimises (E2-E3); empty: all.
-    clearance : float
-        The rig's smallest auxiliary-bearing or retainer clearance, m (the plan's check).
+    clearance : float or sequence of float
+        Per sensor (``n_s``, in ``sensors`` order), the room its reading has before the rotor
+        touches the clearance bearing nearest it, m (the plan's check; on the FE route
+        :attr:`amb_common.rig.Rig.probe_nearest_clearance`); one number: the same at every
+        sensor. Stored as a tuple of ``n_s``; a file of one number reads so.
     omega : float
         Running speed the responses are for, rad/s.
     slew_rate : float
@@ -78,7 +81,7 @@ class EarlyActionModel:
     planes: tuple[str, ...]
     sensors: tuple[int, ...]
     objective: tuple[int, ...] = ()
-    clearance: float = math.inf
+    clearance: float | tuple[float, ...] = math.inf
     omega: float = 0.0
     slew_rate: float = math.inf
     source: str = "fe"
@@ -106,6 +109,12 @@ class EarlyActionModel:
                 f"need L >= 2 N and L_p >= L + 2 N (N = {n}), got L = {h.shape[0]}, "
                 f"L_p = {g.shape[1]}"
             )
+        if np.ndim(self.clearance) > 1 or np.size(self.clearance) not in (1, h.shape[1]):
+            raise ShapeError(f"clearance: one or {h.shape[1]} values, got {self.clearance}")
+        clearance = np.broadcast_to(np.asarray(self.clearance, dtype=float), (h.shape[1],))
+        if not np.all(clearance > 0.0):
+            raise ControllerValueError(f"clearances must be > 0 m (inf: none), got {clearance}")
+        object.__setattr__(self, "clearance", tuple(float(c) for c in clearance))
         if not self.slew_rate > 0.0:
             raise ControllerValueError(f"slew_rate must be > 0 N/s, got {self.slew_rate}")
         if not (np.all(np.isfinite(h)) and np.all(np.isfinite(g))):
@@ -204,7 +213,8 @@ class EarlyModelBank:
             "planes": list(m.planes),
             "sensors": [int(i) for i in m.sensors],
             "objective": [int(i) for i in m.objective],
-            "clearance": float(m.clearance),
+            # JSON has no inf: null (no clearance bearing by that sensor)
+            "clearance": [c if math.isfinite(c) else None for c in m.clearance],
             "slew_rate": float(m.slew_rate) if math.isfinite(m.slew_rate) else None,
             "omegas": [float(x.omega) for x in self.models],
             "source": m.source,
@@ -235,6 +245,10 @@ class EarlyModelBank:
         # files written before the slew bound have none: not bounded
         slew = meta.get("slew_rate")
         slew = math.inf if slew is None else float(slew)
+        # one number in files written before the per-sensor clearances
+        clearance = meta["clearance"]
+        if isinstance(clearance, list):
+            clearance = tuple(math.inf if c is None else float(c) for c in clearance)
         if h.shape[0] != len(omegas) or g.shape[0] != len(omegas):
             raise ShapeError(
                 f"{path}: {len(omegas)} speeds for {h.shape[0]} / {g.shape[0]} responses"
@@ -248,7 +262,7 @@ class EarlyModelBank:
                     planes=tuple(meta["planes"]),
                     sensors=tuple(meta["sensors"]),
                     objective=tuple(meta["objective"]),
-                    clearance=meta["clearance"],
+                    clearance=clearance,
                     omega=omegas[k],
                     slew_rate=slew,
                     source=meta["source"],

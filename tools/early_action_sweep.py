@@ -121,7 +121,7 @@ def faults(matrix: Matrix) -> None:
         said = "; ".join(
             f"period {d.period} {d.plane} {d.me * 1e5:.0f} g cm "
             + ("acted" + _plan_note(d) if d.acted else
-               f"stood down ({d.predicted_peak * 1e6:.0f} um)")
+               f"stood down ({d.predicted_peak * 1e6:.0f} um, {d.clearance_share:.2f} x)")
             for d in dets
         )  # fmt: skip
         print(

@@ -25,6 +25,7 @@ from amb_controller.selection import controller_guard
 from amb_plant_sim.scenario import load_scenario
 
 AUX = 750.0e-6  # m, auxiliary bearings AB1, AB2 (rig.yaml clearance_bearings)
+RETAINER = 900.0e-6  # m, bronze retainers R1, R2 (the same)
 
 
 def test_the_inner_probes_take_the_clearance_of_the_auxiliary_bearing_next_to_them():
@@ -32,6 +33,13 @@ def test_the_inner_probes_take_the_clearance_of_the_auxiliary_bearing_next_to_th
     # 0.5819), S4 at 0 (R2)
     expected = (math.inf,) * 2 + (AUX,) * 4 + (math.inf,) * 2
     np.testing.assert_allclose(load_rig().probe_clearance, expected, rtol=1e-12)
+
+
+def test_the_outer_probes_read_against_the_retainers_next_to_them():
+    """The early action's check (every clearance bearing, the retainers too): S1 and S4 at the
+    shaft's ends by the bronze retainers, 0.9 mm (rig.yaml clearance_bearings)."""
+    expected = (RETAINER,) * 2 + (AUX,) * 4 + (RETAINER,) * 2
+    np.testing.assert_allclose(load_rig().probe_nearest_clearance, expected, rtol=1e-12)
 
 
 def test_the_guard_trips_at_a_probe_s_own_clearance_only():

@@ -165,6 +165,33 @@ def test_the_plan_stands_down_when_it_would_reach_the_clearance():
     assert not early.force(22).any()
 
 
+def test_each_sensor_s_prediction_is_checked_against_its_own_clearance():
+    """On the rig the outer probes read against the 0.9 mm retainers, the inner ones against the
+    0.75 mm auxiliary bearings: a plan whose largest displacement is at a sensor with room to
+    spare is applied where the smallest clearance for every sensor would refuse it."""
+    model = _synthetic_model()
+    config = EarlyActionConfig()
+    y = _measure(model, 26, 20 * N + 5, 0, np.array([0.3, -0.2]))
+    (free,) = _run(EarlyAction(model, config, delay=1), y)
+    tight = (1 + config.gain_margin) * free.predicted_peak  # the largest sensor's share is 1
+    shares = [
+        _run(EarlyAction(replace(model, clearance=c), config, delay=1), y)[0].clearance_share
+        for c in ((tight, math.inf), (math.inf, tight))
+    ]
+    largest = int(np.argmax(shares))
+    other = 1 - largest
+    ratio = shares[other]  # the other sensor's predicted peak over the largest one's
+    assert shares[largest] == pytest.approx(1.0, rel=1e-9) and ratio < 0.95, shares
+    per_sensor = [0.0, 0.0]
+    per_sensor[largest] = 1.05 * tight
+    per_sensor[other] = 0.5 * (1.0 + ratio) * tight  # between that sensor's need and `tight`
+    (found,) = _run(EarlyAction(replace(model, clearance=tuple(per_sensor)), config, delay=1), y)
+    expected = max(1 / 1.05, 2 * ratio / (1 + ratio))  # each sensor's peak over its clearance
+    assert found.acted and found.clearance_share == pytest.approx(expected, rel=1e-9)
+    (one,) = _run(EarlyAction(replace(model, clearance=min(per_sensor)), config, delay=1), y)
+    assert not one.acted and one.clearance_share > 1.0
+
+
 def test_the_clearance_check_reads_the_measured_motion_not_the_forceless_reference():
     """A feedback force that cancels a large steady unbalance is no motion of the rotor.
 
@@ -332,7 +359,14 @@ def test_the_bank_keeps_its_models_through_its_file_and_reads_a_single_model(tmp
         plane_responses=model.plane_responses,
     )  # fmt: skip
     (one,) = EarlyModelBank.load(old).models
-    assert one.omega == 42.0 and one.clearance == 1e-3 and math.isinf(one.slew_rate)
+    assert one.omega == 42.0 and one.clearance == (1e-3, 1e-3) and math.isinf(one.slew_rate)
+    # per sensor, none by the second (inf, null in the file's JSON)
+    apart = replace(model, clearance=(8e-4, math.inf))
+    assert EarlyActionModel.load(apart.save(tmp_path / "apart.npz")).clearance == (8e-4, math.inf)
+    with pytest.raises(ShapeError, match="clearance"):
+        replace(model, clearance=(1e-3, 1e-3, 1e-3))
+    with pytest.raises(ControllerValueError, match="clearances must be > 0"):
+        replace(model, clearance=(1e-3, 0.0))
     assert EarlyActionModel.load(old).omega == 42.0
     with pytest.raises(ControllerValueError, match="a bank of 3"):
         EarlyActionModel.load(tmp_path / "bank.npz")
