@@ -148,7 +148,7 @@ import numpy as np
 
 from amb_controller.early_config import EarlyActionConfig
 from amb_controller.early_model import EarlyActionModel
-from amb_controller.early_plan import Plan, PlanMaker, block_toeplitz
+from amb_controller.early_plan import Plan, PlanMaker, block_toeplitz, periodic
 from amb_controller.errors import ControllerValueError, ShapeError
 
 __all__ = ["Detection", "EarlyAction", "EarlyActionConfig"]
@@ -372,8 +372,7 @@ class EarlyAction:
         # pipeline while the plan acts, ``hold_law``), not of ``ref``: ``z`` has the law's
         # force taken out; k0 starts a period, so the periodic motion lines up sample by sample
         now = np.mean(list(self._y)[:R], axis=0)
-        reps = -(-self.L // N)
-        peaks = np.max(np.abs(planned + np.tile(now, (reps, 1))[: self.L]), axis=0)  # (n_s,)
+        peaks = np.max(np.abs(planned + periodic(now, self.L)), axis=0)  # (n_s,)
         share = float(np.max(peaks / self.safe_displacement))
         acted = share <= 1.0
         if acted:

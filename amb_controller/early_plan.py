@@ -18,7 +18,7 @@ import numpy as np
 from amb_controller.early_config import EarlyActionConfig
 from amb_controller.early_model import EarlyActionModel
 
-__all__ = ["Plan", "PlanMaker", "block_toeplitz", "step_limit"]
+__all__ = ["Plan", "PlanMaker", "block_toeplitz", "periodic", "step_limit"]
 
 
 @dataclass
@@ -58,6 +58,11 @@ def block_toeplitz(h: np.ndarray, n_in: int, n_out: int) -> np.ndarray:
     return t.reshape(n_out * n_s, n_in * n_a)
 
 
+def periodic(period: np.ndarray, span: int) -> np.ndarray:
+    """``period`` (one period of samples along axis 0) repeated over ``span`` samples (a copy)."""
+    return np.tile(period, (-(-span // period.shape[0]), *(1,) * (period.ndim - 1)))[:span]
+
+
 def _smoothing_ladder(first: float) -> tuple[float, ...]:
     """The smoothings (E3) tried in turn when a plan steps faster than the amplifiers can."""
     return (first, *(mu for mu in (0.25, 0.5, 1.0, 2.0, 4.0, 8.0, 16.0) if mu > first))
@@ -69,10 +74,8 @@ def _largest_step(steady: np.ndarray, transient: np.ndarray) -> float:
     ``steady`` ``(N, 4)`` repeats every period; ``transient`` ``(M, 4)`` adds to its first
     ``M`` samples; a period more than ``M`` covers the steady force's own steps.
     """
-    n = steady.shape[0]
     m = transient.shape[0]
-    span = m + n
-    force = np.tile(steady, (-(-span // n), 1))[:span]
+    force = periodic(steady, m + steady.shape[0])
     force[:m] += transient
     return float(np.max(np.abs(np.diff(force, axis=0, prepend=0.0))))
 
@@ -172,8 +175,7 @@ class PlanMaker:
             free = (yd + self._c @ w_full)[self._obj]
             pulled = self._scale * (self._ho_t @ free.astype(np.float32)).astype(float)
             # the steady force's own steps: switched on at k0, then sample to sample
-            reps = -(-(self.M + 1) // N)
-            tiled = np.concatenate([np.zeros((1, 4)), np.tile(steady, (reps, 1))[: self.M + 1]])
+            tiled = np.concatenate([np.zeros((1, 4)), periodic(steady, self.M + 1)])
             jumps = np.diff(tiled, axis=0).ravel()
             budget = self.config.force_budget * force_limit
             room = max(budget - float(np.max(np.abs(steady))), 0.0)
