@@ -305,13 +305,7 @@ class Rig:
         auxiliary bearings inside the magnets, 0.75 mm). Probes nearest a retainer (the outer
         ones, at the shaft's ends) or with no clearance bearing take inf.
         """
-        out: list[float] = []
-        for k in self.plane_clearance_bearings:
-            nearest = self.clearance_bearings[k - 1] if k else None
-            auxiliary = nearest is not None and nearest.kind == "auxiliary"
-            clearance = nearest.radial_clearance if auxiliary else math.inf
-            out += [clearance, clearance]
-        return tuple(out)
+        return self._probe_clearances(kinds=("auxiliary",))
 
     @property
     def probe_nearest_clearance(self) -> tuple[float, ...]:
@@ -325,9 +319,18 @@ class Rig:
         its plans (:func:`amb_apps.plant_models.early_action_model`). :attr:`probe_clearance`
         is the guard's: it trips on the auxiliary bearings only.
         """
+        return self._probe_clearances(kinds=None)
+
+    def _probe_clearances(self, kinds: tuple[str, ...] | None) -> tuple[float, ...]:
+        """Per probe channel, the nearest clearance bearing's clearance, m.
+
+        inf where the rig has none or its kind is not one of ``kinds`` (None: any kind).
+        """
         out: list[float] = []
         for k in self.plane_clearance_bearings:
-            clearance = self.clearance_bearings[k - 1].radial_clearance if k else math.inf
+            nearest = self.clearance_bearings[k - 1] if k else None
+            counted = nearest is not None and (kinds is None or nearest.kind in kinds)
+            clearance = nearest.radial_clearance if counted else math.inf
             out += [clearance, clearance]
         return tuple(out)
 
