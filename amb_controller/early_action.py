@@ -276,9 +276,11 @@ class EarlyAction:
         """Forget the history, the plan and the detections (e.g. after a gap or a restart)."""
         n_hist = self._n_hist
         self._forces: deque[np.ndarray] = deque([np.zeros(self.N * 4)] * n_hist, maxlen=n_hist)
-        self._z: deque[np.ndarray] = deque(maxlen=self.config.reference_periods + 2)
-        # those periods' measured displacements, (N, n_s) m each (the clearance check)
-        self._y: deque[np.ndarray] = deque(maxlen=self.config.reference_periods + 2)
+        # the newest periods: reference ``z`` (N n_s,) and measured displacement (N, n_s), m
+        # (the test reads the first, the clearance check the second)
+        self._periods: deque[tuple[np.ndarray, np.ndarray]] = deque(
+            maxlen=self.config.reference_periods + 2
+        )
         self._quiet = 0
         self._history_periods = 0
         self._noise2: float | None = None
@@ -329,13 +331,12 @@ class EarlyAction:
         self._forces.appendleft(f.ravel())
         applied = np.concatenate(self._forces).astype(np.float32)
         z = y.ravel() - (self._t @ applied).astype(float)
-        self._z.append(z)
-        self._y.append(y.copy())
+        self._periods.append((z, y.copy()))
         self._history_periods += 1
         R = self.config.reference_periods
-        if len(self._z) < R + 2 or self._history_periods < self._n_hist:
+        if len(self._periods) < R + 2 or self._history_periods < self._n_hist:
             return None
-        zs = list(self._z)
+        zs = [z for z, _ in self._periods]
         ref = np.mean(zs[:R], axis=0)
         if not self.armed:
             self._update_quiet(zs, ref)
@@ -371,7 +372,7 @@ class EarlyAction:
         # on top of what the rotor does now, the feedback law's force included (held by the
         # pipeline while the plan acts, ``hold_law``), not of ``ref``: ``z`` has the law's
         # force taken out; k0 starts a period, so the periodic motion lines up sample by sample
-        now = np.mean(list(self._y)[:R], axis=0)
+        now = np.mean([y for _, y in list(self._periods)[:R]], axis=0)
         peaks = np.max(np.abs(planned + periodic(now, self.L)), axis=0)  # (n_s,)
         share = float(np.max(peaks / self.safe_displacement))
         acted = share <= 1.0
@@ -395,8 +396,7 @@ class EarlyAction:
         )
         self.detections.append(det)
         self._quiet = 0  # a new reference after the change
-        self._z.clear()
-        self._y.clear()
+        self._periods.clear()
         return det
 
     def _update_quiet(self, zs: list[np.ndarray], ref: np.ndarray) -> None:
@@ -411,8 +411,7 @@ class EarlyAction:
             self._noise2 = max(self.config.min_noise**2, float(np.median(self._quiet_values)))
         else:
             self._quiet = 0
-            self._z.clear()
-            self._y.clear()
+            self._periods.clear()
 
     def _plan(
         self, p: int, k: int, theta: np.ndarray, period: int, first: int
